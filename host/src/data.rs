@@ -1,0 +1,52 @@
+//! In-memory measured logs: uniformly sampled input and output channels.
+use std::path::PathBuf;
+
+/// One named, uniformly sampled signal.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Channel {
+    /// Column or variable name it came from.
+    pub name: String,
+    /// Samples, in the signal's physical units.
+    pub data: Vec<f64>,
+}
+
+/// One experiment: input and output channels sharing one sample time.
+///
+/// Invariants (established by the readers in [`crate::io`]): every channel has the same length
+/// `len() >= 1`, all samples are finite, `ts > 0`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Log {
+    /// Where it came from (file path); used in every error and report.
+    pub path: PathBuf,
+    /// Sample time in seconds.
+    pub ts: f64,
+    /// Input channels (u), at least one.
+    pub inputs: Vec<Channel>,
+    /// Output channels (y), at least one.
+    pub outputs: Vec<Channel>,
+    /// Non-fatal findings made while reading (e.g. suspected clipping), human-readable.
+    pub warnings: Vec<String>,
+}
+
+impl Log {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.inputs.first().map_or(0, |c| c.data.len())
+    }
+    /// True when the log holds no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Sample rate in Hz.
+    pub fn fs(&self) -> f64 {
+        1.0 / self.ts
+    }
+    /// First input channel's samples (SISO convenience).
+    pub fn u(&self) -> &[f64] {
+        &self.inputs[0].data
+    }
+    /// First output channel's samples (SISO convenience).
+    pub fn y(&self) -> &[f64] {
+        &self.outputs[0].data
+    }
+}

@@ -1,0 +1,21 @@
+//! ferrosid: system identification with receipts.
+//!
+//! From raw input/output logs to a verified model and the evidence of where it holds:
+//! ingestion ([`io`]), preprocessing ([`preprocess`]), Welch H1 frequency response with
+//! coherence gating ([`spectral`]), LTI models and their algebra ([`lti`]), N4SID subspace
+//! identification ([`n4sid`]) and validation ([`validate`]).
+//!
+//! Units: time in seconds, frequency in Hz unless a name says `_rad_s`. All numerics are f64.
+#![forbid(unsafe_code)]
+
+pub mod data;
+pub mod error;
+pub mod io;
+pub mod lti;
+pub mod n4sid;
+pub mod preprocess;
+pub mod spectral;
+pub mod validate;
+
+pub use data::{Channel, Log};
+pub use error::{Error, Result};
