@@ -1,0 +1,53 @@
+//! The `ferrosid` command line. Each subcommand lives in its own module and exposes
+//! `pub struct Args` (clap `Args`) and `pub fn run(args: &Args) -> Result<ExitCode, Error>`.
+//!
+//! Exit codes (documented in `ferrosid --help` and README.md):
+//! * 0 — success (and, for commands that check receipts, every receipt passed);
+//! * 1 — the command ran but a check failed (a receipt, a gate, a verdict the caller asked to enforce);
+//! * 2 — usage error (bad flags; produced by clap);
+//! * 3 — input data error (unreadable or invalid log, named with file and line);
+//! * 4 — numerical failure (ill-conditioned or unstable fit that could not be trusted).
+use crate::Error;
+use clap::{Parser, Subcommand};
+
+/// Exit status of a command that ran to completion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExitCode {
+    /// Everything passed.
+    Ok = 0,
+    /// A check (receipt, gate) failed.
+    CheckFailed = 1,
+}
+
+/// Top-level parser.
+#[derive(Debug, Parser)]
+#[command(
+    name = "ferrosid",
+    version,
+    about = "System identification with receipts: from raw logs to a verified plant model",
+    after_help = "Exit codes: 0 success, 1 a check/receipt failed, 2 usage error, \
+                  3 input data error, 4 numerical failure."
+)]
+pub struct Cli {
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// All subcommands. Each variant wraps its module's `Args`.
+#[derive(Debug, Subcommand)]
+pub enum Command {}
+
+/// Maps an error to the documented process exit code.
+pub fn exit_code_for(err: &Error) -> i32 {
+    match err {
+        Error::Io { .. } | Error::Parse { .. } | Error::MatVar { .. } | Error::Data { .. } => 3,
+        Error::InvalidArgument(_) => 2,
+        Error::Numerical(_) => 4,
+    }
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: &Cli) -> Result<ExitCode, Error> {
+    match cli.command {}
+}
