@@ -6,4 +6,19 @@
 //! * No panic is reachable from any input: invalid configurations are rejected by constructors
 //!   returning `Result`, and non-finite samples are counted and quarantined, never propagated.
 //! * Hardware-free: everything here builds and is tested on the host with `cargo test`.
+//!
+//! Modules: [`excitation`] (PRBS, chirp, multisine), [`welch`] (streaming cross/auto spectra,
+//! H1, coherence, [`CoherenceGate`]), [`window`] (flash window tables), [`trig`] (const and fast
+//! sine), [`fft`] (microfft dispatch), [`rng`] (seeded SplitMix64), [`Error`].
 #![cfg_attr(not(test), no_std)]
+
+mod error;
+pub mod excitation;
+pub mod fft;
+pub mod rng;
+pub mod trig;
+pub mod window;
+
+pub use error::Error;
+pub use excitation::Excitation;
+pub use window::Window;
