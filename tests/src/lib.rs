@@ -1,1 +1,462 @@
 //! Helpers shared by the end-to-end tests (building QEMU images, running them, decoding output).
+//!
+//! The firmware images live in `tests/qemu` (crate `ferrosid-qemu`, excluded from the host
+//! workspace). [`build_images`] builds them for `thumbv7em-none-eabihf` with a dedicated target
+//! directory (`<repo>/target/qemu`), so the nested cargo never waits on the lock that the outer
+//! `cargo test` holds on the workspace target directory. [`run_qemu`] runs one image on
+//! `qemu-system-arm -machine mps2-an386 -cpu cortex-m4` under `timeout`, and [`decode_defmt`]
+//! turns the binary defmt frames the image wrote to semihosting stdout into text lines, in
+//! process, with `defmt-decoder` and the table embedded in the image's ELF.
+//!
+//! Every failure is an [`Error`] naming what went wrong and what to do; missing tools point at
+//! `scripts/setup.sh`.
+
+use std::ffi::OsString;
+use std::fmt;
+use std::io;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+/// Target triple of the firmware images (Cortex-M4F with hardware floating point).
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// Errors of the QEMU harness.
+#[derive(Debug)]
+pub enum Error {
+    /// A required host tool is missing; the message says how to install it.
+    ToolMissing {
+        /// Program that could not be started.
+        tool: String,
+        /// What to do about it.
+        hint: String,
+    },
+    /// Starting or talking to a child process failed.
+    Io {
+        /// What was being done.
+        context: String,
+        /// Underlying error.
+        source: io::Error,
+    },
+    /// `cargo build` of the firmware images failed.
+    Build {
+        /// Command line that failed.
+        command: String,
+        /// Cargo's stderr (tail).
+        stderr: String,
+    },
+    /// QEMU did not finish within the time limit.
+    Timeout {
+        /// Image that was running.
+        elf: PathBuf,
+        /// Limit that was exceeded.
+        limit: Duration,
+        /// Whatever the image printed on stderr.
+        stderr: String,
+    },
+    /// QEMU was killed by a signal or ended without an exit status.
+    NoExitStatus {
+        /// Image that was running.
+        elf: PathBuf,
+        /// QEMU's stderr.
+        stderr: String,
+    },
+    /// The ELF has no defmt table, or the stream holds a malformed frame.
+    Defmt {
+        /// Image whose output was decoded.
+        elf: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::ToolMissing { tool, hint } => write!(f, "`{tool}` is not available: {hint}"),
+            Error::Io { context, source } => write!(f, "{context}: {source}"),
+            Error::Build { command, stderr } => {
+                write!(f, "firmware build failed: `{command}`\n{stderr}")
+            }
+            Error::Timeout { elf, limit, stderr } => write!(
+                f,
+                "QEMU running {} did not exit within {} s (stderr: {stderr})",
+                elf.display(),
+                limit.as_secs()
+            ),
+            Error::NoExitStatus { elf, stderr } => write!(
+                f,
+                "QEMU running {} ended without an exit status (killed by a signal?); stderr: {stderr}",
+                elf.display()
+            ),
+            Error::Defmt { elf, message } => {
+                write!(f, "defmt decoding of {} failed: {message}", elf.display())
+            }
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+const SETUP_HINT: &str = "run scripts/setup.sh (installs the thumbv7em-none-eabihf target, \
+                          qemu-system-arm and llvm-size)";
+
+/// Root of the ferrosid repository (parent of this crate's directory).
+pub fn repo_root() -> PathBuf {
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest.parent().unwrap_or(manifest).to_path_buf()
+}
+
+/// Manifest of the firmware image crate.
+pub fn image_manifest() -> PathBuf {
+    repo_root().join("tests").join("qemu").join("Cargo.toml")
+}
+
+/// Target directory of the firmware image builds (`<repo>/target/qemu`), separate from the
+/// workspace target directory so the nested cargo does not wait on the outer cargo's lock.
+pub fn image_target_dir() -> PathBuf {
+    repo_root().join("target").join("qemu")
+}
+
+/// Path of the release ELF of image `bin` (after [`build_images`]).
+pub fn image_path(bin: &str) -> PathBuf {
+    image_target_dir().join(TARGET).join("release").join(bin)
+}
+
+/// Builds the release images `bins` of `tests/qemu` for [`TARGET`] with `DEFMT_LOG=info` and
+/// returns their ELF paths in the same order.
+///
+/// Environment that the outer cargo or the user may have set for host builds (target dir,
+/// build target, rustflags) is removed so it cannot leak into the firmware build.
+pub fn build_images(bins: &[&str]) -> Result<Vec<PathBuf>, Error> {
+    let cargo: OsString = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut cmd = Command::new(&cargo);
+    cmd.arg("build")
+        .arg("--release")
+        .arg("--target")
+        .arg(TARGET)
+        .arg("--manifest-path")
+        .arg(image_manifest());
+    for bin in bins {
+        cmd.arg("--bin").arg(bin);
+    }
+    for var in [
+        "CARGO_BUILD_TARGET",
+        "CARGO_BUILD_RUSTFLAGS",
+        "RUSTFLAGS",
+        "CARGO_ENCODED_RUSTFLAGS",
+        "CARGO_TARGET_DIR",
+        "CARGO_BUILD_TARGET_DIR",
+    ] {
+        cmd.env_remove(var);
+    }
+    cmd.env("CARGO_TARGET_DIR", image_target_dir())
+        .env("DEFMT_LOG", "info")
+        .stdin(Stdio::null());
+    let command = format!("{cmd:?}");
+    let out = cmd.output().map_err(|source| match source.kind() {
+        io::ErrorKind::NotFound => Error::ToolMissing {
+            tool: cargo.to_string_lossy().into_owned(),
+            hint: "install the Rust toolchain (rustup) first".into(),
+        },
+        _ => Error::Io {
+            context: format!("starting {command}"),
+            source,
+        },
+    })?;
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() {
+        let hint = if stderr.contains("may not be installed")
+            || stderr.contains("can't find crate for `core`")
+        {
+            format!("\nhint: the {TARGET} target is missing: {SETUP_HINT}")
+        } else {
+            String::new()
+        };
+        return Err(Error::Build {
+            command,
+            stderr: format!("{}{hint}", tail(&stderr, 60)),
+        });
+    }
+    Ok(bins.iter().map(|b| image_path(b)).collect())
+}
+
+/// Last `n` lines of `text`.
+fn tail(text: &str, n: usize) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    lines[lines.len().saturating_sub(n)..].join("\n")
+}
+
+/// How to run an image.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Words passed on the semihosting command line (after the program name `image`).
+    pub args: Vec<String>,
+    /// Run with `-icount shift=0` (one instruction per virtual nanosecond: deterministic
+    /// SysTick-based instruction counts).
+    pub icount: bool,
+    /// Wall-clock limit, enforced with coreutils `timeout` (QEMU is killed after it).
+    pub timeout: Duration,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            args: Vec::new(),
+            icount: false,
+            timeout: Duration::from_secs(120),
+        }
+    }
+}
+
+/// Result of one QEMU run that ended with an exit status.
+#[derive(Debug, Clone)]
+pub struct QemuRun {
+    /// QEMU's exit status: the image's semihosting exit code (0 pass, 1 check failed,
+    /// 101 panic), or QEMU's own error status.
+    pub exit_code: i32,
+    /// Raw semihosting stdout: binary defmt frames.
+    pub stdout: Vec<u8>,
+    /// Semihosting stderr (panic locations) and QEMU's own diagnostics.
+    pub stderr: String,
+}
+
+/// Checks that `qemu-system-arm` can be started.
+pub fn require_qemu() -> Result<(), Error> {
+    match Command::new("qemu-system-arm")
+        .arg("--version")
+        .stdin(Stdio::null())
+        .output()
+    {
+        Ok(out) if out.status.success() => Ok(()),
+        Ok(out) => Err(Error::ToolMissing {
+            tool: "qemu-system-arm".into(),
+            hint: format!(
+                "`qemu-system-arm --version` failed ({}); {SETUP_HINT}",
+                out.status
+            ),
+        }),
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Err(Error::ToolMissing {
+            tool: "qemu-system-arm".into(),
+            hint: format!("not found on PATH; {SETUP_HINT}"),
+        }),
+        Err(source) => Err(Error::Io {
+            context: "starting qemu-system-arm --version".into(),
+            source,
+        }),
+    }
+}
+
+/// Runs `elf` on `qemu-system-arm -machine mps2-an386 -cpu cortex-m4` with semihosting, under
+/// coreutils `timeout`, and returns its exit status and output. The caller checks the status.
+pub fn run_qemu(elf: &Path, opts: &RunOptions) -> Result<QemuRun, Error> {
+    require_qemu()?;
+    let mut semihosting = String::from("enable=on,target=native,arg=image");
+    for a in &opts.args {
+        // QEMU option syntax: a comma inside a value is escaped by doubling it.
+        semihosting.push_str(",arg=");
+        semihosting.push_str(&a.replace(',', ",,"));
+    }
+    let mut cmd = Command::new("timeout");
+    cmd.arg("--kill-after=5")
+        .arg(opts.timeout.as_secs().max(1).to_string())
+        .arg("qemu-system-arm")
+        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-nographic"])
+        .args(["-monitor", "none", "-serial", "none"])
+        .arg("-semihosting-config")
+        .arg(&semihosting);
+    if opts.icount {
+        cmd.args(["-icount", "shift=0"]);
+    }
+    cmd.arg("-kernel").arg(elf).stdin(Stdio::null());
+    let out = cmd.output().map_err(|source| match source.kind() {
+        io::ErrorKind::NotFound => Error::ToolMissing {
+            tool: "timeout".into(),
+            hint: "install coreutils".into(),
+        },
+        _ => Error::Io {
+            context: format!("starting {cmd:?}"),
+            source,
+        },
+    })?;
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    match out.status.code() {
+        // coreutils timeout: 124 = limit reached, 137 = had to SIGKILL after --kill-after.
+        Some(124) | Some(137) => Err(Error::Timeout {
+            elf: elf.to_path_buf(),
+            limit: opts.timeout,
+            stderr,
+        }),
+        Some(code) => Ok(QemuRun {
+            exit_code: code,
+            stdout: out.stdout,
+            stderr,
+        }),
+        None => Err(Error::NoExitStatus {
+            elf: elf.to_path_buf(),
+            stderr,
+        }),
+    }
+}
+
+/// One decoded defmt log line.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LogLine {
+    /// Log level (`"INFO"`, `"ERROR"`, ...), `None` for `defmt::println!`.
+    pub level: Option<String>,
+    /// Formatted message.
+    pub text: String,
+}
+
+impl fmt::Display for LogLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.level {
+            Some(l) => write!(f, "{l:<5} {}", self.text),
+            None => f.write_str(&self.text),
+        }
+    }
+}
+
+/// Decodes the defmt frames in `stdout` with the table of `elf`. A frame cut off at the end of
+/// the stream (image stopped mid-frame) is ignored; a malformed frame is an error.
+pub fn decode_defmt(elf: &Path, stdout: &[u8]) -> Result<Vec<LogLine>, Error> {
+    let bytes = std::fs::read(elf).map_err(|source| Error::Io {
+        context: format!("reading {}", elf.display()),
+        source,
+    })?;
+    let defmt_err = |message: String| Error::Defmt {
+        elf: elf.to_path_buf(),
+        message,
+    };
+    let table = defmt_decoder::Table::parse(&bytes)
+        .map_err(|e| defmt_err(format!("cannot read the defmt table: {e}")))?
+        .ok_or_else(|| defmt_err("the ELF has no .defmt section".into()))?;
+    let mut decoder = table.new_stream_decoder();
+    decoder.received(stdout);
+    let mut lines = Vec::new();
+    loop {
+        match decoder.decode() {
+            Ok(frame) => lines.push(LogLine {
+                level: frame.level().map(|l| l.as_str().to_uppercase()),
+                text: frame.display_message().to_string(),
+            }),
+            Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
+            Err(defmt_decoder::DecodeError::Malformed) => {
+                return Err(defmt_err(format!(
+                    "malformed frame after {} decoded lines (last: {:?})",
+                    lines.len(),
+                    lines.last().map(|l: &LogLine| l.text.clone())
+                )))
+            }
+        }
+    }
+    Ok(lines)
+}
+
+/// Builds image `bin`, runs it and decodes its log: the common path of the tests.
+pub fn build_run_decode(bin: &str, opts: &RunOptions) -> Result<(QemuRun, Vec<LogLine>), Error> {
+    require_qemu()?;
+    let elf = build_images(&[bin])?.remove(0);
+    let run = run_qemu(&elf, opts)?;
+    let lines = decode_defmt(&elf, &run.stdout)?;
+    Ok((run, lines))
+}
+
+/// Sizes of an ELF's allocated sections as `llvm-size -A` reports them, in bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ImageSize {
+    /// Code and read-only data in flash: `.vector_table`, `.text`, `.rodata`.
+    pub text: u64,
+    /// Initialised statics: stored in flash, copied to RAM at reset.
+    pub data: u64,
+    /// Zero-initialised (`.bss`) and uninitialised (`.uninit`) statics in RAM.
+    pub bss: u64,
+}
+
+impl ImageSize {
+    /// Flash use: `text + data`.
+    pub fn flash(&self) -> u64 {
+        self.text + self.data
+    }
+    /// Static RAM use: `data + bss` (the stack, which cortex-m-rt places at the top of RAM
+    /// outside any section, is not included).
+    pub fn ram(&self) -> u64 {
+        self.data + self.bss
+    }
+}
+
+/// Measures `elf` with `llvm-size -A` (SysV format: one line per section).
+pub fn image_size(elf: &Path) -> Result<ImageSize, Error> {
+    let out = Command::new("llvm-size")
+        .arg("-A")
+        .arg(elf)
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|source| match source.kind() {
+            io::ErrorKind::NotFound => Error::ToolMissing {
+                tool: "llvm-size".into(),
+                hint: format!("not found on PATH; {SETUP_HINT}"),
+            },
+            _ => Error::Io {
+                context: "starting llvm-size".into(),
+                source,
+            },
+        })?;
+    if !out.status.success() {
+        return Err(Error::Build {
+            command: format!("llvm-size -A {}", elf.display()),
+            stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        });
+    }
+    Ok(parse_size_sysv(&String::from_utf8_lossy(&out.stdout)))
+}
+
+/// Parses `llvm-size -A` output: `.vector_table`, `.text`, `.rodata` count as text; `.data` as
+/// data; `.bss` and `.uninit` as bss. Debug and defmt (non-allocated) sections are ignored.
+pub fn parse_size_sysv(text: &str) -> ImageSize {
+    let mut size = ImageSize::default();
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        let (Some(name), Some(bytes)) = (it.next(), it.next()) else {
+            continue;
+        };
+        let Ok(bytes) = bytes.parse::<u64>() else {
+            continue;
+        };
+        match name {
+            ".vector_table" | ".text" | ".rodata" => size.text += bytes,
+            ".data" => size.data += bytes,
+            ".bss" | ".uninit" => size.bss += bytes,
+            _ => {}
+        }
+    }
+    size
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sysv_size_sums_sections() {
+        let text = "selftest  :\nsection            size        addr\n.vector_table       1024           0\n\
+                    .text              20000        1024\n.rodata             3000       21024\n\
+                    .data                 16   536870912\n.gnu.sgstubs           0       24040\n\
+                    .bss               25000   536870928\n.uninit                0   536895928\n\
+                    .defmt                 6           0\n.debug_info       100000           0\n\
+                    Total             149046\n";
+        let s = parse_size_sysv(text);
+        assert_eq!(s.text, 24024);
+        assert_eq!(s.data, 16);
+        assert_eq!(s.bss, 25000);
+        assert_eq!(s.flash(), 24040);
+        assert_eq!(s.ram(), 25016);
+    }
+}

@@ -1,0 +1,181 @@
+//! `ferrosid-qemu`: build, run and measure the firmware images of `tests/qemu` under QEMU.
+//!
+//! ```text
+//! ferrosid-qemu run [--icount] [--timeout SECS] IMAGE [ARG...]   build, run, print decoded log;
+//!                                                                exits with the image's code
+//! ferrosid-qemu size IMAGE                                       llvm-size figures of IMAGE
+//! ferrosid-qemu report                                           bench (-icount) + sizeprobe:
+//!                                                                markdown table for README.md
+//! ```
+//! Used by `scripts/bench-firmware.sh`.
+
+use std::process::ExitCode;
+use std::time::Duration;
+
+use ferrosid_tests::{build_images, decode_defmt, image_size, run_qemu, Error, RunOptions};
+
+/// Welch segment length whose figures the issue's bars refer to.
+const BAR_N: u64 = 1024;
+/// Bar: instructions per input sample of `Welch::push` at N = 1024.
+const BAR_INSTR_PER_SAMPLE: f64 = 300.0;
+/// Bar: static RAM (data + bss) in bytes = 24 N + 2 KiB at N = 1024.
+const BAR_RAM: u64 = 24 * BAR_N + 2048;
+/// Bar: flash (text + data) in bytes.
+const BAR_FLASH: u64 = 32 * 1024;
+
+fn usage() -> ExitCode {
+    eprintln!(
+        "usage: ferrosid-qemu run [--icount] [--timeout SECS] IMAGE [ARG...]\n       \
+         ferrosid-qemu size IMAGE\n       ferrosid-qemu report"
+    );
+    ExitCode::from(2)
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("run") => cmd_run(&args[1..]),
+        Some("size") if args.len() == 2 => cmd_size(&args[1]),
+        Some("report") if args.len() == 1 => cmd_report(),
+        _ => return usage(),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn cmd_run(args: &[String]) -> Result<ExitCode, Error> {
+    let mut opts = RunOptions::default();
+    let mut rest = args.iter();
+    let mut image = None;
+    while let Some(a) = rest.next() {
+        match a.as_str() {
+            "--icount" => opts.icount = true,
+            "--timeout" => match rest.next().and_then(|s| s.parse::<u64>().ok()) {
+                Some(s) => opts.timeout = Duration::from_secs(s),
+                None => return Ok(usage()),
+            },
+            _ => {
+                image = Some(a.clone());
+                break;
+            }
+        }
+    }
+    let Some(image) = image else {
+        return Ok(usage());
+    };
+    opts.args = rest.cloned().collect();
+    let elf = build_images(&[&image])?.remove(0);
+    let run = run_qemu(&elf, &opts)?;
+    for line in decode_defmt(&elf, &run.stdout)? {
+        println!("{line}");
+    }
+    if !run.stderr.is_empty() {
+        eprint!("{}", run.stderr);
+    }
+    eprintln!("{image}: exit code {}", run.exit_code);
+    Ok(ExitCode::from(u8::try_from(run.exit_code).unwrap_or(255)))
+}
+
+fn cmd_size(image: &str) -> Result<ExitCode, Error> {
+    let elf = build_images(&[image])?.remove(0);
+    let s = image_size(&elf)?;
+    println!(
+        "{image}: text {} data {} bss {} => flash (text+data) {} B, static RAM (data+bss) {} B",
+        s.text,
+        s.data,
+        s.bss,
+        s.flash(),
+        s.ram()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// One `BENCH <name> <value> <unit>` line of the bench image.
+struct BenchLine {
+    name: String,
+    value: f64,
+    unit: String,
+}
+
+fn parse_bench(text: &str) -> Option<BenchLine> {
+    let mut it = text.split_whitespace();
+    if it.next()? != "BENCH" {
+        return None;
+    }
+    let name = it.next()?.to_string();
+    let value = it.next()?.parse().ok()?;
+    let unit = it.collect::<Vec<_>>().join(" ");
+    Some(BenchLine { name, value, unit })
+}
+
+fn verdict(ok: bool) -> &'static str {
+    if ok {
+        "met"
+    } else {
+        "NOT met"
+    }
+}
+
+fn cmd_report() -> Result<ExitCode, Error> {
+    let elfs = build_images(&["bench", "sizeprobe"])?;
+    let opts = RunOptions {
+        icount: true,
+        timeout: Duration::from_secs(600),
+        ..RunOptions::default()
+    };
+    let run = run_qemu(&elfs[0], &opts)?;
+    let lines = decode_defmt(&elfs[0], &run.stdout)?;
+    for l in &lines {
+        eprintln!("bench: {l}");
+    }
+    if run.exit_code != 0 {
+        eprintln!("{}", run.stderr);
+        eprintln!("bench image failed with exit code {}", run.exit_code);
+        return Ok(ExitCode::FAILURE);
+    }
+    let bench: Vec<BenchLine> = lines.iter().filter_map(|l| parse_bench(&l.text)).collect();
+    let size = image_size(&elfs[1])?;
+
+    println!("| Firmware figure (Cortex-M4F, `qemu -icount shift=0`) | Value | Bar |");
+    println!("|---|---:|---|");
+    let mut all_met = true;
+    for b in &bench {
+        let bar = if b.name == "welch_push_n1024" {
+            let ok = b.value <= BAR_INSTR_PER_SAMPLE;
+            all_met &= ok;
+            format!("<= {BAR_INSTR_PER_SAMPLE} ({})", verdict(ok))
+        } else {
+            String::new()
+        };
+        println!("| {} | {:.1} {} | {bar} |", b.name, b.value, b.unit);
+    }
+    let ram_ok = size.ram() <= BAR_RAM;
+    let flash_ok = size.flash() <= BAR_FLASH;
+    all_met &= ram_ok && flash_ok;
+    println!(
+        "| sizeprobe static RAM (data+bss), Welch<1024> | {} B | <= {BAR_RAM} B ({}) |",
+        size.ram(),
+        verdict(ram_ok)
+    );
+    println!(
+        "| sizeprobe flash (text+data) | {} B | <= {BAR_FLASH} B ({}) |",
+        size.flash(),
+        verdict(flash_ok)
+    );
+    println!(
+        "\n(sizeprobe sections: text {} B, data {} B, bss {} B; stack excluded: cortex-m-rt \
+         puts it at the top of RAM outside any section)",
+        size.text, size.data, size.bss
+    );
+    if !bench.iter().any(|b| b.name == "welch_push_n1024") {
+        eprintln!("bench printed no welch_push_n1024 figure");
+        return Ok(ExitCode::FAILURE);
+    }
+    println!("\nAll bars met: {}", if all_met { "yes" } else { "NO" });
+    Ok(ExitCode::SUCCESS)
+}
