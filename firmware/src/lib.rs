@@ -15,10 +15,14 @@
 mod error;
 pub mod excitation;
 pub mod fft;
+mod gate;
 pub mod rng;
 pub mod trig;
+pub mod welch;
 pub mod window;
 
 pub use error::Error;
 pub use excitation::Excitation;
+pub use gate::{CoherenceGate, MAX_GATE_BINS};
+pub use welch::{Welch, WelchConfig};
 pub use window::Window;

@@ -51,7 +51,7 @@ impl<const N: usize> HannTable<N> {
 impl Window {
     /// `Σ w[n]²` over one segment of length `N` (the `S2` of the density scaling
     /// `1 / (fs · S2)`): `3N/8` for Hann, `N` for rectangular.
-    pub fn sum_squares<const N: usize>(self) -> f32 {
+    pub const fn sum_squares<const N: usize>(self) -> f32 {
         match self {
             Window::Hann => HannTable::<N>::SUM_SQUARES,
             Window::Rectangular => N as f32,
