@@ -13,7 +13,27 @@
 use ferrosid_tests::{build_run_decode, LogLine, QemuRun, RunOptions};
 
 /// Every check the self-test must report, in the order it runs them.
-const EXPECTED_CHECKS: &[&str] = &["fpu_enabled"];
+const EXPECTED_CHECKS: &[&str] = &[
+    "fpu_enabled",
+    "prbs_period_and_balance",
+    "prbs_flat_spectrum",
+    "prbs_rejects_bad_config",
+    "chirp_linear_law",
+    "chirp_log_law",
+    "multisine_schroeder_spectrum",
+    "multisine_crest_beats_schroeder",
+    "welch_matches_direct_dft",
+    "welch_h1_first_order_lag",
+    "welch_h1_resonant_mode",
+    "welch_h1_periodic_exact",
+    "coherence_statistics",
+    "coherence_gate",
+    "nonfinite_quarantine",
+    "welch_bad_input",
+];
+
+/// The check whose reference `--inject-failure` corrupts.
+const INJECTED_CHECK: &str = "welch_h1_periodic_exact";
 
 /// Builds and runs the self-test with `args`, panicking with the harness error if that fails.
 fn run_selftest(args: &[&str]) -> (QemuRun, Vec<LogLine>) {
@@ -59,7 +79,10 @@ fn selftest_passes_on_cortex_m4f() {
         missing.is_empty(),
         "checks missing or not PASS: {missing:?}"
     );
-    let reported = lines.iter().filter(|l| l.text.starts_with("CHECK ")).count();
+    let reported = lines
+        .iter()
+        .filter(|l| l.text.starts_with("CHECK "))
+        .count();
     assert_eq!(
         reported,
         EXPECTED_CHECKS.len(),
@@ -84,7 +107,7 @@ fn injected_wrong_reference_makes_the_selftest_fail() {
         .copied()
         .filter(|c| verdict(&lines, c) == Some("FAIL"))
         .collect();
-    assert_eq!(failed.len(), 1, "exactly the injected check fails: {failed:?}");
+    assert_eq!(failed, [INJECTED_CHECK], "exactly the injected check fails");
     assert!(lines.iter().any(|l| l.text.starts_with("SELFTEST FAIL 1/")));
 }
 

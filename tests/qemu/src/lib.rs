@@ -18,6 +18,7 @@ use cortex_m as _;
 use defmt_semihosting as _;
 
 pub mod icount;
+pub mod reference;
 
 pub use icount::InstructionCounter;
 
