@@ -10,7 +10,7 @@ use microfft::Complex32;
 
 /// Smallest supported transform / segment length.
 pub const MIN_LEN: usize = 64;
-/// Largest supported transform / segment length (needs microfft feature `size-2048`).
+/// Largest supported transform / segment length (needs microfft feature `size-4096`).
 pub const MAX_LEN: usize = 4096;
 
 /// `true` when `n` is a supported FFT length: a power of two in `64..=4096`.
@@ -121,6 +121,43 @@ mod tests {
             };
             assert!((gr - re).abs() < 1e-3 && (gi - im).abs() < 1e-3, "k={k}");
         }
+    }
+
+    /// Every supported size against a direct f64 DFT (catches a wrong microfft feature: with
+    /// "size-2048", rfft_4096 indexes past its twiddle table and panics).
+    #[test]
+    fn rfft_every_size_matches_direct_dft() {
+        fn check<const N: usize>() {
+            let mut buf = [0.0f32; N];
+            for (n, v) in buf.iter_mut().enumerate() {
+                *v = ((n * 7919 % 1009) as f32 - 504.0) / 504.0;
+            }
+            let x: Vec<f64> = buf.iter().map(|&v| v as f64).collect();
+            let spec = rfft(&mut buf);
+            assert_eq!(spec.len(), N / 2);
+            for k in [0usize, 1, 3, N / 4 + 1, N / 2 - 1, N / 2] {
+                let (mut re, mut im) = (0.0f64, 0.0f64);
+                for (n, &v) in x.iter().enumerate() {
+                    let a = -2.0 * std::f64::consts::PI * ((k * n) % N) as f64 / N as f64;
+                    re += v * a.cos();
+                    im += v * a.sin();
+                }
+                let (gr, gi) = match k {
+                    0 => (spec[0].re as f64, 0.0),
+                    k if k == N / 2 => (spec[0].im as f64, 0.0),
+                    _ => (spec[k].re as f64, spec[k].im as f64),
+                };
+                let tol = 1e-5 * N as f64;
+                assert!((gr - re).abs() < tol && (gi - im).abs() < tol, "N={N} k={k}");
+            }
+        }
+        check::<64>();
+        check::<128>();
+        check::<256>();
+        check::<512>();
+        check::<1024>();
+        check::<2048>();
+        check::<4096>();
     }
 
     #[test]

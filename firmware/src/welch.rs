@@ -426,6 +426,9 @@ impl<const N: usize> Welch<N> {
     /// exceed the noise-only level, e.g. `P(γ̂² > t) = (1 - t)^(n_d - 1)`.
     pub fn gate(&self, threshold: f32) -> CoherenceGate {
         let mut g = CoherenceGate::empty(self.bins());
+        if self.averages == 0 {
+            return g;
+        }
         for k in 0..self.bins() {
             if self.coherence(k) >= threshold {
                 g.set(k);
