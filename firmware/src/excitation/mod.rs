@@ -17,7 +17,7 @@ pub use multisine::{
     odd_random_phase_lines, Line, Multisine, MultisineScratch, MultisineSpec, OddLineCounts,
     Phases,
 };
-pub use prbs::Prbs;
+pub use prbs::{taps as prbs_taps, Prbs, MAX_BITS as PRBS_MAX_BITS, MIN_BITS as PRBS_MIN_BITS};
 
 /// A source of excitation samples: one call per sample period `1/fs`.
 pub trait Excitation {

