@@ -1,0 +1,440 @@
+//! The unmodelled effects the gap diagnosis knows, and the primitives that realise them.
+//!
+//! Where each effect sits (the same convention for the benchmark simulator in
+//! [`crate::gap::plant`] and for the augmented models fitted by the diagnosis):
+//!
+//! | effect | parameters (units) | location |
+//! |---|---|---|
+//! | `coulomb_friction` | `level` (input units) | force node of the driven mass, opposing its velocity; sticks when the drive cannot overcome `level` |
+//! | `stiction` | `level`, `breakaway` (input units, `breakaway >= level`) | as above; a stuck mass breaks away only when the drive exceeds `breakaway`, then slides against `level` (Karnopp) |
+//! | `backlash` | `gap` (input units) | play operator on the actuator input: the input reaches the plant only after the command has taken up the play (total play `gap`, ±`gap`/2 about the last engaged value) |
+//! | `deadzone` | `width` (input units) | static dead band on the input: w = sign(u)·max(\|u\| − width/2, 0) |
+//! | `saturation` | `limit` (input units) | w = clamp(u, −limit, limit) |
+//! | `time_delay` | `seconds` | pure delay of the input |
+//! | `resonance` | `freq_hz` (Hz), `damping` (ratio) | extra mode in series with the input, ω²/(s² + 2ζωs + ω²), unit DC gain |
+//! | `quantization` | `step` (output units) | sensor rounding y = step·round(y/step) |
+//!
+//! Friction parameters are in input units: the input that balances the friction force in steady
+//! state (for a voltage-driven DC motor, friction torque × R / k_t).
+use crate::error::{Error, Result};
+use crate::lti::StateSpace;
+use faer::Mat;
+use std::fmt;
+
+/// The kinds of effect, in the order they are reported when tied.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum EffectKind {
+    /// Coulomb (sliding) friction with sticking.
+    CoulombFriction,
+    /// Static friction above the sliding level (stick-slip).
+    Stiction,
+    /// Play in the actuator command path.
+    Backlash,
+    /// Dead band around zero input.
+    Deadzone,
+    /// Input amplitude limit.
+    Saturation,
+    /// Pure input delay.
+    TimeDelay,
+    /// Unmodelled lightly damped mode.
+    Resonance,
+    /// Output quantization (sensor resolution).
+    Quantization,
+}
+
+impl EffectKind {
+    /// Every kind, in report order.
+    pub const ALL: [EffectKind; 8] = [
+        EffectKind::CoulombFriction,
+        EffectKind::Stiction,
+        EffectKind::Backlash,
+        EffectKind::Deadzone,
+        EffectKind::Saturation,
+        EffectKind::TimeDelay,
+        EffectKind::Resonance,
+        EffectKind::Quantization,
+    ];
+
+    /// The name used in reports and JSON (`coulomb_friction`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectKind::CoulombFriction => "coulomb_friction",
+            EffectKind::Stiction => "stiction",
+            EffectKind::Backlash => "backlash",
+            EffectKind::Deadzone => "deadzone",
+            EffectKind::Saturation => "saturation",
+            EffectKind::TimeDelay => "time_delay",
+            EffectKind::Resonance => "resonance",
+            EffectKind::Quantization => "quantization",
+        }
+    }
+
+    /// Parses a report name back into a kind.
+    pub fn from_name(s: &str) -> Option<Self> {
+        Self::ALL.iter().copied().find(|k| k.name() == s)
+    }
+
+    /// Number of parameters.
+    pub fn n_params(self) -> usize {
+        match self {
+            EffectKind::Stiction | EffectKind::Resonance => 2,
+            _ => 1,
+        }
+    }
+}
+
+impl fmt::Display for EffectKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One effect with its parameters (units in the module table).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Effect {
+    /// Sliding friction `level` (input units).
+    CoulombFriction {
+        /// Sliding friction, input units.
+        level: f64,
+    },
+    /// Sliding friction `level` and static (breakaway) friction, input units.
+    Stiction {
+        /// Sliding friction, input units.
+        level: f64,
+        /// Breakaway (static) friction, input units, >= level.
+        breakaway: f64,
+    },
+    /// Total play `gap` in input units.
+    Backlash {
+        /// Total play, input units.
+        gap: f64,
+    },
+    /// Full dead-band width in input units.
+    Deadzone {
+        /// Full width of the dead band, input units.
+        width: f64,
+    },
+    /// Symmetric input limit.
+    Saturation {
+        /// Largest |input| reaching the plant, input units.
+        limit: f64,
+    },
+    /// Input delay in seconds.
+    TimeDelay {
+        /// Delay in seconds.
+        seconds: f64,
+    },
+    /// Series mode at `freq_hz` (Hz, undamped natural frequency) with damping ratio `damping`.
+    Resonance {
+        /// Natural frequency, Hz.
+        freq_hz: f64,
+        /// Damping ratio (dimensionless).
+        damping: f64,
+    },
+    /// Output quantization step in output units.
+    Quantization {
+        /// Step, output units.
+        step: f64,
+    },
+}
+
+impl Effect {
+    /// Its kind.
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            Effect::CoulombFriction { .. } => EffectKind::CoulombFriction,
+            Effect::Stiction { .. } => EffectKind::Stiction,
+            Effect::Backlash { .. } => EffectKind::Backlash,
+            Effect::Deadzone { .. } => EffectKind::Deadzone,
+            Effect::Saturation { .. } => EffectKind::Saturation,
+            Effect::TimeDelay { .. } => EffectKind::TimeDelay,
+            Effect::Resonance { .. } => EffectKind::Resonance,
+            Effect::Quantization { .. } => EffectKind::Quantization,
+        }
+    }
+
+    /// Named parameters, in a fixed order.
+    pub fn params(&self) -> Vec<(&'static str, f64)> {
+        match *self {
+            Effect::CoulombFriction { level } => vec![("level", level)],
+            Effect::Stiction { level, breakaway } => {
+                vec![("level", level), ("breakaway", breakaway)]
+            }
+            Effect::Backlash { gap } => vec![("gap", gap)],
+            Effect::Deadzone { width } => vec![("width", width)],
+            Effect::Saturation { limit } => vec![("limit", limit)],
+            Effect::TimeDelay { seconds } => vec![("seconds", seconds)],
+            Effect::Resonance { freq_hz, damping } => {
+                vec![("freq_hz", freq_hz), ("damping", damping)]
+            }
+            Effect::Quantization { step } => vec![("step", step)],
+        }
+    }
+
+    /// Checks that the parameters are finite and in range (levels, widths, limits, steps > 0;
+    /// delay >= 0; breakaway >= level; 0 < damping; freq_hz > 0).
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str| Err(Error::InvalidArgument(format!("{}: {what}", self.kind())));
+        for (n, v) in self.params() {
+            if !v.is_finite() {
+                return bad(&format!("parameter {n} = {v} is not finite"));
+            }
+        }
+        match *self {
+            Effect::CoulombFriction { level } if level <= 0.0 => bad("level must be > 0"),
+            Effect::Stiction { level, breakaway } if level <= 0.0 || breakaway < level => {
+                bad("need 0 < level <= breakaway")
+            }
+            Effect::Backlash { gap } if gap <= 0.0 => bad("gap must be > 0"),
+            Effect::Deadzone { width } if width <= 0.0 => bad("width must be > 0"),
+            Effect::Saturation { limit } if limit <= 0.0 => bad("limit must be > 0"),
+            Effect::TimeDelay { seconds } if seconds < 0.0 => bad("seconds must be >= 0"),
+            Effect::Resonance { freq_hz, damping } if freq_hz <= 0.0 || damping <= 0.0 => {
+                bad("need freq_hz > 0 and damping > 0")
+            }
+            Effect::Quantization { step } if step <= 0.0 => bad("step must be > 0"),
+            _ => Ok(()),
+        }
+    }
+}
+
+impl fmt::Display for Effect {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.kind())?;
+        let p: Vec<String> = self
+            .params()
+            .iter()
+            .map(|(n, v)| format!("{n}={v:.4}"))
+            .collect();
+        write!(f, " {{{}}}", p.join(", "))
+    }
+}
+
+/// Dead band of full width `width`: sign(u)·max(|u| − width/2, 0).
+#[inline]
+pub fn deadzone(u: f64, width: f64) -> f64 {
+    let h = 0.5 * width;
+    if u > h {
+        u - h
+    } else if u < -h {
+        u + h
+    } else {
+        0.0
+    }
+}
+
+/// clamp(u, −limit, limit).
+#[inline]
+pub fn saturation(u: f64, limit: f64) -> f64 {
+    u.clamp(-limit, limit)
+}
+
+/// step·round(y/step) (ties away from zero).
+#[inline]
+pub fn quantize(y: f64, step: f64) -> f64 {
+    step * (y / step).round()
+}
+
+/// Play (backlash) operator with total play `gap`, starting engaged at 0: the output follows
+/// the input only once the input is more than `gap`/2 away from it.
+#[derive(Debug, Clone, Copy)]
+pub struct Play {
+    half: f64,
+    out: f64,
+}
+
+impl Play {
+    /// Operator with total play `gap` (>= 0) and output 0.
+    pub fn new(gap: f64) -> Self {
+        Self {
+            half: 0.5 * gap,
+            out: 0.0,
+        }
+    }
+    /// Next output for input `u`.
+    #[inline]
+    pub fn apply(&mut self, u: f64) -> f64 {
+        if u - self.out > self.half {
+            self.out = u - self.half;
+        } else if self.out - u > self.half {
+            self.out = u + self.half;
+        }
+        self.out
+    }
+}
+
+/// Karnopp-type stick-slip friction for a time-stepped model.
+///
+/// Each step the caller gives `v_trial`, the velocity the driven mass would reach at the end of
+/// the step with no friction, and `g`, the change of that velocity per unit of friction force
+/// over the step (end velocity = v_trial − g·F). The friction force F returned
+/// * holds the mass exactly at rest (end velocity 0) when the force needed, |v_trial/g|, is at
+///   most the static limit (`breakaway` while stuck, `level` while sliding);
+/// * otherwise slides: F = level·sign(v_trial/g).
+///
+/// With `breakaway == level` this is Coulomb friction with sticking, free of the chatter of an
+/// explicit sign(v) law.
+#[derive(Debug, Clone, Copy)]
+pub struct StickSlip {
+    level: f64,
+    breakaway: f64,
+    stuck: bool,
+}
+
+impl StickSlip {
+    /// Friction with sliding `level` and static `breakaway` (>= level), starting at rest.
+    pub fn new(level: f64, breakaway: f64) -> Self {
+        Self {
+            level,
+            breakaway: breakaway.max(level),
+            stuck: true,
+        }
+    }
+    /// Friction force for this step (see the type docs). Returns 0 when `g` is 0 or not finite.
+    #[inline]
+    pub fn force(&mut self, v_trial: f64, g: f64) -> f64 {
+        if g == 0.0 || !g.is_finite() || !v_trial.is_finite() {
+            return 0.0;
+        }
+        let hold = v_trial / g;
+        let limit = if self.stuck {
+            self.breakaway
+        } else {
+            self.level
+        };
+        if hold.abs() <= limit {
+            self.stuck = true;
+            hold
+        } else {
+            self.stuck = false;
+            self.level * hold.signum()
+        }
+    }
+    /// Whether the mass is currently held at rest.
+    pub fn is_stuck(&self) -> bool {
+        self.stuck
+    }
+}
+
+/// Delays `u` by `delay_samples` (>= 0, fractional allowed) with linear interpolation between
+/// samples; samples before the start of the log are 0.
+pub fn delay_signal(u: &[f64], delay_samples: f64) -> Vec<f64> {
+    let d = delay_samples.max(0.0);
+    let whole = d.floor() as usize;
+    let frac = d - d.floor();
+    let at = |i: isize| -> f64 {
+        if i < 0 {
+            0.0
+        } else {
+            u.get(i as usize).copied().unwrap_or(0.0)
+        }
+    };
+    (0..u.len())
+        .map(|k| {
+            let i = k as isize - whole as isize;
+            (1.0 - frac) * at(i) + frac * at(i - 1)
+        })
+        .collect()
+}
+
+/// The continuous unit-DC-gain mode ω²/(s² + 2ζωs + ω²) (ω = 2π·freq_hz rad/s) as a state
+/// space with states (position, velocity).
+pub fn resonance_mode(freq_hz: f64, damping: f64) -> Result<StateSpace> {
+    let w = 2.0 * std::f64::consts::PI * freq_hz;
+    let a = Mat::from_fn(2, 2, |i, j| match (i, j) {
+        (0, 1) => 1.0,
+        (1, 0) => -w * w,
+        (1, 1) => -2.0 * damping * w,
+        _ => 0.0,
+    });
+    let b = Mat::from_fn(2, 1, |i, _| if i == 1 { w * w } else { 0.0 });
+    let c = Mat::from_fn(1, 2, |_, j| if j == 0 { 1.0 } else { 0.0 });
+    StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0)
+}
+
+/// Filters `u` through the ZOH discretisation (sample time `ts` s) of [`resonance_mode`].
+pub fn resonance_filter(u: &[f64], ts: f64, freq_hz: f64, damping: f64) -> Result<Vec<f64>> {
+    let sys = resonance_mode(freq_hz, damping)?.c2d_zoh(ts)?;
+    let (a, b) = (&sys.a, &sys.b);
+    let (a00, a01, a10, a11) = (a[(0, 0)], a[(0, 1)], a[(1, 0)], a[(1, 1)]);
+    let (b0, b1) = (b[(0, 0)], b[(1, 0)]);
+    let (mut x0, mut x1) = (0.0f64, 0.0f64);
+    Ok(u.iter()
+        .map(|&uk| {
+            let y = x0;
+            let n0 = a00 * x0 + a01 * x1 + b0 * uk;
+            let n1 = a10 * x0 + a11 * x1 + b1 * uk;
+            x0 = n0;
+            x1 = n1;
+            y
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn static_maps() {
+        assert_eq!(deadzone(0.4, 1.0), 0.0);
+        assert!((deadzone(1.2, 1.0) - 0.7).abs() < 1e-15);
+        assert!((deadzone(-1.2, 1.0) + 0.7).abs() < 1e-15);
+        assert_eq!(saturation(3.0, 2.0), 2.0);
+        assert_eq!(saturation(-3.0, 2.0), -2.0);
+        assert!((quantize(0.26, 0.1) - 0.3).abs() < 1e-12);
+        assert!((quantize(-0.26, 0.1) + 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn play_operator_holds_inside_the_gap() {
+        let mut p = Play::new(1.0);
+        // Up to 2: output lags by 0.5.
+        assert!((p.apply(2.0) - 1.5).abs() < 1e-15);
+        // Reverse by less than the gap: held.
+        assert!((p.apply(1.2) - 1.5).abs() < 1e-15);
+        // Reverse beyond: follows from the other side.
+        assert!((p.apply(0.0) - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn stick_slip_holds_then_breaks_away() {
+        let mut f = StickSlip::new(1.0, 2.0);
+        // Stuck: needs 1.5 < breakaway to hold.
+        let g = 0.1;
+        assert!((f.force(0.15, g) - 1.5).abs() < 1e-12);
+        assert!(f.is_stuck());
+        // Needs 2.5 > breakaway: slides against level 1.
+        assert!((f.force(0.25, g) - 1.0).abs() < 1e-12);
+        assert!(!f.is_stuck());
+        // Sliding: a need of 1.5 > level keeps sliding.
+        assert!((f.force(-0.15, g) + 1.0).abs() < 1e-12);
+        // Need 0.5 <= level: sticks.
+        assert!((f.force(0.05, g) - 0.5).abs() < 1e-12);
+        assert!(f.is_stuck());
+    }
+
+    #[test]
+    fn delay_interpolates() {
+        let u = [1.0, 2.0, 3.0, 4.0];
+        let d = delay_signal(&u, 1.5);
+        assert_eq!(d, vec![0.0, 0.5, 1.5, 2.5]);
+    }
+
+    #[test]
+    fn resonance_filter_has_unit_dc_gain_and_peaks() {
+        // Step response settles at 1; sine at the natural frequency is amplified ~ 1/(2ζ).
+        let ts = 1e-3;
+        let u = vec![1.0; 20000];
+        let y = resonance_filter(&u, ts, 50.0, 0.05).unwrap();
+        assert!((y[19999] - 1.0).abs() < 1e-9);
+        let n = 20000;
+        let u: Vec<f64> = (0..n)
+            .map(|k| (2.0 * std::f64::consts::PI * 50.0 * k as f64 * ts).sin())
+            .collect();
+        let y = resonance_filter(&u, ts, 50.0, 0.05).unwrap();
+        let peak = y[n - 2000..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        // |H(jω_n)| = 1/(2ζ) = 10 exactly in continuous time; ZOH at 20 samples/period: ±3 %.
+        assert!((peak - 10.0).abs() < 0.3, "peak {peak}");
+    }
+}

@@ -1,0 +1,559 @@
+//! The linear part of every gap model: a stable discrete-time SISO model in real modal
+//! (parallel) form, fitted by output-error least squares with variable projection.
+//!
+//! Structure (sample time `ts` seconds, input w, output y):
+//! * each real pole p (|p| < 1) contributes a state x' = p·x + w;
+//! * each complex pair r·e^{±jφ} (0 < r < 1, 0 < φ < π) contributes a rotation block
+//!   [x1; x2]' = r·[[cos φ, −sin φ], [sin φ, cos φ]]·[x1; x2] + [1; 0]·w;
+//! * y = Σ cᵢ·xᵢ + d·w + y₀ (residues c, feedthrough d, output offset y₀ in output units).
+//!
+//! This realises every SISO transfer function with distinct poles, and its states are in
+//! quadrature per pair, so the least-squares regressors stay well conditioned even for lightly
+//! damped or slow modes (a companion form would not).
+//!
+//! Fitting (variable projection, Golub & Pereyra 1973): for fixed poles the output is linear in
+//! (c, d, y₀), solved by weighted linear least squares on the free-run states; the poles are
+//! refined by Levenberg–Marquardt on the projected residual. Pole parameters are unconstrained
+//! and always give a stable model: a real pole is sign·exp(−e^β); a pair has
+//! r = exp(−e^ρ) and φ = π/(1 + e^−η).
+//!
+//! The fit cost used throughout the gap diagnosis is Σ_logs NRMSE², each log's squared error
+//! summed after `warmup` samples and divided by (samples − warmup)·var(y) of that log.
+use crate::error::{Error, Result};
+use crate::lti::{solve_square, StateSpace};
+use faer::Mat;
+use num_complex::Complex64;
+
+/// Stable SISO discrete-time model in real modal form (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalModel {
+    /// Sample time in seconds (> 0).
+    pub ts: f64,
+    /// Real poles, each strictly inside (−1, 1).
+    pub real: Vec<f64>,
+    /// Complex pairs (r, φ): poles r·e^{±jφ}, 0 < r < 1, 0 < φ < π (rad per sample).
+    pub pairs: Vec<(f64, f64)>,
+    /// Residues: one per real pole, then two per pair (n entries in all).
+    pub residues: Vec<f64>,
+    /// Feedthrough d (output units per input unit); fitted only when `use_d`.
+    pub d: f64,
+    /// Whether the feedthrough is a free parameter (false: d = 0, strictly proper).
+    pub use_d: bool,
+    /// Output offset y₀ (output units).
+    pub offset: f64,
+}
+
+/// Training data for a fit: per log an input (already through any input-side effect), an
+/// output, and the weight 1/((N − warmup)·var(y)) that turns squared errors into NRMSE².
+#[derive(Debug, Clone)]
+pub struct FitSet {
+    /// Input of each log (the linear part's input w).
+    pub w: Vec<Vec<f64>>,
+    /// Measured output of each log.
+    pub y: Vec<Vec<f64>>,
+    /// NRMSE² weight of each log.
+    pub weight: Vec<f64>,
+    /// Samples at the start of each log excluded from the error (initial transient).
+    pub warmup: usize,
+}
+
+impl FitSet {
+    /// Builds the set; weights from the outputs. Errors when a log is not longer than the
+    /// warm-up or has a constant output.
+    pub fn new(w: Vec<Vec<f64>>, y: Vec<Vec<f64>>, warmup: usize) -> Result<Self> {
+        let weight = nrmse_weights(&y, warmup)?;
+        Ok(Self {
+            w,
+            y,
+            weight,
+            warmup,
+        })
+    }
+
+    /// Same outputs, weights and warm-up with a new input per log.
+    pub fn with_input(&self, w: Vec<Vec<f64>>) -> Self {
+        Self {
+            w,
+            y: self.y.clone(),
+            weight: self.weight.clone(),
+            warmup: self.warmup,
+        }
+    }
+}
+
+/// 1/((N − warmup)·var(y)) per log (var over the scored samples).
+pub fn nrmse_weights(y: &[Vec<f64>], warmup: usize) -> Result<Vec<f64>> {
+    y.iter()
+        .map(|y| {
+            if y.len() <= warmup + 1 {
+                return Err(Error::InvalidArgument(format!(
+                    "log of {} samples is not longer than the warm-up of {warmup} samples",
+                    y.len()
+                )));
+            }
+            let s = &y[warmup..];
+            let n = s.len() as f64;
+            let mean = s.iter().sum::<f64>() / n;
+            let var = s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+            if !(var > 0.0) {
+                return Err(Error::InvalidArgument(
+                    "output is constant over the scored samples".into(),
+                ));
+            }
+            Ok(1.0 / (n * var))
+        })
+        .collect()
+}
+
+/// NRMSE = RMS(y − ŷ) / RMS(y − mean y) over samples `warmup..`.
+pub fn nrmse(y: &[f64], yhat: &[f64], warmup: usize) -> f64 {
+    let n = y.len().min(yhat.len());
+    if n <= warmup {
+        return f64::NAN;
+    }
+    let s = &y[warmup..n];
+    let mean = s.iter().sum::<f64>() / s.len() as f64;
+    let den: f64 = s.iter().map(|v| (v - mean).powi(2)).sum();
+    let num: f64 = s
+        .iter()
+        .zip(&yhat[warmup..n])
+        .map(|(a, b)| (a - b).powi(2))
+        .sum();
+    (num / den).sqrt()
+}
+
+fn unit_interval_logit(x: f64) -> f64 {
+    let x = x.clamp(1e-12, 1.0 - 1e-12);
+    (x / (1.0 - x)).ln()
+}
+
+fn decay_param(mag: f64) -> f64 {
+    let m = mag.clamp(1e-9, 1.0 - 1e-13);
+    (-m.ln()).ln()
+}
+
+impl ModalModel {
+    /// A model with the given poles (conjugate pairs: pass either or both members; real poles
+    /// have |Im| <= 1e-9·|p|), zero residues and offset. Errors for a pole on or outside the
+    /// unit circle (the diagnosis compares free-run simulations, which need a stable model) or
+    /// a non-positive `ts`. Repeated poles are separated by a relative 1e-6 so their modes stay
+    /// independent.
+    pub fn from_poles(ts: f64, poles: &[Complex64], use_d: bool) -> Result<Self> {
+        if !(ts.is_finite() && ts > 0.0) {
+            return Err(Error::InvalidArgument(format!(
+                "modal model: sample time {ts} s must be > 0"
+            )));
+        }
+        let mut real = Vec::new();
+        let mut pairs: Vec<(f64, f64)> = Vec::new();
+        for &p in poles {
+            let r = p.norm();
+            if !(r < 1.0) {
+                return Err(Error::Numerical(format!(
+                    "unstable or marginally stable pole z = {p:.6} (|z| = {r:.6} >= 1)"
+                )));
+            }
+            if p.im.abs() <= 1e-9 * r.max(1e-300) {
+                let mut v = p.re;
+                while real.iter().any(|&q: &f64| (q - v).abs() <= 1e-9) {
+                    v *= 1.0 - 1e-6;
+                }
+                real.push(v);
+            } else if p.im > 0.0 {
+                let mut rr = r;
+                let phi = p.im.atan2(p.re);
+                while pairs
+                    .iter()
+                    .any(|&(q, f)| (q - rr).abs() <= 1e-9 && (f - phi).abs() <= 1e-9)
+                {
+                    rr *= 1.0 - 1e-6;
+                }
+                pairs.push((rr, phi));
+            }
+        }
+        let n = real.len() + 2 * pairs.len();
+        Ok(Self {
+            ts,
+            real,
+            pairs,
+            residues: vec![0.0; n],
+            d: 0.0,
+            use_d,
+            offset: 0.0,
+        })
+    }
+
+    /// Number of states n.
+    pub fn n_states(&self) -> usize {
+        self.real.len() + 2 * self.pairs.len()
+    }
+
+    /// The poles (z-plane), real ones first, each pair with its conjugate.
+    pub fn poles(&self) -> Vec<Complex64> {
+        let mut p: Vec<Complex64> = self.real.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+        for &(r, phi) in &self.pairs {
+            p.push(Complex64::from_polar(r, phi));
+            p.push(Complex64::from_polar(r, -phi));
+        }
+        p
+    }
+
+    /// Unconstrained pole parameters (see the module docs).
+    pub fn pole_params(&self) -> Vec<f64> {
+        let mut v: Vec<f64> = self.real.iter().map(|p| decay_param(p.abs())).collect();
+        for &(r, phi) in &self.pairs {
+            v.push(decay_param(r));
+            v.push(unit_interval_logit(phi / std::f64::consts::PI));
+        }
+        v
+    }
+
+    /// Sets the poles from unconstrained parameters (signs of real poles are kept).
+    pub fn set_pole_params(&mut self, theta: &[f64]) {
+        let nr = self.real.len();
+        for (i, p) in self.real.iter_mut().enumerate() {
+            let mag = (-theta[i].exp()).exp();
+            *p = if *p < 0.0 { -mag } else { mag };
+        }
+        for (j, pr) in self.pairs.iter_mut().enumerate() {
+            let rho = theta[nr + 2 * j];
+            let eta = theta[nr + 2 * j + 1];
+            pr.0 = (-rho.exp()).exp();
+            pr.1 = std::f64::consts::PI / (1.0 + (-eta).exp());
+        }
+    }
+
+    /// Zero state of the right size.
+    pub fn zero_state(&self) -> Vec<f64> {
+        vec![0.0; self.n_states()]
+    }
+
+    /// x ← A·x + B·w.
+    #[inline]
+    pub fn step(&self, x: &mut [f64], w: f64) {
+        let nr = self.real.len();
+        for (xi, p) in x[..nr].iter_mut().zip(&self.real) {
+            *xi = p * *xi + w;
+        }
+        for (j, &(r, phi)) in self.pairs.iter().enumerate() {
+            let (s, c) = phi.sin_cos();
+            let i = nr + 2 * j;
+            let (x1, x2) = (x[i], x[i + 1]);
+            x[i] = r * (c * x1 - s * x2) + w;
+            x[i + 1] = r * (s * x1 + c * x2);
+        }
+    }
+
+    /// C·x (the state part of the output, no feedthrough or offset).
+    #[inline]
+    pub fn state_output(&self, x: &[f64]) -> f64 {
+        x.iter().zip(&self.residues).map(|(a, b)| a * b).sum()
+    }
+
+    /// C·A·x: the state part of the next output when w = 0.
+    #[inline]
+    pub fn free_next_output(&self, x: &[f64]) -> f64 {
+        let nr = self.real.len();
+        let mut acc = 0.0;
+        for i in 0..nr {
+            acc += self.residues[i] * self.real[i] * x[i];
+        }
+        for (j, &(r, phi)) in self.pairs.iter().enumerate() {
+            let (s, c) = phi.sin_cos();
+            let i = nr + 2 * j;
+            let (x1, x2) = (x[i], x[i + 1]);
+            acc += self.residues[i] * r * (c * x1 - s * x2)
+                + self.residues[i + 1] * r * (s * x1 + c * x2);
+        }
+        acc
+    }
+
+    /// C·B: the one-step response of the state output to the input.
+    pub fn cb(&self) -> f64 {
+        let nr = self.real.len();
+        let mut acc: f64 = self.residues[..nr].iter().sum();
+        for j in 0..self.pairs.len() {
+            acc += self.residues[nr + 2 * j];
+        }
+        acc
+    }
+
+    /// Free-run output (from zero state) for input `w`, including feedthrough and offset.
+    pub fn simulate(&self, w: &[f64]) -> Vec<f64> {
+        let mut x = self.zero_state();
+        let mut y = Vec::with_capacity(w.len());
+        for &wk in w {
+            y.push(self.state_output(&x) + self.d * wk + self.offset);
+            self.step(&mut x, wk);
+        }
+        y
+    }
+
+    /// The equivalent discrete [`StateSpace`] (block-diagonal modal realisation; the offset
+    /// is not part of it).
+    pub fn to_state_space(&self) -> Result<StateSpace> {
+        let n = self.n_states();
+        let nr = self.real.len();
+        let mut a = Mat::<f64>::zeros(n, n);
+        let mut b = Mat::<f64>::zeros(n, 1);
+        for (i, &p) in self.real.iter().enumerate() {
+            a[(i, i)] = p;
+            b[(i, 0)] = 1.0;
+        }
+        for (j, &(r, phi)) in self.pairs.iter().enumerate() {
+            let (s, c) = phi.sin_cos();
+            let i = nr + 2 * j;
+            a[(i, i)] = r * c;
+            a[(i, i + 1)] = -r * s;
+            a[(i + 1, i)] = r * s;
+            a[(i + 1, i + 1)] = r * c;
+            b[(i, 0)] = 1.0;
+        }
+        let c = Mat::from_fn(1, n, |_, j| self.residues[j]);
+        let d = Mat::from_fn(1, 1, |_, _| self.d);
+        StateSpace::new(a, b, c, d, self.ts)
+    }
+
+    fn n_regressors(&self) -> usize {
+        self.n_states() + usize::from(self.use_d) + 1
+    }
+
+    /// Fills `phi` with the regressors at the current state and input.
+    #[inline]
+    fn regressors(&self, x: &[f64], w: f64, phi: &mut [f64]) {
+        let n = x.len();
+        phi[..n].copy_from_slice(x);
+        let mut k = n;
+        if self.use_d {
+            phi[k] = w;
+            k += 1;
+        }
+        phi[k] = 1.0;
+    }
+
+    fn set_linear_params(&mut self, c: &[f64]) {
+        let n = self.n_states();
+        self.residues.copy_from_slice(&c[..n]);
+        let mut k = n;
+        if self.use_d {
+            self.d = c[k];
+            k += 1;
+        } else {
+            self.d = 0.0;
+        }
+        self.offset = c[k];
+    }
+
+    /// Variable projection step: with the poles fixed, sets residues, feedthrough and offset to
+    /// the weighted least-squares optimum on `set` and returns the cost Σ NRMSE². `None` when
+    /// the normal equations are singular or the result is not finite.
+    pub fn fit_linear_params(&mut self, set: &FitSet) -> Option<f64> {
+        let k = self.n_regressors();
+        let mut g = Mat::<f64>::zeros(k, k);
+        let mut h = Mat::<f64>::zeros(k, 1);
+        let mut yy = 0.0;
+        let mut phi = vec![0.0; k];
+        for ((w, y), &wt) in set.w.iter().zip(&set.y).zip(&set.weight) {
+            let mut x = self.zero_state();
+            let mut gl = vec![0.0; k * k];
+            let mut hl = vec![0.0; k];
+            let mut yl = 0.0;
+            for (t, (&wk, &yk)) in w.iter().zip(y).enumerate() {
+                if t >= set.warmup {
+                    self.regressors(&x, wk, &mut phi);
+                    for i in 0..k {
+                        let pi = phi[i];
+                        hl[i] += pi * yk;
+                        let row = &mut gl[i * k..i * k + k];
+                        for j in i..k {
+                            row[j] += pi * phi[j];
+                        }
+                    }
+                    yl += yk * yk;
+                }
+                self.step(&mut x, wk);
+            }
+            for i in 0..k {
+                for j in i..k {
+                    g[(i, j)] += wt * gl[i * k + j];
+                }
+                h[(i, 0)] += wt * hl[i];
+            }
+            yy += wt * yl;
+        }
+        for i in 0..k {
+            for j in 0..i {
+                g[(i, j)] = g[(j, i)];
+            }
+        }
+        let c = solve_scaled(&g, &h)?;
+        let quad: f64 = (0..k)
+            .map(|i| c[i] * ((0..k).map(|j| g[(i, j)] * c[j]).sum::<f64>() - 2.0 * h[(i, 0)]))
+            .sum();
+        let cost = (yy + quad).max(0.0);
+        if !cost.is_finite() {
+            return None;
+        }
+        self.set_linear_params(&c);
+        Some(cost)
+    }
+
+    /// Weighted residual vector √weight·(y − ŷ) after the variable-projection step (for
+    /// Levenberg–Marquardt).
+    fn projected_residuals(&mut self, set: &FitSet) -> Option<Vec<f64>> {
+        self.fit_linear_params(set)?;
+        let mut r = Vec::new();
+        for ((w, y), &wt) in set.w.iter().zip(&set.y).zip(&set.weight) {
+            let sw = wt.sqrt();
+            let yh = self.simulate(w);
+            r.extend(
+                y.iter()
+                    .zip(&yh)
+                    .skip(set.warmup)
+                    .map(|(a, b)| sw * (a - b)),
+            );
+        }
+        Some(r)
+    }
+
+    /// Output-error fit of poles and linear parameters on `set`, starting from the current
+    /// poles: Levenberg–Marquardt over the pole parameters (at most `max_iter` steps) with the
+    /// variable-projection step inside. Returns the final cost Σ NRMSE².
+    pub fn fit_output_error(&mut self, set: &FitSet, max_iter: usize) -> Option<f64> {
+        let theta0 = self.pole_params();
+        let mut work = self.clone();
+        let (theta, _) = crate::gap::optim::levenberg_marquardt(
+            |th| {
+                work.set_pole_params(th);
+                work.projected_residuals(set)
+            },
+            &theta0,
+            max_iter,
+            1e-7,
+        );
+        self.set_pole_params(&theta);
+        self.fit_linear_params(set)
+    }
+
+    /// Cost Σ NRMSE² of the current model on `set` (free run; no refit).
+    pub fn cost(&self, set: &FitSet) -> f64 {
+        let mut c = 0.0;
+        for ((w, y), &wt) in set.w.iter().zip(&set.y).zip(&set.weight) {
+            let yh = self.simulate(w);
+            c += wt
+                * y.iter()
+                    .zip(&yh)
+                    .skip(set.warmup)
+                    .map(|(a, b)| (a - b).powi(2))
+                    .sum::<f64>();
+        }
+        c
+    }
+}
+
+/// Solves the symmetric positive semi-definite system g·c = h after equilibrating by the
+/// diagonal, with a relative ridge of 1e-12 for nearly collinear regressors.
+fn solve_scaled(g: &Mat<f64>, h: &Mat<f64>) -> Option<Vec<f64>> {
+    let k = g.nrows();
+    let s: Vec<f64> = (0..k)
+        .map(|i| {
+            let d = g[(i, i)];
+            if d > 0.0 {
+                1.0 / d.sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let gs = Mat::from_fn(k, k, |i, j| {
+        g[(i, j)] * s[i] * s[j] + if i == j { 1e-12 } else { 0.0 }
+    });
+    let hs = Mat::from_fn(k, 1, |i, _| h[(i, 0)] * s[i]);
+    let z = solve_square(gs.as_ref(), hs.as_ref(), "variable projection").ok()?;
+    let c: Vec<f64> = (0..k).map(|i| z[(i, 0)] * s[i]).collect();
+    c.iter().all(|v| v.is_finite()).then_some(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg_noise(n: usize, seed: u64) -> Vec<f64> {
+        let mut s = seed;
+        (0..n)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+            })
+            .collect()
+    }
+
+    /// Direct-form recursion of the same transfer function, independent of the modal code.
+    fn second_order_direct(u: &[f64], a1: f64, a2: f64, b1: f64, b2: f64) -> Vec<f64> {
+        let mut y = vec![0.0; u.len()];
+        for k in 0..u.len() {
+            let mut v = 0.0;
+            if k >= 1 {
+                v += -a1 * y[k - 1] + b1 * u[k - 1];
+            }
+            if k >= 2 {
+                v += -a2 * y[k - 2] + b2 * u[k - 2];
+            }
+            y[k] = v;
+        }
+        y
+    }
+
+    #[test]
+    fn output_error_recovers_a_resonant_pair() {
+        // True system: poles 0.97·e^{±j0.3}, numerator b1 z + b2.
+        let (r, phi) = (0.97f64, 0.3f64);
+        let (a1, a2) = (-2.0 * r * phi.cos(), r * r);
+        let (b1, b2) = (0.5, 0.2);
+        let u = lcg_noise(3000, 7);
+        let y = second_order_direct(&u, a1, a2, b1, b2);
+        // Start 10 % off in both radius decay and angle.
+        let start = Complex64::from_polar(0.96, 0.33);
+        let mut m = ModalModel::from_poles(1e-3, &[start], false).unwrap();
+        let set = FitSet::new(vec![u.clone()], vec![y.clone()], 0).unwrap();
+        let cost = m.fit_output_error(&set, 60).unwrap();
+        assert!(cost < 1e-16, "cost {cost}");
+        let (rr, pp) = m.pairs[0];
+        assert!(
+            (rr - r).abs() < 1e-7 && (pp - phi).abs() < 1e-7,
+            "{rr} {pp}"
+        );
+        let yh = m.simulate(&u);
+        assert!(nrmse(&y, &yh, 0) < 1e-7);
+        // The state-space form agrees with the modal simulation.
+        let ss = m.to_state_space().unwrap();
+        let ys = ss.simulate_siso(&u, None).unwrap();
+        for (a, b) in ys.iter().zip(&yh) {
+            assert!((a - b).abs() < 1e-9 * (1.0 + b.abs()));
+        }
+    }
+
+    #[test]
+    fn pole_params_roundtrip() {
+        let poles = [
+            Complex64::new(0.999, 0.0),
+            Complex64::new(-0.5, 0.0),
+            Complex64::from_polar(0.9, 2.5),
+        ];
+        let mut m = ModalModel::from_poles(0.01, &poles, false).unwrap();
+        let th = m.pole_params();
+        let before = m.clone();
+        m.set_pole_params(&th);
+        for (a, b) in m.poles().iter().zip(before.poles()) {
+            assert!((a - b).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn unstable_pole_is_an_error() {
+        let e = ModalModel::from_poles(0.01, &[Complex64::new(1.0, 0.0)], false).unwrap_err();
+        assert!(e.to_string().contains("unstable"), "{e}");
+    }
+}

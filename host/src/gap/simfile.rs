@@ -1,0 +1,199 @@
+//! The nominal ("simulation") model handed to `ferrosid gap --sim`.
+//!
+//! JSON, one of
+//! * state space: `{"ts": 0.0, "a": [[..], ..], "b": [[..], ..], "c": [[..]], "d": [[..]]}`,
+//!   matrices as lists of rows (A n×n, B n×1, C 1×n, D 1×1 for the SISO logs the diagnosis
+//!   takes);
+//! * transfer function: `{"ts": .., "num": [..], "den": [..]}`, coefficients in descending
+//!   powers of s (continuous) or z (discrete).
+//!
+//! `ts` is the sample time in seconds, 0 for a continuous model. Units are those of the logs.
+//! A continuous model is discretised by zero-order hold at the logs' sample time; a discrete
+//! one must have the logs' sample time (relative tolerance 1e-9).
+use crate::error::{Error, Result};
+use crate::lti::{StateSpace, StateSpaceData, TransferFunction};
+use serde::Deserialize;
+use std::path::Path;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TfData {
+    ts: f64,
+    num: Vec<f64>,
+    den: Vec<f64>,
+}
+
+/// Reads and checks a sim model file (see the module docs). Errors name the file: unreadable
+/// ([`Error::Io`]), malformed JSON ([`Error::Parse`] with the line), neither form or
+/// inconsistent shapes ([`Error::Data`]).
+pub fn load_sim(path: &Path) -> Result<StateSpace> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    parse_sim(&text, path)
+}
+
+/// Parses sim-model JSON text; `path` is only used to name the source in errors.
+pub fn parse_sim(text: &str, path: &Path) -> Result<StateSpace> {
+    let data_err = |msg: String| Error::Data {
+        file: path.to_path_buf(),
+        msg,
+    };
+    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| Error::Parse {
+        file: path.to_path_buf(),
+        line: e.line(),
+        msg: format!("invalid JSON: {e}"),
+    })?;
+    let Some(obj) = value.as_object() else {
+        return Err(data_err(
+            "sim model must be a JSON object with `ts` and either a, b, c, d or num, den".into(),
+        ));
+    };
+    let has = |k: &str| obj.contains_key(k);
+    if !has("ts") {
+        return Err(data_err(
+            "sim model has no `ts` (sample time in seconds; 0 for continuous time)".into(),
+        ));
+    }
+    let sys = if has("num") || has("den") {
+        let tf: TfData = serde_json::from_value(value.clone())
+            .map_err(|e| data_err(format!("transfer-function sim model: {e}")))?;
+        TransferFunction::new(tf.num, tf.den, tf.ts)
+            .and_then(|t| t.to_state_space())
+            .map_err(|e| data_err(format!("transfer-function sim model: {e}")))?
+    } else if has("a") {
+        let ss: StateSpaceData = serde_json::from_value(value.clone())
+            .map_err(|e| data_err(format!("state-space sim model: {e}")))?;
+        StateSpace::try_from(&ss).map_err(|e| data_err(format!("state-space sim model: {e}")))?
+    } else {
+        return Err(data_err(
+            "sim model needs either `a`, `b`, `c`, `d` (state space) or `num`, `den` (transfer \
+             function)"
+                .into(),
+        ));
+    };
+    Ok(sys)
+}
+
+/// The sim model as a discrete model at the logs' sample time `ts` (s): ZOH-discretised when
+/// continuous, checked when discrete. Errors when the model is not SISO (the logs have one
+/// input and one output), when a discrete model has another sample time, or when the
+/// discrete model is not asymptotically stable (the diagnosis compares free-run simulations);
+/// `path` names the sim file in the error.
+pub fn discretise_for_logs(sys: &StateSpace, ts: f64, path: &Path) -> Result<StateSpace> {
+    let data_err = |msg: String| Error::Data {
+        file: path.to_path_buf(),
+        msg,
+    };
+    if !sys.is_siso() {
+        return Err(data_err(format!(
+            "sim model has {} input(s) and {} output(s), but the logs have one input and one \
+             output",
+            sys.n_inputs(),
+            sys.n_outputs()
+        )));
+    }
+    let d = if sys.is_discrete() {
+        if (sys.ts - ts).abs() > 1e-9 * ts {
+            return Err(data_err(format!(
+                "sim model is discrete with ts = {} s but the logs are sampled at ts = {ts} s",
+                sys.ts
+            )));
+        }
+        sys.clone()
+    } else {
+        sys.c2d_zoh(ts)
+            .map_err(|e| data_err(format!("discretising the sim model at {ts} s: {e}")))?
+    };
+    let poles = d
+        .poles()
+        .map_err(|e| data_err(format!("poles of the sim model: {e}")))?;
+    if let Some(p) = poles.iter().find(|p| p.norm() >= 1.0 - 1e-9) {
+        let s = if sys.is_discrete() {
+            String::new()
+        } else {
+            let sp = num_complex::Complex64::new(p.norm().ln(), p.im.atan2(p.re)) / ts;
+            format!(" (s = {:.4} {:+.4}j rad/s)", sp.re, sp.im)
+        };
+        return Err(data_err(format!(
+            "sim model is not asymptotically stable: pole z = {:.6} {:+.6}j, |z| = {:.6}{s}. The \
+             gap diagnosis compares free-run simulations, which need a stable (damped) model",
+            p.re,
+            p.im,
+            p.norm()
+        )));
+    }
+    Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_both_forms() {
+        let p = Path::new("x.json");
+        let ss = parse_sim(
+            r#"{"ts": 0.0, "a": [[-2.0]], "b": [[1.0]], "c": [[3.0]], "d": [[0.0]]}"#,
+            p,
+        )
+        .unwrap();
+        assert_eq!(ss.n_states(), 1);
+        let tf = parse_sim(r#"{"ts": 0, "num": [3.0], "den": [1.0, 2.0]}"#, p).unwrap();
+        // Both are 3/(s+2): equal DC gain 1.5.
+        assert!((tf.dc_gain().unwrap()[(0, 0)] - 1.5).abs() < 1e-12);
+        assert!((ss.dc_gain().unwrap()[(0, 0)] - 1.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_json_names_file_and_line() {
+        let e = parse_sim("{\n\"ts\": 0,\n\"a\": [[1,]]\n}", Path::new("sim.json")).unwrap_err();
+        let s = e.to_string();
+        assert!(s.contains("sim.json:3"), "{s}");
+    }
+
+    #[test]
+    fn missing_parts_are_errors() {
+        let p = Path::new("m.json");
+        assert!(parse_sim(r#"{"a": [[1]]}"#, p)
+            .unwrap_err()
+            .to_string()
+            .contains("ts"));
+        assert!(parse_sim(r#"{"ts": 0}"#, p)
+            .unwrap_err()
+            .to_string()
+            .contains("num"));
+        let e = parse_sim(
+            r#"{"ts": 0, "a": [[1, 0]], "b": [[1]], "c": [[1]], "d": [[0]]}"#,
+            p,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("m.json"), "{e}");
+    }
+
+    #[test]
+    fn two_input_and_unstable_models_are_refused() {
+        let p = Path::new("s.json");
+        let two = parse_sim(
+            r#"{"ts": 0, "a": [[-1]], "b": [[1, 2]], "c": [[1]], "d": [[0, 0]]}"#,
+            p,
+        )
+        .unwrap();
+        let e = discretise_for_logs(&two, 1e-3, p).unwrap_err().to_string();
+        assert!(e.contains("2 input"), "{e}");
+        let unstable = parse_sim(r#"{"ts": 0, "num": [1], "den": [1, -3]}"#, p).unwrap();
+        let e = discretise_for_logs(&unstable, 1e-3, p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("not asymptotically stable") && e.contains("s = 3.0000"),
+            "{e}"
+        );
+        let wrong_ts = parse_sim(r#"{"ts": 0.01, "num": [1], "den": [1, -0.5]}"#, p).unwrap();
+        let e = discretise_for_logs(&wrong_ts, 1e-3, p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("ts = 0.01"), "{e}");
+    }
+}
