@@ -25,10 +25,14 @@ pub struct Line {
 /// Phase strategy for the initial design.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phases {
-    /// Schroeder (1970) phases generalised to arbitrary amplitudes: with the lines sorted by
-    /// bin and power fractions `p_l = A_l² / Σ A²`,
-    /// `φ_m = -2π Σ_{l<m} (m - l)·p_l` (for `F` equal lines `φ_m = -π m(m-1)/F`).
-    /// Deterministic and low crest factor (about 1.7 for a flat band of consecutive lines).
+    /// Schroeder (1970) phases generalised to arbitrary amplitudes and line grids: with the
+    /// lines sorted by bin `k_m` and power fractions `p_l = A_l² / Σ A²`,
+    /// `φ_m = -2π Σ_{l<m} (k_m - k_l)·p_l / d`, with `d` the greatest common divisor of the
+    /// bin differences: the group delay at each line is `N/d` times the fraction of power below
+    /// it, so the "sweep" covers once the `N/d` samples over which the envelope repeats (`d = 2`
+    /// for odd-only lines). For `F` equal consecutive lines `1..=F` this is Schroeder's
+    /// `φ_k = -π k(k-1)/F`. Deterministic, crest factor about 1.7 for a flat band; higher for
+    /// irregular grids (e.g. odd multisines with detection gaps), where optimisation helps most.
     Schroeder,
     /// Independent phases uniform in `[0, 2π)` from a seeded SplitMix64: the random-phase
     /// multisine of Pintelon & Schoukens. Same seed, same signal.
@@ -190,8 +194,17 @@ impl<const N: usize> Multisine<N> {
             Phases::Random { seed } => seed,
             Phases::Schroeder => 0,
         });
+        // Common spacing d = gcd of the bin differences: the envelope of the signal then repeats
+        // every N/d samples, so the Schroeder sweep must span N/d, not N.
+        let first = spec.lines.iter().map(|l| l.bin).min().unwrap_or(1);
+        let spacing = spec
+            .lines
+            .iter()
+            .fold(0usize, |g, l| gcd(g, l.bin - first))
+            .max(1);
         let mut theta = 0.0f64; // Schroeder phase, turns in [0, 1)
-        let mut cum = 0.0f64; // Σ p_l so far
+        let mut cum = 0.0f64; // Σ p_l over the lines below the current one
+        let mut prev_bin = 0usize;
         for k in 1..N / 2 {
             let a = scratch.best.get(k).copied().unwrap_or(0.0);
             if a == 0.0 {
@@ -199,11 +212,11 @@ impl<const N: usize> Multisine<N> {
             }
             let phase = match spec.phases {
                 Phases::Schroeder => {
-                    let p = (theta * 4_294_967_296.0) as u32;
-                    cum += f64::from(a) * f64::from(a) / total_power;
-                    theta -= cum;
+                    theta -= cum * ((k - prev_bin) / spacing) as f64;
                     theta -= libm::floor(theta);
-                    p
+                    cum += f64::from(a) * f64::from(a) / total_power;
+                    prev_bin = k;
+                    (theta * 4_294_967_296.0) as u32
                 }
                 Phases::Random { .. } => rng.next_u32(),
             };
@@ -227,6 +240,14 @@ impl<const N: usize, S: Borrow<[f32; N]>> Excitation for Multisine<N, S> {
         self.index = (i + 1) & (N - 1);
         self.table.borrow()[i]
     }
+}
+
+/// Greatest common divisor (Euclid); `gcd(0, b) = b`.
+fn gcd(mut a: usize, mut b: usize) -> usize {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
 }
 
 /// Checks a line list for a period of `N` samples.
