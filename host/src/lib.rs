@@ -15,6 +15,7 @@ pub mod io;
 pub mod lti;
 pub mod n4sid;
 pub mod preprocess;
+pub mod robust;
 pub mod spectral;
 pub mod validate;
 
