@@ -6,8 +6,8 @@
 //! * Logging: `defmt` frames over semihosting stdout (global logger from `defmt-semihosting`),
 //!   decoded on the host by `ferrosid-tests`. Nothing else may write to stdout.
 //! * Exit: semihosting `SYS_EXIT_EXTENDED`, so QEMU's exit status is the firmware's exit code.
-//! * Panics: the handler writes `panicked at FILE:LINE` to semihosting **stderr** (never into the
-//!   defmt stream on stdout) and exits with code [`EXIT_PANIC`].
+//! * Panics: [`report_panic`] writes `panicked at FILE:LINE` to semihosting **stderr** (never into
+//!   the defmt stream on stdout) and exits with code [`EXIT_PANIC`].
 //! * Instruction counting: [`InstructionCounter`] (SysTick deltas, deterministic under
 //!   `qemu -icount shift=0`).
 #![no_std]
@@ -19,6 +19,7 @@ use defmt_semihosting as _;
 
 pub mod icount;
 pub mod reference;
+pub mod stack;
 
 pub use icount::InstructionCounter;
 
@@ -65,8 +66,10 @@ fn decimal(mut value: u32, buf: &mut [u8; 10]) -> &[u8] {
     &buf[i..]
 }
 
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
+/// Panic handler body of the test images: writes `panicked at FILE:LINE` to semihosting stderr
+/// (never into the defmt stream on stdout) and exits with [`EXIT_PANIC`]. Each image binds it
+/// with `#[panic_handler]` (the size probe uses a bare exit instead, as a product would).
+pub fn report_panic(info: &core::panic::PanicInfo) -> ! {
     write_stderr(b"panicked at ");
     match info.location() {
         Some(loc) => {

@@ -86,6 +86,11 @@ impl Report {
     }
 }
 
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    ferrosid_qemu::report_panic(info)
+}
+
 #[entry]
 fn main() -> ! {
     let inject = ferrosid_qemu::has_arg("--inject-failure");
