@@ -4,3 +4,5 @@
 //! - [`norms`]: H∞ norm by Hamiltonian bisection (continuous and discrete), with its peak
 //!   frequency.
 pub mod norms;
+pub mod optim;
+pub mod uncertainty;
