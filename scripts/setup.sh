@@ -2,7 +2,7 @@
 # Installs what ferrosid's tests need on a machine that has only the Rust toolchain, idempotently:
 #   - the thumbv7em-none-eabihf Rust target (rustup target add)   -> firmware images
 #   - qemu-system-arm (Debian package qemu-system-arm)            -> runs them (mps2-an386)
-#   - llvm-size       (Debian package llvm)                       -> firmware size figures
+#   - llvm-size, llvm-objdump, llvm-symbolizer (Debian package llvm) -> sizes, panic-path scan
 # Does nothing (and touches no network) when everything is already present.
 # Exit status: 0 when everything is available afterwards, 1 otherwise (with what to do).
 set -euo pipefail
@@ -26,10 +26,13 @@ fi
 
 # --- Debian packages -----------------------------------------------------------------------------
 # command name -> Debian package
-declare -A PKG_OF=([qemu-system-arm]=qemu-system-arm [llvm-size]=llvm)
+declare -A PKG_OF=([qemu-system-arm]=qemu-system-arm [llvm-size]=llvm [llvm-objdump]=llvm [llvm-symbolizer]=llvm)
 missing=()
-for cmd in qemu-system-arm llvm-size; do
-    command -v "$cmd" >/dev/null 2>&1 || missing+=("${PKG_OF[$cmd]}")
+for cmd in qemu-system-arm llvm-size llvm-objdump llvm-symbolizer; do
+    if ! command -v "$cmd" >/dev/null 2>&1; then
+        pkg=${PKG_OF[$cmd]}
+        case " ${missing[*]} " in *" $pkg "*) ;; *) missing+=("$pkg") ;; esac
+    fi
 done
 
 if [ ${#missing[@]} -gt 0 ]; then
@@ -50,7 +53,7 @@ if [ ${#missing[@]} -gt 0 ]; then
         || fail "'apt-get install ${missing[*]}' failed: install them by hand."
 fi
 
-for cmd in qemu-system-arm llvm-size timeout; do
+for cmd in qemu-system-arm llvm-size llvm-objdump llvm-symbolizer timeout; do
     command -v "$cmd" >/dev/null 2>&1 || fail "$cmd is still not on PATH after installation."
 done
 say "ok: rust target $TARGET, $(qemu-system-arm --version | head -n1), $(llvm-size --version | grep -m1 -i version | sed 's/^ *//')"

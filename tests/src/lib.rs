@@ -369,6 +369,169 @@ pub fn build_run_decode(bin: &str, opts: &RunOptions) -> Result<(QemuRun, Vec<Lo
     Ok((run, lines))
 }
 
+/// A call or branch to a panic entry point in an image, with the source frames (innermost
+/// first, inlined frames included) that debug information attributes to that instruction.
+#[derive(Debug, Clone)]
+pub struct PanicSite {
+    /// Address of the branch instruction.
+    pub addr: u64,
+    /// Demangled name of the function containing it.
+    pub function: String,
+    /// Demangled name of the panic entry point it branches to.
+    pub target: String,
+    /// `(function, file:line:column)` frames from `llvm-symbolizer -i`, innermost first.
+    pub frames: Vec<(String, String)>,
+}
+
+impl PanicSite {
+    /// `true` when one of the frames lies in a file whose path contains `path_part`.
+    pub fn has_frame_in(&self, path_part: &str) -> bool {
+        self.frames.iter().any(|(_, loc)| loc.contains(path_part))
+    }
+}
+
+impl fmt::Display for PanicSite {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{:#x} in {} -> {}",
+            self.addr, self.function, self.target
+        )?;
+        for (func, loc) in &self.frames {
+            write!(f, "\n    {func} at {loc}")?;
+        }
+        Ok(())
+    }
+}
+
+/// `true` for the names of functions that only panic: `core::panicking::*`, the panic handler,
+/// and core's out-of-line failure paths (`slice_index_fail`, `unwrap_failed`, ...).
+fn is_panic_entry(name: &str) -> bool {
+    name.starts_with("core::panicking::")
+        || name.ends_with("rust_begin_unwind")
+        || (name.starts_with("core::")
+            && (name.contains("panic") || name.ends_with("_fail") || name.ends_with("_failed")))
+}
+
+fn run_tool(tool: &str, args: &[&std::ffi::OsStr], stdin: Option<&str>) -> Result<String, Error> {
+    use std::io::Write as _;
+    let mut cmd = Command::new(tool);
+    cmd.args(args).stdout(Stdio::piped()).stderr(Stdio::piped());
+    cmd.stdin(if stdin.is_some() {
+        Stdio::piped()
+    } else {
+        Stdio::null()
+    });
+    let mut child = cmd.spawn().map_err(|source| match source.kind() {
+        io::ErrorKind::NotFound => Error::ToolMissing {
+            tool: tool.into(),
+            hint: format!("not found on PATH; {SETUP_HINT}"),
+        },
+        _ => Error::Io {
+            context: format!("starting {tool}"),
+            source,
+        },
+    })?;
+    if let (Some(text), Some(mut pipe)) = (stdin, child.stdin.take()) {
+        pipe.write_all(text.as_bytes())
+            .map_err(|source| Error::Io {
+                context: format!("writing to {tool}"),
+                source,
+            })?;
+    }
+    let out = child.wait_with_output().map_err(|source| Error::Io {
+        context: format!("waiting for {tool}"),
+        source,
+    })?;
+    if !out.status.success() {
+        return Err(Error::Build {
+            command: format!("{tool} {args:?}"),
+            stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        });
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// Every branch to a panic entry point in `elf` (from `llvm-objdump -d -C`), each attributed to
+/// its source frames with `llvm-symbolizer -i` (the images carry full debug information).
+pub fn panic_sites(elf: &Path) -> Result<Vec<PanicSite>, Error> {
+    let dis = run_tool(
+        "llvm-objdump",
+        &[
+            "-d".as_ref(),
+            "-C".as_ref(),
+            "--no-show-raw-insn".as_ref(),
+            elf.as_os_str(),
+        ],
+        None,
+    )?;
+    let mut sites = Vec::new();
+    let mut function = String::new();
+    for line in dis.lines() {
+        // Function label: `000012ab <name>:`; `$t`/`$d` are ARM mapping symbols, not functions.
+        if line.ends_with(">:") {
+            if let Some((_, name)) = line.split_once(" <") {
+                let name = name.trim_end_matches(">:");
+                if !name.starts_with('$') {
+                    function = name.to_string();
+                }
+            }
+            continue;
+        }
+        // Instruction: `    12ae:  \tbl\t0x3456 <target> @ imm = ...`.
+        let Some((addr, rest)) = line.trim_start().split_once(':') else {
+            continue;
+        };
+        let Ok(addr) = u64::from_str_radix(addr.trim(), 16) else {
+            continue;
+        };
+        let mut words = rest.split_whitespace();
+        let Some(op) = words.next() else { continue };
+        if !op.starts_with('b') {
+            continue;
+        }
+        let Some(target) = rest
+            .split_once('<')
+            .and_then(|(_, t)| t.split_once('>'))
+            .map(|(t, _)| t.split('+').next().unwrap_or(t).to_string())
+        else {
+            continue;
+        };
+        if is_panic_entry(&target) && !is_panic_entry(&function) {
+            sites.push(PanicSite {
+                addr,
+                function: function.clone(),
+                target,
+                frames: Vec::new(),
+            });
+        }
+    }
+    if sites.is_empty() {
+        return Ok(sites);
+    }
+    let addrs: String = sites.iter().map(|s| format!("{:#x}\n", s.addr)).collect();
+    let obj = format!("--obj={}", elf.display());
+    let sym = run_tool(
+        "llvm-symbolizer",
+        &["-i".as_ref(), "-C".as_ref(), obj.as_ref()],
+        Some(&addrs),
+    )?;
+    // One block per address: lines `function`, `file:line:col`, ..., then a blank line.
+    for (site, block) in sites.iter_mut().zip(sym.split("\n\n")) {
+        let lines: Vec<&str> = block.lines().filter(|l| !l.is_empty()).collect();
+        site.frames = lines
+            .chunks(2)
+            .map(|c| {
+                (
+                    c[0].to_string(),
+                    c.get(1).copied().unwrap_or("").to_string(),
+                )
+            })
+            .collect();
+    }
+    Ok(sites)
+}
+
 /// Sizes of an ELF's allocated sections as `llvm-size -A` reports them, in bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ImageSize {
