@@ -29,27 +29,37 @@
 //! * The normalised random error of `|H1|` is `≈ √(1 - γ²) / (|γ| √(2 n_d))`.
 //!
 //! # Robustness
-//! A sample pair with a NaN, ±inf or `|x| >` [`MAX_ABS_SAMPLE`] in `u` or `y` is counted in
+//! A sample pair with a NaN or ±inf, or with `u² + y² >` [`MAX_ABS_SAMPLE`]`²`, is counted in
 //! [`Welch::nonfinite_samples`], stored as 0, and every segment that contains it is dropped
-//! (counted in [`Welch::dropped_segments`]), never accumulated. The bound keeps every
-//! intermediate (sums, FFT, squares, running means, scaled outputs for `fs >= 1e-6` Hz) finite,
-//! so all outputs are finite for any input sequence. Averages are running means, which cannot
-//! overflow however long the log.
+//! (counted in [`Welch::dropped_segments`]), never accumulated. The accumulators are sums over at
+//! most [`MAX_AVERAGES`] segments (later segments are not accumulated: the estimate is frozen,
+//! which at `N = 1024`, 50 % overlap, takes 8.6e9 samples). With the sample bound this keeps every
+//! intermediate (segment sums, FFT, squares, accumulated sums, scaled outputs for `fs >= 1e-6`
+//! Hz) finite, so all outputs are finite for any input sequence.
 //!
 //! # Memory and speed
 //! `size_of::<Welch<N>>() = 24·N + 64` bytes (history `u`, `y`; FFT buffers `U`, `Y`;
 //! accumulators `S_uu`, `S_yy`, `S_uy`), nothing else: the window is a `const` table in flash.
-//! `push` stores a sample and decrements a counter; every hop one segment is windowed, two real
-//! FFTs (microfft) run, and the `N/2 + 1` bins are accumulated without divisions or `libm`.
+//! `push` stores a sample pair and decrements a counter; every hop one segment is windowed, two
+//! real FFTs (microfft) run, and the `N/2 + 1` bins are accumulated without divisions or `libm`.
+//! [`Welch::push_slice`] is the faster entry point (the range check and copy run over contiguous
+//! runs of samples, the counters stay in registers).
+
+use microfft::Complex32;
 
 use crate::fft;
 use crate::gate::CoherenceGate;
 use crate::window::{HannTable, Window};
 use crate::Error;
 
-/// Largest accepted `|sample|`; larger values are treated like NaN/inf (counted, segment
-/// dropped). 1e12 leaves every intermediate finite in `f32` for `N <= 4096`.
-pub const MAX_ABS_SAMPLE: f32 = 1.0e12;
+/// Bound on the input: a sample pair is accepted when `u² + y² <= MAX_ABS_SAMPLE²` (see
+/// [`accepts`]); other pairs (including NaN and ±inf) are counted and their segments dropped.
+/// With [`MAX_AVERAGES`] it leaves every intermediate finite in `f32` for `N <= 4096`: a
+/// segment's `|U[k]|² <= (2·1e11·N)² = 6.7e29`, times `2^24` segments `< 1.2e37`.
+pub const MAX_ABS_SAMPLE: f32 = 1.0e11;
+/// Segments accumulated at most (`2^24`); later segments are not accumulated (and beyond this
+/// count an `f32` sum could not resolve one more segment anyway).
+pub const MAX_AVERAGES: u32 = 1 << 24;
 /// Smallest accepted sample rate (Hz).
 pub const MIN_FS_HZ: f32 = 1.0e-6;
 /// Largest accepted sample rate (Hz).
@@ -92,23 +102,23 @@ pub struct Welch<const N: usize> {
     pos: usize,
     /// Samples still to push before the next segment ends.
     until_segment: u32,
-    /// Number of upcoming segment ends that still contain a rejected sample.
-    poison: u32,
+    /// Number of upcoming segment ends to drop (they contain a rejected sample).
+    drop_ends: u32,
     averages: u32,
     dropped: u32,
     nonfinite: u32,
-    /// `mean |U[N/2]|²`, `mean |Y[N/2]|²` (Nyquist; the arrays below hold bins `0..N/2`).
+    /// `Σ |U[N/2]|²`, `Σ |Y[N/2]|²` (Nyquist; `acc` holds bins `0..N/2`).
     nyq_uu: f32,
     nyq_yy: f32,
     u_hist: [f32; N],
     y_hist: [f32; N],
     u_buf: [f32; N],
     y_buf: [f32; N],
-    /// Interleaved `(mean |U[k]|², mean |Y[k]|²)` for `k = 0..N/2` (unscaled).
-    auto: [f32; N],
-    /// Interleaved `(Re, Im)` of `mean conj(U[k]) Y[k]` for `k = 1..N/2`; the real DC value in
-    /// `[0]` and the real Nyquist value in `[1]` (microfft-style packing; both are real).
-    cross: [f32; N],
+    /// Unscaled sums over segments, four per bin `k = 0..N/2`:
+    /// `acc[2k] = [Σ|U[k]|², Σ|Y[k]|²]`, `acc[2k+1] = [Σ Re conj(U[k])Y[k], Σ Im conj(U[k])Y[k]]`.
+    /// The imaginary cross part of DC is identically 0, so `acc[1][1]` holds the (real)
+    /// Nyquist cross sum `Σ U[N/2]·Y[N/2]` (microfft-style packing).
+    acc: [[f32; 2]; N],
 }
 
 impl<const N: usize> Welch<N> {
@@ -123,11 +133,47 @@ impl<const N: usize> Welch<N> {
         WelchConfig::scipy_default(fs_hz, N)
     }
 
-    /// New estimator with empty accumulators. `const`, so it can initialise a `static`.
+    /// An estimator in the all-zero state, to be set up with [`Welch::configure`].
     ///
-    /// Note: a `static` initialised with this lands in `.data` (its non-zero configuration
-    /// makes the whole 24·N bytes an initialised image in flash); to keep it in `.bss`,
-    /// construct it at run time (e.g. `cortex_m::singleton!`) or call [`Welch::configure`].
+    /// This is the way to place a `Welch` in a `static` without costing flash: every field is
+    /// zero, so `static mut W: Welch<1024> = Welch::unconfigured();` lands in `.bss`. (A static
+    /// initialised from [`Welch::new`], or an `Option<Welch<N>>` such as
+    /// `cortex_m::singleton!` uses, has non-zero bytes and goes to `.data`, i.e. its 24·N bytes
+    /// are also stored in flash.) Until configured, `push` stores samples but never completes a
+    /// segment, and every estimate reads as 0 / `None`.
+    pub const fn unconfigured() -> Self {
+        let () = Self::VALID_N;
+        Self {
+            cfg: WelchConfig {
+                fs_hz: 0.0,
+                overlap: 0,
+                window: Window::Hann,
+                detrend_mean: false,
+            },
+            density: 0.0,
+            hop: 0,
+            pos: 0,
+            until_segment: 0,
+            drop_ends: 0,
+            averages: 0,
+            dropped: 0,
+            nonfinite: 0,
+            nyq_uu: 0.0,
+            nyq_yy: 0.0,
+            u_hist: [0.0; N],
+            y_hist: [0.0; N],
+            u_buf: [0.0; N],
+            y_buf: [0.0; N],
+            acc: [[0.0; 2]; N],
+        }
+    }
+
+    /// `true` once a valid configuration is in place ([`Welch::new`] or [`Welch::configure`]).
+    pub fn is_configured(&self) -> bool {
+        self.hop != 0
+    }
+
+    /// New estimator with empty accumulators. `const`; see [`Welch::unconfigured`] for statics.
     ///
     /// # Errors
     /// [`Error::InvalidSampleRate`] (`fs_hz` not finite or outside `[1e-6, 1e12]`),
@@ -144,7 +190,7 @@ impl<const N: usize> Welch<N> {
             hop: (N - cfg.overlap) as u32,
             pos: 0,
             until_segment: N as u32,
-            poison: 0,
+            drop_ends: 0,
             averages: 0,
             dropped: 0,
             nonfinite: 0,
@@ -154,8 +200,7 @@ impl<const N: usize> Welch<N> {
             y_hist: [0.0; N],
             u_buf: [0.0; N],
             y_buf: [0.0; N],
-            auto: [0.0; N],
-            cross: [0.0; N],
+            acc: [[0.0; 2]; N],
         })
     }
 
@@ -174,8 +219,8 @@ impl<const N: usize> Welch<N> {
     /// Forgets all samples, averages and counters (the configuration stays).
     pub fn reset(&mut self) {
         self.pos = 0;
-        self.until_segment = N as u32;
-        self.poison = 0;
+        self.until_segment = if self.hop == 0 { 0 } else { N as u32 };
+        self.drop_ends = 0;
         self.averages = 0;
         self.dropped = 0;
         self.nonfinite = 0;
@@ -183,48 +228,60 @@ impl<const N: usize> Welch<N> {
         self.nyq_yy = 0.0;
         self.u_hist.fill(0.0);
         self.y_hist.fill(0.0);
-        self.auto.fill(0.0);
-        self.cross.fill(0.0);
+        self.acc.fill([0.0; 2]);
     }
 
     /// Adds one input/output sample pair (signal units). Never panics.
     ///
     /// Every `N - overlap` samples (first after `N`) a segment is complete and accumulated, or
-    /// dropped if it contains a rejected sample (NaN, ±inf, `|x| > MAX_ABS_SAMPLE`).
+    /// dropped if it contains a rejected sample pair (see [`accepts`]).
     #[inline]
     pub fn push(&mut self, u: f32, y: f32) {
         let i = self.pos & (N - 1);
-        // NaN fails both comparisons.
-        let ok = u.abs() <= MAX_ABS_SAMPLE && y.abs() <= MAX_ABS_SAMPLE;
-        if ok {
+        if accepts(u, y) {
             self.u_hist[i] = u;
             self.y_hist[i] = y;
         } else {
-            self.reject(i);
+            self.u_hist[i] = 0.0;
+            self.y_hist[i] = 0.0;
+            self.reject(self.until_segment);
         }
         self.pos = (i + 1) & (N - 1);
         self.until_segment = self.until_segment.wrapping_sub(1);
         if self.until_segment == 0 {
-            self.until_segment = self.hop;
-            if self.poison > 0 {
-                self.dropped = self.dropped.saturating_add(1);
-            } else {
-                self.process_segment();
-            }
+            self.segment_end();
         }
-        self.poison = self.poison.saturating_sub(1);
     }
 
+    /// Books a rejected sample pair; `r` = samples until the next segment end, counting the
+    /// rejected one (`1..=N`). The segment ends that contain it are the next one (after `r - 1`
+    /// more samples) and every hop after it, up to `N - 1` samples ahead:
+    /// `(N - r) / hop + 1` ends.
     #[cold]
-    fn reject(&mut self, i: usize) {
-        self.u_hist[i] = 0.0;
-        self.y_hist[i] = 0.0;
+    fn reject(&mut self, r: u32) {
         self.nonfinite = self.nonfinite.saturating_add(1);
-        // The N segment ends from now on all contain this sample.
-        self.poison = N as u32;
+        let r = r.clamp(1, N as u32);
+        let ends = (N as u32 - r) / self.hop.max(1) + 1;
+        self.drop_ends = self.drop_ends.max(ends);
     }
 
-    /// Adds equal-length slices of input and output samples.
+    /// A segment ends with the sample just stored.
+    fn segment_end(&mut self) {
+        self.until_segment = self.hop;
+        if self.hop == 0 {
+            // Unconfigured: never complete a segment.
+            return;
+        }
+        if self.drop_ends > 0 {
+            self.drop_ends -= 1;
+            self.dropped = self.dropped.saturating_add(1);
+        } else if self.averages < MAX_AVERAGES {
+            self.process_segment();
+        }
+    }
+
+    /// Adds equal-length slices of input and output samples; same result as calling
+    /// [`Welch::push`] for each pair, faster.
     ///
     /// # Errors
     /// [`Error::LengthMismatch`] when `u.len() != y.len()`; no sample is consumed then.
@@ -235,13 +292,42 @@ impl<const N: usize> Welch<N> {
                 y: y.len(),
             });
         }
-        for (&a, &b) in u.iter().zip(y) {
-            self.push(a, b);
+        let (mut u, mut y) = (u, y);
+        while !u.is_empty() {
+            let pos = self.pos & (N - 1);
+            // A run ends at the next segment end, at the ring's wrap, or with the input.
+            let run = u.len().min(self.until_segment as usize).min(N - pos).max(1);
+            let (Some((u_run, u_rest)), Some((y_run, y_rest))) =
+                (u.split_at_checked(run), y.split_at_checked(run))
+            else {
+                break;
+            };
+            let (Some(hu), Some(hy)) = (
+                self.u_hist.get_mut(pos..pos + run),
+                self.y_hist.get_mut(pos..pos + run),
+            ) else {
+                break;
+            };
+            if !store_run(hu, hy, u_run, y_run) {
+                // Cold: find the rejected pairs again to book them.
+                let until = self.until_segment;
+                for (j, (&a, &b)) in u_run.iter().zip(y_run).enumerate() {
+                    if !accepts(a, b) {
+                        self.reject(until.wrapping_sub(j as u32));
+                    }
+                }
+            }
+            self.pos = (pos + run) & (N - 1);
+            self.until_segment = self.until_segment.wrapping_sub(run as u32);
+            if self.until_segment == 0 {
+                self.segment_end();
+            }
+            (u, y) = (u_rest, y_rest);
         }
         Ok(())
     }
 
-    /// Windows the latest `N` samples, transforms them and updates the running means.
+    /// Windows the latest `N` samples, transforms them and adds them to the sums.
     fn process_segment(&mut self) {
         let start = self.pos & (N - 1);
         let (mu, my) = if self.cfg.detrend_mean {
@@ -260,75 +346,53 @@ impl<const N: usize> Welch<N> {
                 centred(&mut self.y_buf, &self.y_hist, start, my);
             }
         }
-        let n = self.averages.saturating_add(1);
-        let inv = 1.0 / n as f32;
         let us = fft::rfft(&mut self.u_buf);
         let ys = fft::rfft(&mut self.y_buf);
         let (Some(u0), Some(y0)) = (us.first().copied(), ys.first().copied()) else {
             return;
         };
-        let (auto, _) = self.auto.as_chunks_mut::<2>();
-        let (cross, _) = self.cross.as_chunks_mut::<2>();
+        accumulate(&mut self.acc, us, ys);
         // DC (re) and Nyquist (packed in im) are real.
-        if let (Some(a), Some(c)) = (auto.first_mut(), cross.first_mut()) {
-            a[0] += (u0.re * u0.re - a[0]) * inv;
-            a[1] += (y0.re * y0.re - a[1]) * inv;
-            c[0] += (u0.re * y0.re - c[0]) * inv;
-            c[1] += (u0.im * y0.im - c[1]) * inv;
+        if let [dc_auto, dc_cross, ..] = &mut self.acc[..] {
+            dc_auto[0] += u0.re * u0.re;
+            dc_auto[1] += y0.re * y0.re;
+            dc_cross[0] += u0.re * y0.re;
+            dc_cross[1] += u0.im * y0.im;
         }
-        self.nyq_uu += (u0.im * u0.im - self.nyq_uu) * inv;
-        self.nyq_yy += (y0.im * y0.im - self.nyq_yy) * inv;
-        for (((a, c), u), y) in auto
-            .iter_mut()
-            .zip(cross.iter_mut())
-            .zip(us.iter())
-            .zip(ys.iter())
-            .skip(1)
-        {
-            let puu = u.re * u.re + u.im * u.im;
-            let pyy = y.re * y.re + y.im * y.im;
-            // conj(U)·Y
-            let cre = u.re * y.re + u.im * y.im;
-            let cim = u.re * y.im - u.im * y.re;
-            a[0] += (puu - a[0]) * inv;
-            a[1] += (pyy - a[1]) * inv;
-            c[0] += (cre - c[0]) * inv;
-            c[1] += (cim - c[1]) * inv;
-        }
-        self.averages = n;
+        self.nyq_uu += u0.im * u0.im;
+        self.nyq_yy += y0.im * y0.im;
+        self.averages += 1;
     }
 
-    /// Unscaled means `(|U|², |Y|², Re conj(U)Y, Im conj(U)Y)` of bin `k`, `None` if `k > N/2`.
+    /// Unscaled sums `(Σ|U|², Σ|Y|², Σ Re conj(U)Y, Σ Im conj(U)Y)` of bin `k`, `None` if
+    /// `k > N/2`.
     #[inline]
     fn raw(&self, k: usize) -> Option<(f32, f32, f32, f32)> {
-        if k == 0 {
-            Some((
-                *self.auto.first()?,
-                *self.auto.get(1)?,
-                *self.cross.first()?,
-                0.0,
-            ))
-        } else if k < N / 2 {
-            Some((
-                *self.auto.get(2 * k)?,
-                *self.auto.get(2 * k + 1)?,
-                *self.cross.get(2 * k)?,
-                *self.cross.get(2 * k + 1)?,
-            ))
+        if k < N / 2 {
+            let a = self.acc.get(2 * k)?;
+            let c = self.acc.get(2 * k + 1)?;
+            // DC's imaginary cross slot holds the Nyquist cross sum.
+            let im = if k == 0 { 0.0 } else { c[1] };
+            Some((a[0], a[1], c[0], im))
         } else if k == N / 2 {
-            Some((self.nyq_uu, self.nyq_yy, *self.cross.get(1)?, 0.0))
+            Some((self.nyq_uu, self.nyq_yy, self.acc.get(1)?[1], 0.0))
         } else {
             None
         }
     }
 
-    /// Scaling of bin `k`: density, doubled except at DC and Nyquist.
+    /// Scaling of the sums of bin `k`: density over the number of averages, doubled except at
+    /// DC and Nyquist; 0 before the first average.
     #[inline]
     fn scale(&self, k: usize) -> f32 {
+        if self.averages == 0 {
+            return 0.0;
+        }
+        let s = self.density / self.averages as f32;
         if k == 0 || k == N / 2 {
-            self.density
+            s
         } else {
-            2.0 * self.density
+            2.0 * s
         }
     }
 
@@ -357,7 +421,8 @@ impl<const N: usize> Welch<N> {
         self.dropped
     }
 
-    /// Number of rejected sample pairs (NaN, ±inf or `|x| > MAX_ABS_SAMPLE` in `u` or `y`).
+    /// Number of rejected sample pairs (NaN or ±inf in `u` or `y`, or `u² + y² >
+    /// MAX_ABS_SAMPLE²`, see [`accepts`]).
     pub fn nonfinite_samples(&self) -> u32 {
         self.nonfinite
     }
@@ -450,6 +515,76 @@ const fn density_scale<const N: usize>(cfg: &WelchConfig) -> Result<f32, Error> 
     Ok(1.0 / (fs * cfg.window.sum_squares::<N>()))
 }
 
+/// `MAX_ABS_SAMPLE²` as the acceptance bound of `u² + y²`.
+const MAX_NORM_SQ: f32 = MAX_ABS_SAMPLE * MAX_ABS_SAMPLE;
+
+/// The acceptance test of a sample pair: `u² + y² <= MAX_ABS_SAMPLE²` evaluated in `f32`
+/// (false for NaN and ±inf; implies `|u|, |y| <= MAX_ABS_SAMPLE`). Two multiplies, one add and
+/// one compare, cheaper than two `abs` compares on a Cortex-M4F.
+#[inline(always)]
+pub fn accepts(u: f32, y: f32) -> bool {
+    u * u + y * y <= MAX_NORM_SQ
+}
+
+/// Copies a run of sample pairs into the histories; rejected pairs (see [`accepts`]) are
+/// replaced by 0. Returns `false` if any pair was rejected.
+///
+/// Fast path: copy and sum `u² + y²` over the run; if the sum passes the bound, every pair
+/// does (the terms are non-negative and `f32` rounding is monotone). Otherwise a second pass
+/// applies the exact per-pair test.
+#[inline(never)]
+fn store_run(hu: &mut [f32], hy: &mut [f32], u: &[f32], y: &[f32]) -> bool {
+    let mut sum = 0.0f32;
+    for (((du, dy), &a), &b) in hu.iter_mut().zip(hy.iter_mut()).zip(u).zip(y) {
+        *du = a;
+        *dy = b;
+        sum += a * a + b * b;
+    }
+    if sum <= MAX_NORM_SQ {
+        return true;
+    }
+    let mut all_ok = true;
+    for (du, dy) in hu.iter_mut().zip(hy.iter_mut()) {
+        if !accepts(*du, *dy) {
+            *du = 0.0;
+            *dy = 0.0;
+            all_ok = false;
+        }
+    }
+    all_ok
+}
+
+/// Adds one bin's products: `b[0] += [|U|², |Y|²]`, `b[1] += conj(U)·Y`.
+#[inline(always)]
+fn accumulate_bin(b: &mut [[f32; 2]; 2], u: &Complex32, y: &Complex32) {
+    b[0][0] += u.re * u.re + u.im * u.im;
+    b[0][1] += y.re * y.re + y.im * y.im;
+    b[1][0] += u.re * y.re + u.im * y.im;
+    b[1][1] += u.re * y.im - u.im * y.re;
+}
+
+/// Adds one segment's products to the sums of bins `1..N/2` (see `Welch::acc` for the layout).
+/// Not inlined, so that the three streams get their own pointer registers; two bins per
+/// iteration to halve the loop overhead.
+#[inline(never)]
+fn accumulate(acc: &mut [[f32; 2]], us: &[Complex32], ys: &[Complex32]) {
+    let (bins, _) = acc.as_chunks_mut::<2>();
+    let (Some(bins), Some(us), Some(ys)) = (bins.get_mut(1..), us.get(1..), ys.get(1..)) else {
+        return;
+    };
+    let (b2, b_rest) = bins.as_chunks_mut::<2>();
+    let (u2, u_rest) = us.as_chunks::<2>();
+    let (y2, y_rest) = ys.as_chunks::<2>();
+    for ((b, u), y) in b2.iter_mut().zip(u2).zip(y2) {
+        let [b0, b1] = b;
+        accumulate_bin(b0, &u[0], &y[0]);
+        accumulate_bin(b1, &u[1], &y[1]);
+    }
+    for ((b, u), y) in b_rest.iter_mut().zip(u_rest).zip(y_rest) {
+        accumulate_bin(b, u, y);
+    }
+}
+
 /// Mean of a segment (4 partial sums: shorter dependency chains, smaller rounding error).
 #[inline]
 fn mean<const N: usize>(x: &[f32; N]) -> f32 {
@@ -466,7 +601,7 @@ fn mean<const N: usize>(x: &[f32; N]) -> f32 {
 }
 
 /// `dst[n] = (x[n] - mu)·w[n]` with `x` the ring `ring` read in time order from `start`.
-#[inline]
+#[inline(never)]
 fn windowed<const N: usize>(dst: &mut [f32; N], ring: &[f32; N], start: usize, mu: f32, w: &[f32; N]) {
     let (newest, oldest) = ring.split_at(start.min(N));
     let (d1, d2) = dst.split_at_mut(N - start.min(N));
@@ -480,7 +615,7 @@ fn windowed<const N: usize>(dst: &mut [f32; N], ring: &[f32; N], start: usize, m
 }
 
 /// `dst[n] = x[n] - mu` (rectangular window) with the ring read in time order from `start`.
-#[inline]
+#[inline(never)]
 fn centred<const N: usize>(dst: &mut [f32; N], ring: &[f32; N], start: usize, mu: f32) {
     let (newest, oldest) = ring.split_at(start.min(N));
     let (d1, d2) = dst.split_at_mut(N - start.min(N));

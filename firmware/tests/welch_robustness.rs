@@ -6,7 +6,7 @@
 mod common;
 
 use common::*;
-use ferrosid_firmware::welch::MAX_ABS_SAMPLE;
+use ferrosid_firmware::welch::{accepts, MAX_ABS_SAMPLE};
 use ferrosid_firmware::{Error, Welch, WelchConfig, Window};
 use proptest::prelude::*;
 
@@ -66,6 +66,29 @@ fn nonfinite_samples_drop_exactly_the_segments_containing_them() {
             assert!((w.coherence(k) as f64 - r.coherence(k)).abs() <= 1e-4, "k={k}");
         }
     }
+}
+
+#[test]
+fn unconfigured_estimator_is_inert_until_configured() {
+    let mut w = Welch::<64>::unconfigured();
+    assert!(!w.is_configured());
+    let mut rng = XorShift::new(1);
+    for _ in 0..1000 {
+        w.push(rng.gauss() as f32, rng.gauss() as f32);
+    }
+    w.push_slice(&[1.0; 300], &[2.0; 300]).unwrap();
+    w.push(f32::NAN, 0.0);
+    assert_eq!(w.averages(), 0);
+    for k in 0..w.bins() {
+        assert_eq!((w.suu(k), w.coherence(k), w.h1(k)), (0.0, 0.0, None));
+    }
+    w.configure(WelchConfig::scipy_default(10.0, 64)).unwrap();
+    assert!(w.is_configured());
+    assert_eq!((w.averages(), w.nonfinite_samples()), (0, 0), "configure() resets");
+    let u: Vec<f32> = (0..64 * 4).map(|_| rng.gauss() as f32).collect();
+    w.push_slice(&u, &u).unwrap();
+    assert_eq!(w.averages(), 7);
+    assert!((w.coherence(5) - 1.0).abs() < 1e-5 && w.h1(5).is_some());
 }
 
 #[test]
@@ -217,7 +240,7 @@ proptest! {
         }
         let bad = data
             .iter()
-            .filter(|(u, y)| !(u.abs() <= MAX_ABS_SAMPLE && y.abs() <= MAX_ABS_SAMPLE))
+            .filter(|(u, y)| !accepts(*u, *y))
             .count();
         prop_assert_eq!(w.nonfinite_samples() as usize, bad);
         let ends = if data.len() >= 64 { 1 + (data.len() - 64) / (64 - overlap) } else { 0 };
@@ -234,5 +257,46 @@ proptest! {
             prop_assert!(w.bin_hz(k).is_finite());
         }
         let _ = w.gate(0.5);
+    }
+
+    /// push() per pair and push_slice() over arbitrary chunks give bit-identical estimates and
+    /// counters (push_slice has its own fast path for copying and range checks).
+    #[test]
+    fn push_slice_equals_push(
+        data in proptest::collection::vec((sample(), sample()), 0..900),
+        chunks in proptest::collection::vec(1usize..150, 1..40),
+        overlap in 0usize..64,
+        hann in any::<bool>(),
+    ) {
+        let cfg = WelchConfig {
+            fs_hz: 1.0,
+            overlap,
+            window: if hann { Window::Hann } else { Window::Rectangular },
+            detrend_mean: true,
+        };
+        let mut a = Welch::<64>::new(cfg).unwrap();
+        let mut b = Welch::<64>::new(cfg).unwrap();
+        let (u, y): (Vec<f32>, Vec<f32>) = data.iter().cloned().unzip();
+        for (&p, &q) in u.iter().zip(&y) {
+            a.push(p, q);
+        }
+        let mut off = 0;
+        for c in chunks.iter().cycle() {
+            if off >= u.len() {
+                break;
+            }
+            let end = (off + c).min(u.len());
+            b.push_slice(&u[off..end], &y[off..end]).unwrap();
+            off = end;
+        }
+        prop_assert_eq!(a.averages(), b.averages());
+        prop_assert_eq!(a.dropped_segments(), b.dropped_segments());
+        prop_assert_eq!(a.nonfinite_samples(), b.nonfinite_samples());
+        for k in 0..a.bins() {
+            prop_assert_eq!(a.suu(k).to_bits(), b.suu(k).to_bits());
+            prop_assert_eq!(a.syy(k).to_bits(), b.syy(k).to_bits());
+            prop_assert_eq!(a.suy(k).0.to_bits(), b.suy(k).0.to_bits());
+            prop_assert_eq!(a.suy(k).1.to_bits(), b.suy(k).1.to_bits());
+        }
     }
 }
