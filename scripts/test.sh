@@ -3,8 +3,8 @@
 #   1. scripts/setup.sh installs what is missing (Cortex-M4F target, qemu-system-arm, llvm-size);
 #   2. cargo test --workspace runs all host tests and the QEMU tests of tests/ (which build the
 #      firmware images in target/qemu and run them on qemu-system-arm -machine mps2-an386).
-# Exits non-zero if setup fails or any test fails. Extra arguments go to `cargo test`
-# (e.g. scripts/test.sh -- qemu).
+# Exits non-zero if setup fails or any test fails (or none ran). Arguments, if any, replace
+# `--workspace` in the cargo test command line (e.g. scripts/test.sh -p ferrosid-tests).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 
@@ -14,7 +14,10 @@ log=$(mktemp "${TMPDIR:-/tmp}/ferrosid-test.XXXXXX")
 trap 'rm -f "$log"' EXIT
 
 start=$(date +%s)
-cargo test --workspace --no-fail-fast "$@" 2>&1 </dev/null | tee "$log"
+# Arguments replace the package selection, e.g. `scripts/test.sh -p ferrosid-tests`;
+# without arguments every workspace crate is tested.
+if [ $# -eq 0 ]; then set -- --workspace; fi
+cargo test --no-fail-fast "$@" 2>&1 </dev/null | tee "$log"
 status=${PIPESTATUS[0]}
 secs=$(( $(date +%s) - start ))
 
@@ -33,7 +36,7 @@ echo
 echo "================ ferrosid test summary ================"
 grep -E '^test .* \.\.\. FAILED$' "$log" | sed -e 's/^test /  FAILED: /' -e 's/ \.\.\. FAILED$//' || true
 grep -E '^error(\[E[0-9]+\])?:' "$log" | sort -u | head -n 20 | sed 's/^/  /' || true
-echo "cargo test --workspace: exit status $status after ${secs} s"
+echo "cargo test $*: exit status $status after ${secs} s"
 echo "summary: $passed passed, $failed failed, $ignored skipped"
 if [ "$status" -ne 0 ]; then
     echo "RESULT: FAIL"
