@@ -106,7 +106,8 @@ impl std::error::Error for Error {
 }
 
 const SETUP_HINT: &str = "run scripts/setup.sh (installs the thumbv7em-none-eabihf target, \
-                          qemu-system-arm and llvm-size)";
+                          qemu-system-arm and the LLVM tools llvm-size, llvm-objdump and \
+                          llvm-symbolizer)";
 
 /// Root of the ferrosid repository (parent of this crate's directory).
 pub fn repo_root() -> PathBuf {

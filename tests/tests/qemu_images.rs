@@ -33,8 +33,8 @@ fn bench_value(lines: &[LogLine], name: &str) -> Option<f64> {
 }
 
 /// Under `-icount shift=0` QEMU advances its virtual clock 1 ns per instruction and the
-/// mps2-an386 SysTick runs at 25 MHz: exactly 40 instructions per tick, which the image measures
-/// on a loop of known length. The bench's figures must be present, finite and positive.
+/// mps2-an386 SysTick runs at 25 MHz: 40 instructions per tick, which the image measures on a
+/// loop of known length (to within the +-1 tick quantisation of the measurement). The bench's figures must be present, finite and positive.
 #[test]
 fn bench_counts_instructions_under_icount() {
     let opts = RunOptions {
@@ -44,10 +44,11 @@ fn bench_counts_instructions_under_icount() {
     };
     let (code, lines, stderr) = run("bench", &opts);
     assert_eq!(code, 0, "bench exit code (stderr: {stderr})");
-    assert_eq!(
-        bench_value(&lines, "calibration_instr_per_tick"),
-        Some(40.0),
-        "SysTick ticks per instruction under -icount shift=0"
+    // Each measured interval is quantised to whole ticks: +-1 tick in 100 000.
+    let ipt = bench_value(&lines, "calibration_instr_per_tick").expect("calibration line");
+    assert!(
+        (ipt - 40.0).abs() < 40.0 * 1e-4,
+        "instructions per SysTick tick under -icount shift=0: {ipt}, expected 40"
     );
     for name in [
         "welch_push_n256",
