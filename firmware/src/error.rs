@@ -68,8 +68,12 @@ impl Error {
             Error::InvalidHold => "PRBS hold (samples per chip) must be at least 1",
             Error::InvalidAmplitude => "amplitude must be finite and > 0",
             Error::InvalidSampleRate => "sample rate must be finite and in [1e-6, 1e12] Hz",
-            Error::InvalidFrequency => "frequency must be finite, in [0, fs/2) (> 0 for a log chirp)",
-            Error::InvalidDuration => "duration must be finite, span >= 2 samples and fit both fades",
+            Error::InvalidFrequency => {
+                "frequency must be finite, in [0, fs/2) (> 0 for a log chirp)"
+            }
+            Error::InvalidDuration => {
+                "duration must be finite, span >= 2 samples and fit both fades"
+            }
             Error::InvalidOverlap => "Welch overlap must be smaller than the segment length N",
             Error::LengthMismatch { .. } => "u and y slices have different lengths",
             Error::InvalidLine { .. } => "multisine line: bin outside 1..N/2 or bad amplitude",

@@ -148,7 +148,10 @@ mod tests {
                     _ => (spec[k].re as f64, spec[k].im as f64),
                 };
                 let tol = 1e-5 * N as f64;
-                assert!((gr - re).abs() < tol && (gi - im).abs() < tol, "N={N} k={k}");
+                assert!(
+                    (gr - re).abs() < tol && (gi - im).abs() < tol,
+                    "N={N} k={k}"
+                );
             }
         }
         check::<64>();
@@ -164,7 +167,12 @@ mod tests {
     fn synthesize_matches_direct_inverse() {
         // Reference: direct f64 sum of cosines. Tolerance 1e-6 absolute (amplitudes ~1).
         const N: usize = 128;
-        let lines = [(1usize, 0.3f32, -0.7f32), (5, 1.0, 0.0), (17, -0.2, 0.4), (63, 0.0, 1.0)];
+        let lines = [
+            (1usize, 0.3f32, -0.7f32),
+            (5, 1.0, 0.0),
+            (17, -0.2, 0.4),
+            (63, 0.0, 1.0),
+        ];
         let mut g = [0.0f32; N];
         for &(k, re, im) in &lines {
             add_line(&mut g, k, re * N as f32 / 2.0, im * N as f32 / 2.0);

@@ -19,7 +19,11 @@ impl CoherenceGate {
     pub const fn empty(bins: usize) -> Self {
         Self {
             words: [0; WORDS],
-            bins: if bins > MAX_GATE_BINS { MAX_GATE_BINS } else { bins },
+            bins: if bins > MAX_GATE_BINS {
+                MAX_GATE_BINS
+            } else {
+                bins
+            },
         }
     }
 
@@ -34,7 +38,11 @@ impl CoherenceGate {
 
     /// `true` when bin `k` passed (`false` for `k >= bins()`).
     pub fn passes(&self, k: usize) -> bool {
-        k < self.bins && self.words.get(k / 32).is_some_and(|w| w & (1 << (k % 32)) != 0)
+        k < self.bins
+            && self
+                .words
+                .get(k / 32)
+                .is_some_and(|w| w & (1 << (k % 32)) != 0)
     }
 
     /// Number of bins the gate covers (`N/2 + 1`).

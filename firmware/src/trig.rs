@@ -27,7 +27,11 @@ const fn sin_taylor(x: f64) -> f64 {
             fact *= i as f64;
             i += 1;
         }
-        let c = if k % 2 == 0 { 1.0 / fact } else { -1.0 / fact };
+        let c = if k.is_multiple_of(2) {
+            1.0 / fact
+        } else {
+            -1.0 / fact
+        };
         acc = acc * x2 + c;
         if k == 0 {
             break;
@@ -49,7 +53,11 @@ const fn cos_taylor(x: f64) -> f64 {
             fact *= i as f64;
             i += 1;
         }
-        let c = if k % 2 == 0 { 1.0 / fact } else { -1.0 / fact };
+        let c = if k.is_multiple_of(2) {
+            1.0 / fact
+        } else {
+            -1.0 / fact
+        };
         acc = acc * x2 + c;
         if k == 0 {
             break;
@@ -72,7 +80,7 @@ pub const fn sin_frac(num: u64, den: u64) -> f64 {
     let n8 = (num as u128 % den128) * 8;
     let octant = n8 / den128; // 0..=7
     let rem = n8 - octant * den128; // in [0, den)
-    // angle = (π/4)·(octant + rem/den)
+                                    // angle = (π/4)·(octant + rem/den)
     let r = rem as f64 / den as f64; // [0, 1)
     let r_rev = (den128 - rem) as f64 / den as f64; // (0, 1]
     let v = match octant % 4 {
@@ -98,7 +106,7 @@ pub const fn cos_frac(num: u64, den: u64) -> f64 {
     let d4 = 4 * den as u128;
     let n = (4 * (num as u128 % den as u128) + den as u128) % d4;
     // n < 4·den ≤ 2^66: reduce by 4 where possible to stay in u64.
-    if n % 4 == 0 {
+    if n.is_multiple_of(4) {
         sin_frac((n / 4) as u64, den)
     } else if d4 <= u64::MAX as u128 {
         sin_frac(n as u64, d4 as u64)
@@ -159,8 +167,16 @@ mod tests {
                 let num = k.wrapping_mul(2_654_435_761) % (3 * den) + k; // spread, beyond 1 turn
                 let ang = 2.0 * std::f64::consts::PI * ((num % den) as f64 / den as f64);
                 let (s, c) = (sin_frac(num, den), cos_frac(num, den));
-                assert!((s - ang.sin()).abs() < 1e-15, "sin {num}/{den}: {s} vs {}", ang.sin());
-                assert!((c - ang.cos()).abs() < 1e-15, "cos {num}/{den}: {c} vs {}", ang.cos());
+                assert!(
+                    (s - ang.sin()).abs() < 1e-15,
+                    "sin {num}/{den}: {s} vs {}",
+                    ang.sin()
+                );
+                assert!(
+                    (c - ang.cos()).abs() < 1e-15,
+                    "cos {num}/{den}: {c} vs {}",
+                    ang.cos()
+                );
             }
         }
         assert_eq!(sin_frac(5, 0), 0.0);

@@ -465,7 +465,7 @@ impl<const N: usize> Welch<N> {
             return None;
         }
         let (uu, _, re, im) = self.raw(k)?;
-        if !(uu > 0.0) {
+        if uu.is_nan() || uu <= 0.0 {
             return None;
         }
         let inv = 1.0 / uu;
@@ -602,7 +602,13 @@ fn mean<const N: usize>(x: &[f32; N]) -> f32 {
 
 /// `dst[n] = (x[n] - mu)·w[n]` with `x` the ring `ring` read in time order from `start`.
 #[inline(never)]
-fn windowed<const N: usize>(dst: &mut [f32; N], ring: &[f32; N], start: usize, mu: f32, w: &[f32; N]) {
+fn windowed<const N: usize>(
+    dst: &mut [f32; N],
+    ring: &[f32; N],
+    start: usize,
+    mu: f32,
+    w: &[f32; N],
+) {
     let (newest, oldest) = ring.split_at(start.min(N));
     let (d1, d2) = dst.split_at_mut(N - start.min(N));
     let (w1, w2) = w.split_at(N - start.min(N));

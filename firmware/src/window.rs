@@ -73,7 +73,10 @@ mod tests {
                 assert!((w as f64 - e).abs() <= 6e-8, "N={N} n={n}: {w} vs {e}");
             }
             let s2 = HannTable::<N>::SUM_SQUARES as f64;
-            assert!((s2 - 3.0 * N as f64 / 8.0).abs() < 1e-6 * N as f64, "N={N}: S2={s2}");
+            assert!(
+                (s2 - 3.0 * N as f64 / 8.0).abs() < 1e-6 * N as f64,
+                "N={N}: S2={s2}"
+            );
         }
         check::<64>();
         check::<256>();

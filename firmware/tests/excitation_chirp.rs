@@ -52,12 +52,19 @@ fn max_deviation(c: &ChirpConfig) -> f64 {
         } else {
             f64::INFINITY
         };
-        let w = if m.is_finite() { 0.5 - 0.5 * (PI * m / fade as f64).cos() } else { 1.0 };
+        let w = if m.is_finite() {
+            0.5 - 0.5 * (PI * m / fade as f64).cos()
+        } else {
+            1.0
+        };
         let r = c.amplitude as f64 * w * (2.0 * PI * phase.fract()).sin();
         worst = worst.max((v as f64 - r).abs());
         phase += law(c, len, n as f64) / fs;
-        assert!((ch.instantaneous_frequency_hz(n as u32) as f64 - law(c, len, n as f64)).abs()
-            <= 1e-6 * law(c, len, n as f64), "n={n}");
+        assert!(
+            (ch.instantaneous_frequency_hz(n as u32) as f64 - law(c, len, n as f64)).abs()
+                <= 1e-6 * law(c, len, n as f64),
+            "n={n}"
+        );
     }
     worst
 }
@@ -71,7 +78,9 @@ fn samples_follow_the_documented_law() {
     // samples at up to 800 Hz (8000 cycles) the phase error stays below 8000·5e-7·2π ≈ 0.025 rad
     // in the worst (fully correlated) case ⇒ tolerance 0.025·A.
     let log = max_deviation(&cfg(ChirpLaw::Logarithmic, 5.0, 800.0));
-    println!("max |x - x_ref|: linear {lin:.2e}, linear down {lin_down:.2e}, log {log:.2e} (A = 0.7)");
+    println!(
+        "max |x - x_ref|: linear {lin:.2e}, linear down {lin_down:.2e}, log {log:.2e} (A = 0.7)"
+    );
     assert!(lin < 0.7 * 3e-7, "{lin}");
     assert!(lin_down < 0.7 * 3e-7, "{lin_down}");
     assert!(log < 0.7 * 0.025, "{log}");
@@ -155,9 +164,13 @@ fn linear_sweep_spectrum_is_in_band_at_the_stationary_phase_level() {
     };
     let (_, x) = generate(&c);
     let n = x.len();
-    let mut buf: Vec<rustfft::num_complex::Complex64> =
-        x.iter().map(|&v| rustfft::num_complex::Complex64::new(v as f64, 0.0)).collect();
-    rustfft::FftPlanner::new().plan_fft_forward(n).process(&mut buf);
+    let mut buf: Vec<rustfft::num_complex::Complex64> = x
+        .iter()
+        .map(|&v| rustfft::num_complex::Complex64::new(v as f64, 0.0))
+        .collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(n)
+        .process(&mut buf);
     let df = c.fs_hz as f64 / n as f64;
     let p: Vec<f64> = buf[..n / 2].iter().map(|z| z.norm_sqr()).collect();
     let total: f64 = p.iter().sum();
@@ -179,14 +192,22 @@ fn linear_sweep_spectrum_is_in_band_at_the_stationary_phase_level() {
         .map(|(_, v)| *v)
         .collect();
     let mean_db = 10.0 * (band.iter().sum::<f64>() / band.len() as f64 / expect).log10();
-    println!("out-of-band fraction {:.2e}, in-band level {mean_db:+.3} dB vs stationary phase", out / total);
+    println!(
+        "out-of-band fraction {:.2e}, in-band level {mean_db:+.3} dB vs stationary phase",
+        out / total
+    );
     assert!(out / total < 1e-3);
     assert!(mean_db.abs() < 0.5);
 }
 
 #[test]
 fn silent_after_the_sweep_and_restart_repeats() {
-    let mut ch = Chirp::new(ChirpConfig { duration_s: 0.01, fade_s: 0.0, ..cfg(ChirpLaw::Linear, 10.0, 100.0) }).unwrap();
+    let mut ch = Chirp::new(ChirpConfig {
+        duration_s: 0.01,
+        fade_s: 0.0,
+        ..cfg(ChirpLaw::Linear, 10.0, 100.0)
+    })
+    .unwrap();
     assert_eq!(ch.len_samples(), 20);
     let a: Vec<f32> = (0..20).map(|_| ch.next_sample()).collect();
     assert!(ch.is_finished());
@@ -203,23 +224,59 @@ fn invalid_configurations_are_rejected() {
     let ok = cfg(ChirpLaw::Logarithmic, 10.0, 100.0);
     let e = |c: ChirpConfig| Chirp::new(c).err();
     for fs in [0.0, -1.0, f32::NAN, f32::INFINITY] {
-        assert_eq!(e(ChirpConfig { fs_hz: fs, ..ok }), Some(Error::InvalidSampleRate));
+        assert_eq!(
+            e(ChirpConfig { fs_hz: fs, ..ok }),
+            Some(Error::InvalidSampleRate)
+        );
     }
     for f in [0.0, -5.0, 1000.0, 1500.0, f32::NAN] {
-        assert_eq!(e(ChirpConfig { f0_hz: f, ..ok }), Some(Error::InvalidFrequency), "f0={f}");
-        assert_eq!(e(ChirpConfig { f1_hz: f, ..ok }), Some(Error::InvalidFrequency), "f1={f}");
+        assert_eq!(
+            e(ChirpConfig { f0_hz: f, ..ok }),
+            Some(Error::InvalidFrequency),
+            "f0={f}"
+        );
+        assert_eq!(
+            e(ChirpConfig { f1_hz: f, ..ok }),
+            Some(Error::InvalidFrequency),
+            "f1={f}"
+        );
     }
     // A linear sweep may start at DC.
-    assert!(Chirp::new(ChirpConfig { f0_hz: 0.0, law: ChirpLaw::Linear, ..ok }).is_ok());
+    assert!(Chirp::new(ChirpConfig {
+        f0_hz: 0.0,
+        law: ChirpLaw::Linear,
+        ..ok
+    })
+    .is_ok());
     for a in [0.0, -1.0, f32::NAN] {
-        assert_eq!(e(ChirpConfig { amplitude: a, ..ok }), Some(Error::InvalidAmplitude));
-    }
-    for (d, f) in [(0.0, 0.0), (0.0005, 0.0), (-1.0, 0.0), (f32::NAN, 0.0), (1.0, 0.6), (1.0, -0.1), (1e9, 0.0)] {
         assert_eq!(
-            e(ChirpConfig { duration_s: d, fade_s: f, ..ok }),
+            e(ChirpConfig { amplitude: a, ..ok }),
+            Some(Error::InvalidAmplitude)
+        );
+    }
+    for (d, f) in [
+        (0.0, 0.0),
+        (0.0005, 0.0),
+        (-1.0, 0.0),
+        (f32::NAN, 0.0),
+        (1.0, 0.6),
+        (1.0, -0.1),
+        (1e9, 0.0),
+    ] {
+        assert_eq!(
+            e(ChirpConfig {
+                duration_s: d,
+                fade_s: f,
+                ..ok
+            }),
             Some(Error::InvalidDuration),
             "duration {d}, fade {f}"
         );
     }
-    assert!(Chirp::new(ChirpConfig { duration_s: 1.0, fade_s: 0.5, ..ok }).is_ok());
+    assert!(Chirp::new(ChirpConfig {
+        duration_s: 1.0,
+        fade_s: 0.5,
+        ..ok
+    })
+    .is_ok());
 }

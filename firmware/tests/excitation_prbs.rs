@@ -32,9 +32,9 @@ fn prime_factors(mut m: u64) -> Vec<u64> {
     let mut f = Vec::new();
     let mut d = 2;
     while d * d <= m {
-        if m % d == 0 {
+        if m.is_multiple_of(d) {
             f.push(d);
-            while m % d == 0 {
+            while m.is_multiple_of(d) {
                 m /= d;
             }
         }
@@ -189,7 +189,11 @@ fn spectrum_of_one_period_is_flat_with_hold_nulls() {
         let h = hold as f64;
         let peak = pw.iter().cloned().fold(0.0, f64::max);
         for (k, &p) in pw.iter().enumerate() {
-            let base = if k % pp == 0 { a * a } else { (pp as f64 + 1.0) * a * a };
+            let base = if k % pp == 0 {
+                a * a
+            } else {
+                (pp as f64 + 1.0) * a * a
+            };
             let d2 = if k == 0 {
                 h * h
             } else {
@@ -199,9 +203,16 @@ fn spectrum_of_one_period_is_flat_with_hold_nulls() {
             };
             let expect = base * d2;
             if k % pp == 0 && k != 0 {
-                assert!(p / peak < 1e-10, "hold={hold} k={k}: null at {:.1} dB", 10.0 * (p / peak).log10());
+                assert!(
+                    p / peak < 1e-10,
+                    "hold={hold} k={k}: null at {:.1} dB",
+                    10.0 * (p / peak).log10()
+                );
             } else {
-                assert!((p - expect).abs() <= 1e-9 * peak, "hold={hold} k={k}: {p} vs {expect}");
+                assert!(
+                    (p - expect).abs() <= 1e-9 * peak,
+                    "hold={hold} k={k}: {p} vs {expect}"
+                );
             }
         }
     }
@@ -209,14 +220,26 @@ fn spectrum_of_one_period_is_flat_with_hold_nulls() {
 
 #[test]
 fn invalid_arguments_are_rejected() {
-    assert_eq!(Prbs::new(4, 1, 1.0, 1).err(), Some(Error::InvalidRegisterLength { bits: 4 }));
-    assert_eq!(Prbs::new(32, 1, 1.0, 1).err(), Some(Error::InvalidRegisterLength { bits: 32 }));
-    assert_eq!(Prbs::new(0, 1, 1.0, 1).err(), Some(Error::InvalidRegisterLength { bits: 0 }));
+    assert_eq!(
+        Prbs::new(4, 1, 1.0, 1).err(),
+        Some(Error::InvalidRegisterLength { bits: 4 })
+    );
+    assert_eq!(
+        Prbs::new(32, 1, 1.0, 1).err(),
+        Some(Error::InvalidRegisterLength { bits: 32 })
+    );
+    assert_eq!(
+        Prbs::new(0, 1, 1.0, 1).err(),
+        Some(Error::InvalidRegisterLength { bits: 0 })
+    );
     assert_eq!(Prbs::new(5, 0, 1.0, 1).err(), Some(Error::InvalidSeed));
     assert_eq!(Prbs::new(5, 32, 1.0, 1).err(), Some(Error::InvalidSeed));
     assert!(Prbs::new(5, 31, 1.0, 1).is_ok());
     assert!(Prbs::new(31, 0x7FFF_FFFF, 1.0, 1).is_ok());
-    assert_eq!(Prbs::new(31, 0x8000_0000, 1.0, 1).err(), Some(Error::InvalidSeed));
+    assert_eq!(
+        Prbs::new(31, 0x8000_0000, 1.0, 1).err(),
+        Some(Error::InvalidSeed)
+    );
     for a in [0.0, -1.0, f32::NAN, f32::INFINITY] {
         assert_eq!(Prbs::new(9, 1, a, 1).err(), Some(Error::InvalidAmplitude));
     }

@@ -16,6 +16,7 @@
 //! * Mean removal: with a Hann window, subtracting the segment mean also changes bin 1 (the
 //!   window's spectrum spans ±1 bin), exactly as in scipy; H_w does not model that, so bins
 //!   0 and 1 are excluded when mean removal is on.
+//!
 //! Tolerance: |Ĥ - H|/|H| <= |H_w - H|/|H| + 4σ + 1e-3 in every bin with coherence > 0.9.
 
 mod common;
@@ -36,7 +37,15 @@ struct Outcome {
     far_phase_err_deg: f64,
 }
 
-fn run_plant(b: &[f64], a: &[f64], seed: u64, len: usize, detrend: bool, center: f64, far: f64) -> Outcome {
+fn run_plant(
+    b: &[f64],
+    a: &[f64],
+    seed: u64,
+    len: usize,
+    detrend: bool,
+    center: f64,
+    far: f64,
+) -> Outcome {
     let mut rng = XorShift::new(seed);
     let u = rng.gauss_vec(len);
     let y = lfilter(b, a, &u);
@@ -115,7 +124,10 @@ fn first_order_lag() {
             o.max_phase_err_deg,
             100.0 * o.max_bias
         );
-        assert!(o.bins > 400, "coherence > 0.9 should hold almost everywhere");
+        assert!(
+            o.bins > 400,
+            "coherence > 0.9 should hold almost everywhere"
+        );
         // Smooth plant: the 2 % / 2° bar holds in every checked bin.
         assert!(o.max_mag_err < 0.02 && o.max_phase_err_deg < 2.0);
     }
@@ -151,7 +163,11 @@ fn lightly_damped_mode() {
     // The smoothing bias at the resonance is real and of the size theory predicts,
     // (4/3)/B_r² = 5.1 % for B_r = 5.12 bins (higher-order terms reduce it a little).
     let theory = (4.0 / 3.0) / (b_r * b_r);
-    assert!(o.max_bias > 0.7 * theory && o.max_bias < 1.1 * theory, "bias {:.4}", o.max_bias);
+    assert!(
+        o.max_bias > 0.7 * theory && o.max_bias < 1.1 * theory,
+        "bias {:.4}",
+        o.max_bias
+    );
     // Away from the peak the 2 % / 2° bar holds.
     assert!(o.far_mag_err < 0.02 && o.far_phase_err_deg < 2.0);
 }

@@ -15,7 +15,10 @@ fn memory_budget_welch_1024() {
     // Issue bar for the whole image: 24·N + 2 KiB of static RAM; the estimator itself must
     // stay within 24·N + 512 bytes.
     let s = core::mem::size_of::<Welch<1024>>();
-    println!("size_of::<Welch<1024>>() = {s} bytes (24·N = {})", 24 * 1024);
+    println!(
+        "size_of::<Welch<1024>>() = {s} bytes (24·N = {})",
+        24 * 1024
+    );
     assert!(s <= 24 * 1024 + 512, "{s}");
     assert!(core::mem::size_of::<Welch<64>>() <= 24 * 64 + 512);
     assert!(core::mem::size_of::<Welch<4096>>() <= 24 * 4096 + 512);
@@ -61,9 +64,18 @@ fn nonfinite_samples_drop_exactly_the_segments_containing_them() {
     for k in 0..w.bins() {
         assert!(w.suu(k).is_finite() && w.syy(k).is_finite());
         if r.coherence(k) > 0.5 {
-            assert!((w.suu(k) as f64 - r.suu[k]).abs() <= 1e-4 * r.suu[k], "k={k}");
-            assert!((w.syy(k) as f64 - r.syy[k]).abs() <= 1e-4 * r.syy[k], "k={k}");
-            assert!((w.coherence(k) as f64 - r.coherence(k)).abs() <= 1e-4, "k={k}");
+            assert!(
+                (w.suu(k) as f64 - r.suu[k]).abs() <= 1e-4 * r.suu[k],
+                "k={k}"
+            );
+            assert!(
+                (w.syy(k) as f64 - r.syy[k]).abs() <= 1e-4 * r.syy[k],
+                "k={k}"
+            );
+            assert!(
+                (w.coherence(k) as f64 - r.coherence(k)).abs() <= 1e-4,
+                "k={k}"
+            );
         }
     }
 }
@@ -84,7 +96,11 @@ fn unconfigured_estimator_is_inert_until_configured() {
     }
     w.configure(WelchConfig::scipy_default(10.0, 64)).unwrap();
     assert!(w.is_configured());
-    assert_eq!((w.averages(), w.nonfinite_samples()), (0, 0), "configure() resets");
+    assert_eq!(
+        (w.averages(), w.nonfinite_samples()),
+        (0, 0),
+        "configure() resets"
+    );
     let u: Vec<f32> = (0..64 * 4).map(|_| rng.gauss() as f32).collect();
     w.push_slice(&u, &u).unwrap();
     assert_eq!(w.averages(), 7);
@@ -101,7 +117,11 @@ fn push_slice_length_mismatch_is_an_error_and_consumes_nothing() {
     for i in 0..63 {
         w.push(i as f32, 1.0);
     }
-    assert_eq!(w.averages(), 0, "the failed call must not have consumed samples");
+    assert_eq!(
+        w.averages(),
+        0,
+        "the failed call must not have consumed samples"
+    );
     w.push(1.0, 2.0);
     assert_eq!(w.averages(), 1);
 }
@@ -111,7 +131,11 @@ fn invalid_configurations_are_rejected() {
     let ok = WelchConfig::scipy_default(1000.0, 128);
     for fs in [f32::NAN, f32::INFINITY, 0.0, -1.0, 1e-7, 2e12] {
         let cfg = WelchConfig { fs_hz: fs, ..ok };
-        assert_eq!(Welch::<128>::new(cfg).err(), Some(Error::InvalidSampleRate), "fs={fs}");
+        assert_eq!(
+            Welch::<128>::new(cfg).err(),
+            Some(Error::InvalidSampleRate),
+            "fs={fs}"
+        );
     }
     for overlap in [128, 129, usize::MAX] {
         let cfg = WelchConfig { overlap, ..ok };
@@ -127,7 +151,12 @@ fn invalid_configurations_are_rejected() {
     );
     assert_eq!(w.config(), &ok);
     assert_eq!(w.hop(), 64);
-    w.configure(WelchConfig { overlap: 32, window: Window::Rectangular, ..ok }).unwrap();
+    w.configure(WelchConfig {
+        overlap: 32,
+        window: Window::Rectangular,
+        ..ok
+    })
+    .unwrap();
     assert_eq!(w.hop(), 96);
 }
 
@@ -156,16 +185,27 @@ fn undefined_outputs_before_any_average() {
         w.push(rng.gauss() as f32, rng.gauss() as f32);
     }
     for k in 1..32 {
-        assert!((w.coherence(k) - 1.0).abs() < 1e-5, "k={k}: {}", w.coherence(k));
+        assert!(
+            (w.coherence(k) - 1.0).abs() < 1e-5,
+            "k={k}: {}",
+            w.coherence(k)
+        );
     }
     // reset() forgets everything.
     w.reset();
-    assert_eq!((w.averages(), w.dropped_segments(), w.nonfinite_samples()), (0, 0, 0));
+    assert_eq!(
+        (w.averages(), w.dropped_segments(), w.nonfinite_samples()),
+        (0, 0, 0)
+    );
     assert_eq!(w.coherence(3), 0.0);
 }
 
 /// Mean coherence over bins 1..N/2 of independent Gaussian u, y.
-fn mean_noise_coherence<const N: usize>(cfg: WelchConfig, segments: usize, seed: u64) -> (f64, u32, usize) {
+fn mean_noise_coherence<const N: usize>(
+    cfg: WelchConfig,
+    segments: usize,
+    seed: u64,
+) -> (f64, u32, usize) {
     let mut rng = XorShift::new(seed);
     let mut w = Welch::<N>::new(cfg).unwrap();
     let len = N + (segments - 1) * (N - cfg.overlap);
@@ -190,7 +230,10 @@ fn coherence_of_uncorrelated_noise_is_about_one_over_n_avg() {
     };
     let (m, avg, gated) = mean_noise_coherence::<N>(cfg, k, 21);
     assert_eq!(avg as usize, k);
-    println!("rectangular, K={k}: mean γ² = {m:.5}, 1/K = {:.5}", 1.0 / k as f64);
+    println!(
+        "rectangular, K={k}: mean γ² = {m:.5}, 1/K = {:.5}",
+        1.0 / k as f64
+    );
     assert!((m * k as f64 - 1.0).abs() < 0.10, "mean γ² {m} vs 1/K");
     // Gate at 0.3: P(γ̂² > 0.3) = 0.7^31 = 1.6e-5 per bin ⇒ ~0.03 of 2049 bins expected.
     assert!(gated <= 2, "{gated} noise bins passed a 0.3 gate");
@@ -198,7 +241,10 @@ fn coherence_of_uncorrelated_noise_is_about_one_over_n_avg() {
     // Hann, 50 % overlap: overlapping segments are correlated, fewer effective averages
     // (n_d ≈ K/1.056 for Welch's variance); expect a mean a few % above 1/K.
     let (m, avg, _) = mean_noise_coherence::<1024>(WelchConfig::scipy_default(1.0, 1024), 64, 22);
-    println!("Hann 50 %, K={avg}: mean γ² = {m:.5}, 1/K = {:.5}", 1.0 / avg as f64);
+    println!(
+        "Hann 50 %, K={avg}: mean γ² = {m:.5}, 1/K = {:.5}",
+        1.0 / avg as f64
+    );
     let ratio = m * avg as f64;
     assert!(ratio > 0.95 && ratio < 1.20, "K·mean γ² = {ratio}");
 }

@@ -196,9 +196,7 @@ impl Chirp {
                 let (f0, f1) = (f64::from(self.cfg.f0_hz), f64::from(self.cfg.f1_hz));
                 (f0 + (f1 - f0) * f64::from(n) / f64::from(self.len)) as f32
             }
-            ChirpLaw::Logarithmic => {
-                self.log_increment(n) as f32 / TWO_POW_32 * self.cfg.fs_hz
-            }
+            ChirpLaw::Logarithmic => self.log_increment(n) as f32 / TWO_POW_32 * self.cfg.fs_hz,
         }
     }
 

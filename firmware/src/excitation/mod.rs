@@ -14,8 +14,7 @@ mod prbs;
 
 pub use chirp::{Chirp, ChirpConfig, ChirpLaw};
 pub use multisine::{
-    odd_random_phase_lines, Line, Multisine, MultisineScratch, MultisineSpec, OddLineCounts,
-    Phases,
+    odd_random_phase_lines, Line, Multisine, MultisineScratch, MultisineSpec, OddLineCounts, Phases,
 };
 pub use prbs::{taps as prbs_taps, Prbs, MAX_BITS as PRBS_MAX_BITS, MIN_BITS as PRBS_MIN_BITS};
 

@@ -174,7 +174,10 @@ impl<const N: usize> Multisine<N> {
     ///
     /// # Errors
     /// [`Error::NoLines`], [`Error::InvalidLine`] / [`Error::DuplicateLine`] naming the index.
-    pub fn design(spec: &MultisineSpec<'_>, scratch: &mut MultisineScratch<N>) -> Result<Self, Error> {
+    pub fn design(
+        spec: &MultisineSpec<'_>,
+        scratch: &mut MultisineScratch<N>,
+    ) -> Result<Self, Error> {
         let () = Self::VALID_N;
         validate_lines::<N>(spec.lines)?;
         let mut table = [0.0f32; N];
@@ -221,7 +224,12 @@ impl<const N: usize> Multisine<N> {
                 Phases::Random { .. } => rng.next_u32(),
             };
             let mag = a * half;
-            add_line(&mut scratch.work, k, mag * cos_turns(phase), mag * sin_turns(phase));
+            add_line(
+                &mut scratch.work,
+                k,
+                mag * cos_turns(phase),
+                mag * sin_turns(phase),
+            );
         }
         synthesize(&mut scratch.work, &mut table);
 
@@ -258,9 +266,8 @@ fn validate_lines<const N: usize>(lines: &[Line]) -> Result<(), Error> {
     // One bit per bin; N/2 <= 2048 bins.
     let mut seen = [0u32; fft::MAX_LEN / 2 / 32];
     for (index, l) in lines.iter().enumerate() {
-        let amp_ok = l.amplitude.is_finite()
-            && l.amplitude > 0.0
-            && l.amplitude <= MAX_LINE_AMPLITUDE;
+        let amp_ok =
+            l.amplitude.is_finite() && l.amplitude > 0.0 && l.amplitude <= MAX_LINE_AMPLITUDE;
         if l.bin == 0 || l.bin >= N / 2 || !amp_ok {
             return Err(Error::InvalidLine { index });
         }
@@ -282,7 +289,7 @@ fn peak_rms(t: &[f32]) -> Option<(f32, f32)> {
     let mut peak = 0.0f32;
     let mut sum_sq = 0.0f64;
     for &v in t {
-        if !(v.abs() <= limit) {
+        if v.is_nan() || v.abs() > limit {
             return None;
         }
         peak = peak.max(v.abs());

@@ -94,6 +94,7 @@ impl RefSpectra {
 }
 
 /// scipy-convention Welch cross/auto spectra in f64. `skip(start)` excludes segments.
+#[allow(clippy::too_many_arguments)]
 pub fn ref_csd(
     u: &[f64],
     y: &[f64],
@@ -125,7 +126,11 @@ pub fn ref_csd(
         if !skip(start) {
             let seg = |x: &[f64]| {
                 let s = &x[start..start + n];
-                let m = if detrend { s.iter().sum::<f64>() / n as f64 } else { 0.0 };
+                let m = if detrend {
+                    s.iter().sum::<f64>() / n as f64
+                } else {
+                    0.0
+                };
                 let mut b: Vec<Complex64> = s
                     .iter()
                     .zip(&w)
