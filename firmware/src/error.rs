@@ -99,3 +99,26 @@ impl fmt::Display for Error {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_names_the_offending_value() {
+        assert_eq!(
+            Error::LengthMismatch { u: 3, y: 2 }.to_string(),
+            "u and y slices have different lengths (u.len() = 3, y.len() = 2)"
+        );
+        assert!(Error::InvalidLine { index: 7 }
+            .to_string()
+            .ends_with("(lines[7])"));
+        assert!(Error::InvalidRegisterLength { bits: 40 }
+            .to_string()
+            .contains("bits = 40"));
+        assert!(Error::BufferTooSmall { needed: 12 }
+            .to_string()
+            .contains("12"));
+        assert_eq!(Error::InvalidSeed.to_string(), Error::InvalidSeed.as_str());
+    }
+}

@@ -54,7 +54,8 @@ pub struct ChirpConfig {
 /// # Implementation and accuracy
 /// The phase is a 64-bit accumulator (`2^64` = one cycle), the sine comes from
 /// [`crate::trig::sin_turns`] (table + angle addition, error < 2.5e-7·A): no `libm` for the
-/// linear law, about 20 instructions per sample on a Cortex-M4F.
+/// linear law. Measured under QEMU (`-icount`, opt-level 3): about 45 instructions per sample
+/// for the linear law, 110 for the logarithmic law.
 /// * Linear: the per-sample increment grows by a constant 64-bit step, so `f[n]` is exact to
 ///   `fs/2^64` (plus the `f64` rounding of the two constants at construction).
 /// * Logarithmic: `f[n]` is evaluated each sample as `f0·expf(n·ln(f1/f0)/L)` in `f32`
