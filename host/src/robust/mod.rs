@@ -3,6 +3,9 @@
 //!
 //! - [`norms`]: H∞ norm by Hamiltonian bisection (continuous and discrete), with its peak
 //!   frequency.
+pub mod discretize;
+pub mod loops;
 pub mod norms;
 pub mod optim;
+pub mod pid;
 pub mod uncertainty;
