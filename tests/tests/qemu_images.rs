@@ -122,9 +122,6 @@ fn firmware_sites(sites: &[PanicSite]) -> String {
 /// in; no branch to a panic entry point may come from firmware code (frames attributed by the
 /// debug information, inlining included). The image must also run to completion.
 #[test]
-#[ignore = "fails on a real finding: firmware/src/excitation/multisine.rs, optimise_crest: `x.clamp(-level, level)` \
-            keeps core's clamp panic (NaN or min > max) in Multisine::design; replace with \
-            `x.max(-level).min(level)`, then remove this ignore"]
 fn firmware_api_has_no_panic_path() {
     let offending = firmware_sites(&sites_of("nopanic"));
     assert!(

@@ -322,7 +322,8 @@ fn optimise_crest<const N: usize>(
         let peak = peak_of(table);
         let level = ratio * peak;
         for (w, &x) in scratch.work.iter_mut().zip(table.iter()) {
-            *w = x.clamp(-level, level);
+            // max/min, not clamp: clamp panics when level is NaN (a reachable input).
+            *w = x.max(-level).min(level);
         }
         // Project: spectrum of the clipped signal, keep phases on the lines, exact amplitudes.
         table.fill(0.0);
