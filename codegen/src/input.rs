@@ -1,0 +1,258 @@
+//! The plain-data input of the generators: everything a header holds, as numbers and text.
+//!
+//! Deliberately free of host types (no faer matrices, no `ferrosid` structs) so that the
+//! `ferrosid` host crate can depend on this crate without a cycle: the host fills a
+//! [`CodegenInput`] from its identified model, tuned PID, uncertainty weight and receipts.
+//!
+//! Units: seconds, Hz (frequencies at which things are checked), rad/s (the Laplace variable of
+//! the continuous W_m(s) and continuous model). Matrices are row-major `Vec<Vec<f64>>`:
+//! `a[i][j]` is row `i`, column `j`.
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// A state-space quadruple, row-major. Shapes: A n×n, B n×m, C p×n, D p×m (n, m, p >= 1).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Matrices {
+    /// State matrix A, n rows of n.
+    pub a: Vec<Vec<f64>>,
+    /// Input matrix B, n rows of m.
+    pub b: Vec<Vec<f64>>,
+    /// Output matrix C, p rows of n.
+    pub c: Vec<Vec<f64>>,
+    /// Feedthrough matrix D, p rows of m.
+    pub d: Vec<Vec<f64>>,
+}
+
+/// Dimensions of a [`Matrices`]: states, inputs, outputs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dims {
+    /// Number of states n.
+    pub n: usize,
+    /// Number of inputs m.
+    pub m: usize,
+    /// Number of outputs p.
+    pub p: usize,
+}
+
+impl Matrices {
+    /// Checks shapes (A n×n, B n×m, C p×n, D p×m with n, m, p >= 1), that every entry is finite
+    /// and that it fits an `f32` (the headers store `float`). `what` names the model in errors.
+    pub fn validate(&self, what: &str) -> Result<Dims> {
+        let n = self.a.len();
+        let m = self.d.first().map_or(0, Vec::len);
+        let p = self.d.len();
+        if n == 0 {
+            return Err(Error::input(
+                format!("{what}.a"),
+                "the model has no states; a static gain has no dynamics to check on target",
+            ));
+        }
+        if m == 0 || p == 0 {
+            return Err(Error::input(
+                format!("{what}.d"),
+                "D must have at least one row (output) and one column (input)",
+            ));
+        }
+        check_shape(&format!("{what}.a"), &self.a, n, n)?;
+        check_shape(&format!("{what}.b"), &self.b, n, m)?;
+        check_shape(&format!("{what}.c"), &self.c, p, n)?;
+        check_shape(&format!("{what}.d"), &self.d, p, m)?;
+        for (name, mat) in [
+            ("a", &self.a),
+            ("b", &self.b),
+            ("c", &self.c),
+            ("d", &self.d),
+        ] {
+            for (i, row) in mat.iter().enumerate() {
+                for (j, &v) in row.iter().enumerate() {
+                    check_f32(&format!("{what}.{name}[{i}][{j}]"), v)?;
+                }
+            }
+        }
+        Ok(Dims { n, m, p })
+    }
+}
+
+fn check_shape(field: &str, rows: &[Vec<f64>], nr: usize, nc: usize) -> Result<()> {
+    if rows.len() != nr {
+        return Err(Error::input(
+            field,
+            format!("has {} rows, expected {nr}", rows.len()),
+        ));
+    }
+    if let Some((i, r)) = rows.iter().enumerate().find(|(_, r)| r.len() != nc) {
+        return Err(Error::input(
+            format!("{field}[{i}]"),
+            format!("has {} entries, expected {nc}", r.len()),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that `v` is finite and representable as a finite `f32`.
+pub(crate) fn check_f32(field: &str, v: f64) -> Result<()> {
+    if !v.is_finite() {
+        return Err(Error::input(field, format!("{v} is not finite")));
+    }
+    if v.abs() > f64::from(f32::MAX) {
+        return Err(Error::input(
+            field,
+            format!("{v:e} does not fit a 32-bit float (|v| > 3.4e38)"),
+        ));
+    }
+    Ok(())
+}
+
+/// The discrete model the firmware runs and checks, at the control rate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DiscreteModel {
+    /// Sample time, s (> 0): x[k+1] = A x[k] + B u[k], y[k] = C x[k] + D u[k].
+    pub ts_s: f64,
+    /// A, B, C, D.
+    pub matrices: Matrices,
+}
+
+/// The continuous model, emitted as documentation comments only (x' = A x + B u, t in s).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ContinuousModel {
+    /// A, B, C, D of the continuous model.
+    pub matrices: Matrices,
+    /// How it relates to the discrete model (e.g. "inverse ZOH of the discrete model").
+    pub note: String,
+}
+
+/// Continuous PID parameters, for documentation next to the discrete gains.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ContinuousPid {
+    /// Proportional gain Kp.
+    pub kp: f64,
+    /// Integral gain Ki, 1/s.
+    pub ki: f64,
+    /// Derivative gain Kd, s.
+    pub kd: f64,
+    /// Derivative filter time constant τ_f, s.
+    pub tau_f: f64,
+}
+
+/// A second-order section `y[k] = b0 x[k] + b1 x[k-1] + b2 x[k-2] - a1 y[k-1] - a2 y[k-2]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Biquad {
+    /// `[b0, b1, b2]`.
+    pub b: [f64; 3],
+    /// `[1, a1, a2]` (a0 must be 1).
+    pub a: [f64; 3],
+}
+
+/// The discrete PID law the firmware runs (Tustin, see `ferrosid::robust::pid`):
+/// `p = kp·e[k]`, `i[k] = i[k-1] + ki_d·(e[k] + e[k-1])`, `d[k] = a_d·d[k-1] + b_d·(e[k] - e[k-1])`,
+/// `v = p + i + d`, `u = rolloff(v)` when a roll-off biquad is present, else `u = v`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PidGains {
+    /// Sample time, s (must equal the model's).
+    pub ts_s: f64,
+    /// Proportional gain.
+    pub kp: f64,
+    /// Trapezoidal integrator coefficient (Ki·ts/2 for plain Tustin).
+    pub ki_d: f64,
+    /// Derivative filter pole.
+    pub a_d: f64,
+    /// Derivative gain per sample.
+    pub b_d: f64,
+    /// Optional roll-off section applied to v.
+    pub rolloff: Option<Biquad>,
+    /// Tustin prewarp frequency, Hz (documentation).
+    pub prewarp_hz: Option<f64>,
+    /// The continuous controller it came from (documentation).
+    pub continuous: Option<ContinuousPid>,
+}
+
+/// The multiplicative uncertainty weight W_m(s) = num(s)/den(s), continuous, s in rad/s,
+/// descending powers. The firmware evaluates |W_m(j·2πf)| at the check frequencies from these
+/// coefficients. `num.len() == den.len()` (a proper weight of order `len - 1`, 0 for a constant
+/// relative tolerance).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WeightCoefficients {
+    /// Numerator, descending powers of s.
+    pub num: Vec<f64>,
+    /// Denominator, descending powers of s, leading coefficient non-zero.
+    pub den: Vec<f64>,
+    /// Where it came from (documentation).
+    pub note: String,
+}
+
+/// Settings of the power-up self-identification the firmware runs, and the frequencies it checks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SelfIdSettings {
+    /// Welch segment length N (power of two, 64..=4096); also the multisine period.
+    pub welch_n: usize,
+    /// Requested check frequencies, Hz; each is snapped to the nearest bin `k·fs/N`.
+    pub check_hz: Vec<f64>,
+    /// Magnitude-squared coherence a bin needs for its check to count, in (0, 1).
+    pub coherence_gate: f64,
+    /// Segments (periods) averaged.
+    pub averages: u32,
+    /// Periods played before averaging starts (transient decay).
+    pub settle_periods: u32,
+    /// RMS of the multisine excitation, in plant input units.
+    pub excitation_rms: f64,
+    /// Highest excited frequency, Hz (lines `1..=floor(f·N/fs)` are excited, flat amplitude).
+    pub excitation_max_hz: f64,
+    /// Fewest check frequencies that must pass the coherence gate for a verdict.
+    pub min_checked: usize,
+}
+
+/// SHA-256 digest of one source file (a log, a settings file).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SourceDigest {
+    /// How the file is referred to (its name as given on the command line).
+    pub label: String,
+    /// Lower-case hex SHA-256 of the file's bytes.
+    pub sha256: String,
+}
+
+/// One line of the receipts summary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReceiptLine {
+    /// Receipt name (e.g. `sensitivity_peak`).
+    pub name: String,
+    /// Readable value with unit.
+    pub value: String,
+    /// Readable condition, e.g. `<= 1.6`.
+    pub condition: String,
+    /// Whether it passed.
+    pub pass: bool,
+}
+
+/// Where the generated numbers came from. No wall-clock time: same inputs, same bytes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// Producing tool and version, e.g. `ferrosid 0.1.0`.
+    pub tool: String,
+    /// Digests of the source logs and settings files.
+    pub sources: Vec<SourceDigest>,
+    /// Receipts summary (may be empty).
+    pub receipts: Vec<ReceiptLine>,
+    /// Free-form notes (one line each), e.g. the identification command.
+    pub notes: Vec<String>,
+}
+
+/// Everything a header holds. Filled by the host (`ferrosid codegen`), consumed by
+/// [`crate::generate`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CodegenInput {
+    /// Identifier prefix as given by the user; sanitised by [`crate::sanitize_prefix`].
+    pub prefix: String,
+    /// The discrete model at the control rate.
+    pub model: DiscreteModel,
+    /// The continuous model (documentation only).
+    pub continuous: Option<ContinuousModel>,
+    /// Discrete PID gains.
+    pub pid: Option<PidGains>,
+    /// Uncertainty weight W_m(s).
+    pub weight: WeightCoefficients,
+    /// Power-up self-identification settings.
+    pub self_id: SelfIdSettings,
+    /// Provenance block.
+    pub provenance: Provenance,
+}
