@@ -3,9 +3,12 @@
 //!
 //! - [`norms`]: H∞ norm by Hamiltonian bisection (continuous and discrete), with its peak
 //!   frequency.
+pub mod audit;
 pub mod discretize;
 pub mod loops;
 pub mod norms;
 pub mod optim;
 pub mod pid;
+pub mod receipts;
+pub mod step;
 pub mod uncertainty;

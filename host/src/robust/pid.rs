@@ -27,7 +27,9 @@
 //! ‖KS‖∞ <= `ks_max` (when given). Infeasibility is screened cheaply on a frequency grid (a
 //! grid value is a lower bound of the norm, so a grid violation is certain) and confirmed with
 //! the Hamiltonian H∞ norms of [`super::norms`]. The highest feasible crossover wins; among
-//! the feasible candidates at that crossover the one with the smallest M_s.
+//! the feasible candidates at that crossover the one with the largest integral gain Ki (best
+//! low-frequency load-disturbance rejection, the criterion of MIGO, Åström & Hägglund), or the
+//! smallest M_s for a controller without integral action.
 //!
 //! # Discretisation
 //! Tustin prewarped at the design crossover ([`super::discretize`]), so the discrete
@@ -257,6 +259,18 @@ impl DiscretePid {
     /// integration anti-windup) whenever integrating would push a saturated command further
     /// into saturation; with `None` the law is linear and equals [`Self::transfer_function`].
     pub fn update(&self, st: &mut DiscretePidState, e: f64, limit: Option<f64>) -> f64 {
+        self.update_detailed(st, e, limit, true).0
+    }
+
+    /// [`Self::update`] returning (applied command, demanded command before the clamp);
+    /// `anti_windup = false` keeps integrating through saturation (plain hard saturation).
+    pub fn update_detailed(
+        &self,
+        st: &mut DiscretePidState,
+        e: f64,
+        limit: Option<f64>,
+        anti_windup: bool,
+    ) -> (f64, f64) {
         let i_new = st.i + self.ki_d * (e + st.e1);
         let d_new = self.a_d * st.d + self.b_d * (e - st.e1);
         let p = self.kp * e;
@@ -274,7 +288,7 @@ impl DiscretePid {
         };
         let (mut v, mut u) = out(i_new, st);
         let mut i_keep = i_new;
-        if let Some(l) = limit {
+        if let (Some(l), true) = (limit, anti_windup) {
             if u.abs() > l && (i_new - st.i) * u > 0.0 {
                 i_keep = st.i;
                 let r = out(i_keep, st);
@@ -288,10 +302,11 @@ impl DiscretePid {
         st.v2 = st.v1;
         st.v1 = v;
         st.u2 = st.u1;
+        // The roll-off filter state holds the unclamped output so the filter stays linear.
         st.u1 = u;
         match limit {
-            Some(l) => u.clamp(-l, l),
-            None => u,
+            Some(l) => (u.clamp(-l, l), u),
+            None => (u, u),
         }
     }
 }
@@ -617,7 +632,8 @@ impl Tuner<'_> {
         }))
     }
 
-    /// Best feasible candidate at crossover `w` (smallest M_s), if any.
+    /// Best feasible candidate at crossover `w`, if any: the largest integral gain Ki (as in
+    /// MIGO, Åström & Hägglund), or the smallest M_s without integral action.
     fn best_at(&mut self, w: f64) -> Result<Option<Eval>> {
         let mut best: Option<Eval> = None;
         let alphas: &[f64] = if self.spec.integral {
@@ -629,7 +645,14 @@ impl Tuner<'_> {
             for &alpha in alphas {
                 if let Some((pid, point)) = self.design(w, pm, alpha)? {
                     if let Some(e) = self.check(pid, point)? {
-                        if best.as_ref().is_none_or(|b| e.ms < b.ms) {
+                        let better = |b: &Eval| {
+                            if self.spec.integral {
+                                e.pid.ki > b.pid.ki
+                            } else {
+                                e.ms < b.ms
+                            }
+                        };
+                        if best.as_ref().is_none_or(better) {
                             best = Some(e);
                         }
                     }
