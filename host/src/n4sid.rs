@@ -38,9 +38,11 @@
 //!    unbiased for white output noise in open loop. D can be fixed to zero.
 //! 8. **Kalman gain** (optional): states x̂(t) = Γ⁺·L₃₂·L₂₂⁻¹·w_p(t) from the oblique
 //!    projection (the finite-memory Kalman-filter states of Van Overschee & De Moor); the
-//!    residuals ŵ of x̂(t+1) − A x̂(t) − B u(t) and ê of y(t) − C x̂(t) − D u(t) give
-//!    K = cov(ŵ, ê)·cov(ê)⁻¹ and the innovation covariance cov(ê). Dropped with a warning if
-//!    A − KC is not stable.
+//!    residuals ŵ of x̂(t+1) − A x̂(t) − B u(t) and ê of y(t) − C x̂(t) − D u(t) give the
+//!    noise covariances Q, S, R, and the filter Riccati equation (solved by doubling, see
+//!    [`kalman_filter_gain`]) gives K and the innovation covariance, as SLICOT IB01BD does.
+//!    Skipped with a warning when the past data are rank deficient (noise-free data) or no
+//!    stabilising solution exists.
 //!
 //! All models are discrete with the data's sample time `ts` (seconds); continuous
 //! equivalents come from [`StateSpace::d2c_zoh`].
@@ -648,7 +650,8 @@ fn unit_direction_responses(
     col0: usize,
     phi: &mut Mat<f64>,
 ) {
-    // x[d*n..(d+1)*n] is the state for direction d.
+    // X (row-major n×n): column d is the state of direction d. All n directions evolve
+    // together: X⁺ = A·X + input(t)·I, Y = C·X (p×n).
     let mut x = vec![0.0; n * n];
     if input.is_none() {
         for d in 0..n {
@@ -656,23 +659,41 @@ fn unit_direction_responses(
         }
     }
     let mut xn = vec![0.0; n * n];
+    // out[(d·p + i)·len + t]
+    let mut out = vec![0.0; n * p * len];
     for t in 0..len {
-        for d in 0..n {
-            let xd = &x[d * n..(d + 1) * n];
-            for i in 0..p {
-                phi[(i * len + t, col0 + d)] = dot(&cr[i * n..(i + 1) * n], xd);
+        for i in 0..p {
+            let ci = &cr[i * n..(i + 1) * n];
+            for d in 0..n {
+                let mut acc = 0.0;
+                for (k, &cik) in ci.iter().enumerate() {
+                    acc += cik * x[k * n + d];
+                }
+                out[(d * p + i) * len + t] = acc;
             }
         }
-        for d in 0..n {
-            let xd = &x[d * n..(d + 1) * n];
-            for i in 0..n {
-                xn[d * n + i] = dot(&ar[i * n..(i + 1) * n], xd);
+        for i in 0..n {
+            let ai = &ar[i * n..(i + 1) * n];
+            let row = &mut xn[i * n..(i + 1) * n];
+            row.fill(0.0);
+            for (k, &aik) in ai.iter().enumerate() {
+                let xk = &x[k * n..(k + 1) * n];
+                for (r, &v) in row.iter_mut().zip(xk) {
+                    *r += aik * v;
+                }
             }
             if let Some(s) = input {
-                xn[d * n + d] += s[t];
+                row[i] += s[t];
             }
         }
         std::mem::swap(&mut x, &mut xn);
+    }
+    for d in 0..n {
+        let col = phi.col_as_slice_mut(col0 + d);
+        for i in 0..p {
+            col[i * len..(i + 1) * len]
+                .copy_from_slice(&out[(d * p + i) * len..(d * p + i + 1) * len]);
+        }
     }
 }
 
@@ -1171,15 +1192,18 @@ fn fit_order(
         }
     }
     // Residual covariance of the output error.
-    let fitted = &phi * &theta;
+    let mut resid = ybig;
+    faer::linalg::matmul::matmul(
+        resid.as_mut(),
+        faer::Accum::Add,
+        phi.as_ref(),
+        theta.as_ref(),
+        -1.0,
+        faer::Par::Seq,
+    );
+    let rv = resid.col_as_slice(0);
     let sigma = Mat::from_fn(p, p, |i, j| {
-        (0..len)
-            .map(|t| {
-                (ybig[(i * len + t, 0)] - fitted[(i * len + t, 0)])
-                    * (ybig[(j * len + t, 0)] - fitted[(j * len + t, 0)])
-            })
-            .sum::<f64>()
-            / len as f64
+        dot(&rv[i * len..(i + 1) * len], &rv[j * len..(j + 1) * len]) / len as f64
     });
     let lu = sigma.partial_piv_lu();
     let resid_logdet: f64 = (0..p)
@@ -1327,72 +1351,184 @@ fn kalman_gain(
     let proj = xt.transpose().to_owned(); // yf × wp
                                           // Γ⁺ by least squares: F = Γ⁺·proj (n × wp).
     let f = lstsq(gamma.as_ref(), proj.as_ref(), "Γ⁺")?;
-    // W_p column at start time t: rows [U_p (block j, input a)...; Y_p (block j, output)].
-    let mut fr = vec![0.0; n * wp];
-    for i in 0..n {
-        for jj in 0..wp {
-            fr[i * wp + jj] = f[(i, jj)];
-        }
-    }
-    let wp_index: Vec<(usize, usize)> = (0..k)
-        .flat_map(|j| (0..m).map(move |a| (j, a)))
-        .chain((0..k).flat_map(|j| (m..q).map(move |a| (j, a))))
-        .collect();
-    // x̂(t + k) for t in 0..=len−k, stored as states[s] = x̂(k + s).
+    // x̂(k + s) = F·w_p(s) for s in 0..count: F split per channel times that channel's
+    // Hankel view (k × count, element (j, s) = w[a][s + j]) — one GEMM per channel.
     let count = len - k + 1;
-    let mut states = vec![0.0; count * n];
-    let mut wcol = vec![0.0; wp];
-    for s in 0..count {
-        for (r, &(j, a)) in wp_index.iter().enumerate() {
-            wcol[r] = w[a][s + j];
-        }
-        for i in 0..n {
-            states[s * n + i] = dot(&fr[i * wp..(i + 1) * wp], &wcol);
-        }
+    let mut states = Mat::<f64>::zeros(n, count);
+    for a_ in 0..q {
+        let fa = Mat::from_fn(n, k, |i, j| {
+            let col = if a_ < m {
+                j * m + a_
+            } else {
+                k * m + j * p + (a_ - m)
+            };
+            f[(i, col)]
+        });
+        let hankel =
+            MatRef::from_column_major_slice_with_stride(&w[a_][..count + k - 1], k, count, 1);
+        faer::linalg::matmul::matmul(
+            states.as_mut(),
+            faer::Accum::Add,
+            fa.as_ref(),
+            hankel,
+            1.0,
+            faer::Par::Seq,
+        );
     }
-    // Residuals for t = k .. len−2 (need x̂(t+1)).
-    let mut sww = Mat::<f64>::zeros(n, p);
-    let mut see = Mat::<f64>::zeros(p, p);
-    let mut e = vec![0.0; p];
-    let mut wres = vec![0.0; n];
+    // Residuals for t = k .. len−2 (x̂(t+1) needed): E = y − C x̂ − D u, W = x̂⁺ − A x̂ − B u.
     let nres = count - 1;
-    for s in 0..nres {
-        let t = k + s;
-        let xs = &states[s * n..(s + 1) * n];
-        let xs1 = &states[(s + 1) * n..(s + 2) * n];
-        for i in 0..p {
-            let mut v = w[m + i][t];
-            for jj in 0..n {
-                v -= c[(i, jj)] * xs[jj];
-            }
-            for a_ in 0..m {
-                v -= d[(i, a_)] * w[a_][t];
-            }
-            e[i] = v;
+    let x_now = states.as_ref().subcols(0, nres);
+    let x_next = states.as_ref().subcols(1, nres);
+    let u_now = Mat::from_fn(m, nres, |i, s| w[i][k + s]);
+    let mut e = Mat::from_fn(p, nres, |i, s| w[m + i][k + s]);
+    faer::linalg::matmul::matmul(e.as_mut(), faer::Accum::Add, c, x_now, -1.0, faer::Par::Seq);
+    faer::linalg::matmul::matmul(
+        e.as_mut(),
+        faer::Accum::Add,
+        d,
+        u_now.as_ref(),
+        -1.0,
+        faer::Par::Seq,
+    );
+    let mut wr = x_next.to_owned();
+    faer::linalg::matmul::matmul(
+        wr.as_mut(),
+        faer::Accum::Add,
+        a,
+        x_now,
+        -1.0,
+        faer::Par::Seq,
+    );
+    faer::linalg::matmul::matmul(
+        wr.as_mut(),
+        faer::Accum::Add,
+        b,
+        u_now.as_ref(),
+        -1.0,
+        faer::Par::Seq,
+    );
+    let qww = &wr * wr.transpose();
+    let sww = &wr * e.transpose();
+    let see = &e * e.transpose();
+    let inv = 1.0 / nres as f64;
+    let q = Mat::from_fn(n, n, |i, j| qww[(i, j)] * inv);
+    let s = Mat::from_fn(n, p, |i, j| sww[(i, j)] * inv);
+    let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
+    let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
+    Ok((kf.gain, kf.innovation_cov))
+}
+
+/// Steady-state Kalman filter (innovation form) of x⁺ = Ax + w, y = Cx + v with
+/// E[wwᵀ] = Q (n×n), E[wvᵀ] = S (n×p), E[vvᵀ] = R (p×p, positive definite).
+#[derive(Debug, Clone)]
+pub struct KalmanFilter {
+    /// Stabilising solution P (n×n) of the filter Riccati equation
+    /// P = APAᵀ + Q − (APCᵀ + S)(CPCᵀ + R)⁻¹(APCᵀ + S)ᵀ.
+    pub p: Mat<f64>,
+    /// Gain K = (APCᵀ + S)(CPCᵀ + R)⁻¹ (n×p) of the predictor x⁺ = Ax + K(y − Cx).
+    pub gain: Mat<f64>,
+    /// Innovation covariance CPCᵀ + R (p×p).
+    pub innovation_cov: Mat<f64>,
+}
+
+/// Solves the filter DARE by the structure-preserving doubling algorithm (Chu, Fan & Lin
+/// 2005) after removing the cross term (Ā = A − SR⁻¹C, Q̄ = Q − SR⁻¹Sᵀ, with Q̄'s negative
+/// eigenvalues, which only estimation error produces, clipped to 0). Converges quadratically;
+/// errors if R is not positive definite, if the iteration does not converge in 100 steps, or
+/// if A − KC is not stable.
+pub fn kalman_filter_gain(
+    a: MatRef<'_, f64>,
+    c: MatRef<'_, f64>,
+    q: MatRef<'_, f64>,
+    s: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+) -> Result<KalmanFilter> {
+    let n = a.nrows();
+    let p = c.nrows();
+    let shapes_ok = a.ncols() == n
+        && c.ncols() == n
+        && q.nrows() == n
+        && q.ncols() == n
+        && s.nrows() == n
+        && s.ncols() == p
+        && r.nrows() == p
+        && r.ncols() == p;
+    if !shapes_ok {
+        return Err(Error::InvalidArgument(format!(
+            "kalman_filter_gain: shapes must be A {n}x{n}, C {p}x{n}, Q {n}x{n}, S {n}x{p},              R {p}x{p}"
+        )));
+    }
+    let sym =
+        |m: &Mat<f64>| Mat::from_fn(m.nrows(), m.ncols(), |i, j| 0.5 * (m[(i, j)] + m[(j, i)]));
+    let r = sym(&r.to_owned());
+    let r_llt = r.llt(Side::Lower).map_err(|_| {
+        Error::Numerical("measurement noise covariance R is not positive definite".into())
+    })?;
+    // R⁻¹C and R⁻¹Sᵀ.
+    let rinv_c = r_llt.solve(c);
+    let rinv_st = r_llt.solve(s.transpose());
+    let abar = a - s * &rinv_c;
+    let qbar = sym(&(q - s * &rinv_st));
+    // Clip Q̄ to the positive semidefinite cone.
+    let eig = qbar
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| Error::Numerical(format!("eigendecomposition of Q failed: {e:?}")))?;
+    let (uq, sq) = (eig.U(), eig.S().column_vector());
+    let qbar = Mat::from_fn(n, n, |i, j| {
+        (0..n)
+            .map(|k| uq[(i, k)] * sq[k].max(0.0) * uq[(j, k)])
+            .sum::<f64>()
+    });
+    // Dual control-form data: A_k = Āᵀ, G_k = CᵀR⁻¹C, H_k = Q̄; H_k → P.
+    let id = Mat::<f64>::identity(n, n);
+    let mut ak = abar.transpose().to_owned();
+    let mut gk = sym(&(c.transpose() * &rinv_c));
+    let mut hk = qbar;
+    let mut converged = false;
+    for _ in 0..100 {
+        let wmat = &id + &gk * &hk;
+        let lu = wmat.partial_piv_lu();
+        let w_a = lu.solve(&ak); // W⁻¹A_k
+        let w_g = lu.solve(&gk); // W⁻¹G_k
+        let a_next = &ak * &w_a;
+        let g_next = sym(&(&gk + &ak * &w_g * ak.transpose()));
+        let h_next = sym(&(&hk + ak.transpose() * &hk * &w_a));
+        let diff = crate::lti::norm1((&h_next - &hk).as_ref());
+        let scale = crate::lti::norm1(h_next.as_ref()).max(f64::MIN_POSITIVE);
+        let finite = (0..n).all(|i| (0..n).all(|j| h_next[(i, j)].is_finite()));
+        if !finite {
+            return Err(Error::Numerical(
+                "Riccati doubling iteration diverged".into(),
+            ));
         }
-        for i in 0..n {
-            let mut v = xs1[i];
-            for jj in 0..n {
-                v -= a[(i, jj)] * xs[jj];
-            }
-            for a_ in 0..m {
-                v -= b[(i, a_)] * w[a_][t];
-            }
-            wres[i] = v;
-        }
-        for i in 0..n {
-            for jj in 0..p {
-                sww[(i, jj)] += wres[i] * e[jj];
-            }
-        }
-        for i in 0..p {
-            for jj in 0..p {
-                see[(i, jj)] += e[i] * e[jj];
-            }
+        ak = a_next;
+        gk = g_next;
+        hk = h_next;
+        if diff <= 1e-13 * scale {
+            converged = true;
+            break;
         }
     }
-    let ree = Mat::from_fn(p, p, |i, j| see[(i, j)] / nres as f64);
-    // K = Sww See⁻¹  ⇔  See Kᵀ = Swwᵀ (See symmetric).
-    let kt = crate::lti::solve_square(see.as_ref(), sww.transpose(), "innovation covariance")?;
-    Ok((kt.transpose().to_owned(), ree))
+    if !converged {
+        return Err(Error::Numerical(
+            "Riccati doubling iteration did not converge (is (A, C) detectable?)".into(),
+        ));
+    }
+    let pmat = hk;
+    let re = sym(&(&(c * &pmat) * c.transpose() + &r));
+    let apct_s = &(a * &pmat) * c.transpose() + s;
+    // K = (APCᵀ + S) Re⁻¹  ⇔  Re Kᵀ = (APCᵀ + S)ᵀ.
+    let kt = crate::lti::solve_square(re.as_ref(), apct_s.transpose(), "innovation covariance")?;
+    let gain = kt.transpose().to_owned();
+    let closed = a - &gain * c;
+    if !eigenvalues(closed.as_ref())?.iter().all(|z| z.norm() < 1.0) {
+        return Err(Error::Numerical(
+            "Kalman predictor A − KC is not stable (no stabilising Riccati solution)".into(),
+        ));
+    }
+    Ok(KalmanFilter {
+        p: pmat,
+        gain,
+        innovation_cov: re,
+    })
 }

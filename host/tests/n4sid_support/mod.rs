@@ -60,7 +60,11 @@ pub fn third_order_plant_tf() -> TransferFunction {
 
 /// The reference plant discretised (ZOH) at `ts` seconds.
 pub fn third_order_plant(ts: f64) -> StateSpace {
-    third_order_plant_tf().to_state_space().unwrap().c2d_zoh(ts).unwrap()
+    third_order_plant_tf()
+        .to_state_space()
+        .unwrap()
+        .c2d_zoh(ts)
+        .unwrap()
 }
 
 /// Closed-form continuous frequency response of the reference plant at f Hz.
