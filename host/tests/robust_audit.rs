@@ -193,12 +193,30 @@ fn bad_inputs_are_clear_errors() {
         &o
     )
     .contains("different frequency grid"));
-    let mut bad = h.clone();
-    bad[3] = Complex64::new(f64::NAN, 0.0);
-    assert!(
-        err(&[good.clone(), run("b", 1.0, &f, bad, vec![0.9; 50])], &o)
-            .contains("`b`: response at bin 3")
-    );
+    // A NaN response (no input power at that bin) is skipped and counted, not compared.
+    let mut nan = h.clone();
+    nan[3] = Complex64::new(f64::NAN, 0.0);
+    let r = audit_nonlinearity(&[good.clone(), run("b", 1.0, &f, nan, vec![0.9; 50])], &o).unwrap();
+    assert_eq!(r.bins_skipped, 1);
+    let in_band = f.iter().filter(|&&x| (1.0..=100.0).contains(&x)).count();
+    assert_eq!(r.bins_examined, in_band - 1);
+    assert_eq!(r.verdict, Verdict::LinearEnough);
+    let all_nan = vec![Complex64::new(f64::NAN, 0.0); 50];
+    assert!(err(
+        &[good.clone(), run("b", 1.0, &f, all_nan, vec![0.9; 50])],
+        &o
+    )
+    .contains("no usable"));
+    let mut badf = f.clone();
+    badf[4] = f64::NAN;
+    assert!(err(
+        &[
+            run("a", 0.1, &badf, h.clone(), vec![0.9; 50]),
+            run("b", 1.0, &badf, h.clone(), vec![0.9; 50])
+        ],
+        &o
+    )
+    .contains("frequency bin 4"));
     let mut c = vec![0.9; 50];
     c[7] = 1.5;
     assert!(
@@ -209,9 +227,7 @@ fn bad_inputs_are_clear_errors() {
         &o
     )
     .contains("must agree"));
-    assert!(
-        err(&[good.clone(), good.clone()], &AuditOptions::new(1e5)).contains("no frequency bin")
-    );
+    assert!(err(&[good.clone(), good.clone()], &AuditOptions::new(1e5)).contains("no usable"));
     let mut z = h.clone();
     z[20] = Complex64::new(0.0, 0.0);
     assert!(err(&[good.clone(), run("b", 1.0, &f, z, vec![0.9; 50])], &o).contains("exactly zero"));

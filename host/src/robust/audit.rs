@@ -33,6 +33,31 @@ pub struct FrfRun {
     pub coherence: Vec<f64>,
 }
 
+impl FrfRun {
+    /// A run from a Welch H1 estimate ([`crate::spectral::Etfe`]); bins where H is NaN (no
+    /// input power) are kept and skipped by the audit.
+    pub fn from_etfe(label: &str, amplitude: f64, etfe: &crate::spectral::Etfe) -> Self {
+        Self {
+            label: label.into(),
+            amplitude,
+            freq_hz: etfe.freq_hz.clone(),
+            h: etfe.h.clone(),
+            coherence: etfe.coherence.clone(),
+        }
+    }
+    /// A run from a period-synchronous estimate ([`crate::spectral::PeriodicFrf`], excited
+    /// lines only; runs must use the same excitation so the lines agree).
+    pub fn from_periodic(label: &str, amplitude: f64, frf: &crate::spectral::PeriodicFrf) -> Self {
+        Self {
+            label: label.into(),
+            amplitude,
+            freq_hz: frf.freq_hz.clone(),
+            h: frf.h.clone(),
+            coherence: frf.coherence.clone(),
+        }
+    }
+}
+
 /// Thresholds of [`audit_nonlinearity`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct AuditOptions {
@@ -150,8 +175,10 @@ pub struct NonlinearityAudit {
     pub band_hz: (f64, f64),
     /// Run labels and amplitudes, in input order.
     pub runs: Vec<(String, f64)>,
-    /// Number of bins inside the audit band.
+    /// Number of bins inside the audit band that were compared.
     pub bins_examined: usize,
+    /// Bins inside the band skipped because some run's response is not finite there.
+    pub bins_skipped: usize,
     /// Flagged shift bands.
     pub shift_bands: Vec<ShiftBand>,
     /// Coherence drops near crossover.
@@ -237,12 +264,6 @@ fn check_runs(runs: &[FrfRun]) -> Result<()> {
                     r.label
                 )));
             }
-            if !(r.h[i].re.is_finite() && r.h[i].im.is_finite()) {
-                return Err(Error::InvalidArgument(format!(
-                    "run `{}`: response at bin {i} ({f} Hz) is not finite",
-                    r.label
-                )));
-            }
             let c = r.coherence[i];
             if !(c.is_finite() && (-1e-9..=1.0 + 1e-9).contains(&c)) {
                 return Err(Error::InvalidArgument(format!(
@@ -255,9 +276,11 @@ fn check_runs(runs: &[FrfRun]) -> Result<()> {
     Ok(())
 }
 
-/// Runs the audit (see the module docs). Errors: fewer than two runs, mismatched grids or
-/// lengths, non-finite data, coherence outside [0, 1], a zero response inside the band, no
-/// bins inside the band, or invalid options.
+/// Runs the audit (see the module docs). Bins where some run's response is not finite (NaN
+/// marks bins without input power in [`crate::spectral::Etfe`]) are skipped and counted in
+/// `bins_skipped`. Errors: fewer than two runs, mismatched grids or lengths, non-finite
+/// frequencies, coherence outside [0, 1], a zero response inside the band, no usable bin inside
+/// the band, or invalid options.
 pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<NonlinearityAudit> {
     check_options(opts)?;
     check_runs(runs)?;
@@ -268,13 +291,21 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
         fc * opts.coherence_band_factor,
     );
     let freq = &runs[0].freq_hz;
-    let idx: Vec<usize> = (0..freq.len())
+    let in_band: Vec<usize> = (0..freq.len())
         .filter(|&i| freq[i] >= lo && freq[i] <= hi)
         .collect();
+    // Bins where some run has no finite response (e.g. NaN where the input had no power) are
+    // skipped and counted.
+    let finite = |i: usize| {
+        runs.iter()
+            .all(|r| r.h[i].re.is_finite() && r.h[i].im.is_finite())
+    };
+    let idx: Vec<usize> = in_band.iter().copied().filter(|&i| finite(i)).collect();
+    let bins_skipped = in_band.len() - idx.len();
     if idx.is_empty() {
         return Err(Error::InvalidArgument(format!(
-            "nonlinearity audit: no frequency bin inside the audit band {lo:.4}..{hi:.4} Hz \
-             (measured {:.4}..{:.4} Hz)",
+            "nonlinearity audit: no usable frequency bin inside the audit band {lo:.4}..{hi:.4} \
+             Hz (measured {:.4}..{:.4} Hz, {bins_skipped} bins without a finite response)",
             freq.first().copied().unwrap_or(f64::NAN),
             freq.last().copied().unwrap_or(f64::NAN)
         )));
@@ -453,6 +484,7 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
             .map(|r| (r.label.clone(), r.amplitude))
             .collect(),
         bins_examined: idx.len(),
+        bins_skipped,
         shift_bands,
         coherence_drops,
         worst_gain_shift_db: wg,

@@ -228,6 +228,17 @@ pub struct EtfeView<'a> {
     pub gate: Option<&'a [bool]>,
 }
 
+impl<'a> EtfeView<'a> {
+    /// A view of a Welch H1 estimate with an optional coherence gate (e.g. `etfe.gate(0.8)`).
+    pub fn from_etfe(etfe: &'a crate::spectral::Etfe, gate: Option<&'a [bool]>) -> Self {
+        Self {
+            freq_hz: &etfe.freq_hz,
+            h: &etfe.h,
+            gate,
+        }
+    }
+}
+
 /// A cross-validation result handed over from validation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CrossValidation {
