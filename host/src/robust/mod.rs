@@ -7,7 +7,6 @@ pub mod audit;
 pub mod discretize;
 pub mod loops;
 pub mod norms;
-pub mod optim;
 pub mod pid;
 pub mod receipts;
 pub mod step;

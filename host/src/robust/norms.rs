@@ -404,38 +404,24 @@ fn finish(
     iterations: usize,
     rel_tol: f64,
 ) -> Result<HinfNorm> {
-    if let Some((a0, b0)) = bracket {
-        if b0 > a0 {
-            let g = 0.5 * (5f64.sqrt() - 1.0);
-            let (mut a, mut b) = (a0, b0);
-            let f = |w: f64| -> Result<f64> { sigma_max(&ev.at_rad_s(w)?) };
-            let mut x1 = b - g * (b - a);
-            let mut x2 = a + g * (b - a);
-            let mut f1 = f(x1)?;
-            let mut f2 = f(x2)?;
-            for _ in 0..80 {
-                if f1 >= f2 {
-                    b = x2;
-                    x2 = x1;
-                    f2 = f1;
-                    x1 = b - g * (b - a);
-                    f1 = f(x1)?;
-                } else {
-                    a = x1;
-                    x1 = x2;
-                    f1 = f2;
-                    x2 = a + g * (b - a);
-                    f2 = f(x2)?;
-                }
-                if b - a <= 1e-14 * b.abs() {
-                    break;
-                }
-            }
-            for (w, s) in [(x1, f1), (x2, f2)] {
-                if s > lb {
-                    lb = s;
-                    w_lb = w;
-                }
+    if let Some((a, b)) = bracket {
+        if b > a {
+            // Maximise σ̄ on the last bracketing interval (golden section on −σ̄; a failed
+            // evaluation counts as the worst value).
+            let (w, neg) = crate::gap::optim::golden_section(
+                |w| {
+                    ev.at_rad_s(w)
+                        .ok()
+                        .and_then(|g| sigma_max(&g).ok())
+                        .map_or(f64::NAN, |s| -s)
+                },
+                a,
+                b,
+                80,
+            );
+            if -neg > lb {
+                lb = -neg;
+                w_lb = w;
             }
         }
     }

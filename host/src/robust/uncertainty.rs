@@ -22,14 +22,14 @@
 //! log-frequency). For fixed poles and zeros the smallest feasible gain is exact,
 //! ln k* = max_i [ln l_m(ω_i) − ln|N/D(jω_i)|], so the constraint is eliminated and the reduced
 //! (non-smooth) objective over the section parameters (log ω, log ζ, log a) is minimised by
-//! Nelder–Mead from many starts ([`super::optim`]). Order n + 1 is started from the order-n
-//! optimum extended by an exactly cancelling pole/zero pair, so a higher order is never looser.
+//! Nelder–Mead ([`crate::gap::optim::nelder_mead`], restarted on a shrinking simplex) from many
+//! starts. Order n + 1 is started from the order-n optimum extended by an exactly cancelling pole/zero pair, so a higher order is never looser.
 //! A final exact check evaluates |W_m(jω_i)| from the polynomial coefficients and raises k if
 //! rounding left any ratio below 1.
 //!
 //! Units: `freq_hz` in Hz; W_m(s) is continuous with s in rad/s.
-use super::optim::nelder_mead;
 use crate::error::{Error, Result};
+use crate::gap::optim::nelder_mead;
 use crate::lti::{poly_eval, poly_mul, poly_roots, StateSpace, TransferFunction};
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
@@ -437,18 +437,21 @@ pub fn fit_uncertainty_weights(
         let dim = 2 * lay.half();
         let mut best: Option<(f64, Vec<f64>)> = None;
         for (_, p0) in scored.into_iter().take(6) {
-            let step = vec![0.5; dim];
-            let r = nelder_mead(
-                |p| prob.eval(&lay, p).0,
-                &p0,
-                &step,
-                opts.max_evals,
-                3,
-                1e-12,
-                1e-9,
-            );
-            if best.as_ref().is_none_or(|b| r.f < b.0) {
-                best = Some((r.f, r.x));
+            // Nelder–Mead with restarts on a fresh, shrinking simplex from the best vertex, so
+            // a collapsed simplex cannot stall the search. The best vertex never gets worse.
+            let (mut x, mut fx) = (p0.clone(), prob.eval(&lay, &p0).0);
+            for round in 0..4 {
+                let step = vec![0.5 * 0.5f64.powi(round); dim];
+                let (xn, fnew) =
+                    nelder_mead(|p| prob.eval(&lay, p).0, &x, &step, opts.max_evals, 1e-13);
+                if fnew < fx {
+                    x = xn;
+                    fx = fnew;
+                }
+            }
+            let r = (fx, x);
+            if best.as_ref().is_none_or(|b| r.0 < b.0) {
+                best = Some(r);
             }
         }
         let (_, p) =
