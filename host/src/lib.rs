@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod data;
 pub mod error;
+pub mod gap;
 pub mod io;
 pub mod lti;
 pub mod n4sid;

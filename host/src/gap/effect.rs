@@ -290,13 +290,14 @@ impl StickSlip {
             stuck: true,
         }
     }
-    /// Friction force for this step (see the type docs). Returns 0 when `g` is 0 or not finite.
+    /// Friction force for this step (see the type docs). Returns 0 when `g` is 0 or either
+    /// argument is NaN.
     #[inline]
     pub fn force(&mut self, v_trial: f64, g: f64) -> f64 {
-        if g == 0.0 || !g.is_finite() || !v_trial.is_finite() {
+        if g == 0.0 || g.is_nan() || v_trial.is_nan() {
             return 0.0;
         }
-        let hold = v_trial / g;
+        let hold = v_trial / g; // one division per step; callers keep g fixed
         let limit = if self.stuck {
             self.breakaway
         } else {

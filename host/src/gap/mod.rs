@@ -1,8 +1,19 @@
-//! Sim-to-real gap diagnosis (placeholder docs, replaced below).
+//! Sim-to-real gap diagnosis: where a nominal model and the measured plant disagree, which
+//! unmodelled effect explains it, and how far the gap shrinks once the effect is added.
+//!
+//! Entry point: [`diagnose`] (command line: `ferrosid gap`, [`crate::cli::gap`]).
+pub mod benchmark;
+pub mod diagnose;
 pub mod effect;
 pub mod fit;
+pub mod locate;
 pub mod modal;
 pub mod optim;
 pub mod plant;
+pub mod report;
 pub mod rng;
 pub mod simfile;
+
+pub use diagnose::{diagnose, Diagnosis, GapOptions};
+pub use effect::{Effect, EffectKind};
+pub use report::GapReport;

@@ -148,8 +148,21 @@ pub fn nelder_mead(
 /// relative cost decrease of an accepted step is below `rtol`. Returns `(theta, cost)`; if the
 /// start point is infeasible the start is returned with an infinite cost.
 pub fn levenberg_marquardt(
+    residuals: impl FnMut(&[f64]) -> Option<Vec<f64>>,
+    theta0: &[f64],
+    max_iter: usize,
+    rtol: f64,
+) -> (Vec<f64>, f64) {
+    let steps: Vec<f64> = theta0.iter().map(|t| 1e-6 * t.abs().max(1.0)).collect();
+    levenberg_marquardt_steps(residuals, theta0, &steps, max_iter, rtol)
+}
+
+/// [`levenberg_marquardt`] with explicit forward-difference steps per parameter (larger steps
+/// for parameters whose effect on the residual is piecewise smooth, such as friction levels).
+pub fn levenberg_marquardt_steps(
     mut residuals: impl FnMut(&[f64]) -> Option<Vec<f64>>,
     theta0: &[f64],
+    steps: &[f64],
     max_iter: usize,
     rtol: f64,
 ) -> (Vec<f64>, f64) {
@@ -170,7 +183,7 @@ pub fn levenberg_marquardt(
         if need_jac {
             jac.clear();
             for i in 0..p {
-                let h = 1e-6 * theta[i].abs().max(1.0);
+                let h = steps[i];
                 let mut t = theta.clone();
                 t[i] += h;
                 match residuals(&t) {

@@ -1,0 +1,72 @@
+//! Runs the labelled sim-to-real gap benchmark and prints the markdown summary for README.md.
+//!
+//! `cargo run --release -p ferrosid --example gap_benchmark [-- --n SAMPLES] [--filter TEXT] [--verbose]`
+//! (default 16384 samples per log; `--filter` keeps cases whose id contains TEXT; `--verbose` prints
+//! every report).
+use ferrosid::gap::benchmark::{cases, markdown, run_case};
+use ferrosid::gap::GapOptions;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let mut n = 16384usize;
+    let mut filter = String::new();
+    let mut verbose = false;
+    let mut i = 1;
+    while i < args.len() {
+        match args[i].as_str() {
+            "--n" if i + 1 < args.len() => {
+                n = args[i + 1].parse().unwrap_or_else(|_| {
+                    eprintln!("--n needs a number of samples");
+                    std::process::exit(2)
+                });
+                i += 1;
+            }
+            "--filter" if i + 1 < args.len() => {
+                filter = args[i + 1].clone();
+                i += 1;
+            }
+            "--verbose" => verbose = true,
+            other => {
+                eprintln!("unknown argument {other}; usage: gap_benchmark [--n N] [--filter TEXT]");
+                std::process::exit(2);
+            }
+        }
+        i += 1;
+    }
+    let opts = GapOptions::default();
+    let mut outcomes = Vec::new();
+    for case in cases().into_iter().filter(|c| c.id.contains(&filter)) {
+        match run_case(&case, n, &opts) {
+            Ok((o, report)) => {
+                if verbose {
+                    eprintln!("{}", report.to_text());
+                }
+                let pe: Vec<String> = o
+                    .param_errors
+                    .iter()
+                    .map(|(k, v)| format!("{k} {:.1}%", 100.0 * v))
+                    .collect();
+                eprintln!(
+                    "{:<28} verdict {:<17} {} gaps {:.3} {:.3} {:.3}  {}  {:.2} s",
+                    o.id,
+                    o.verdict,
+                    if o.correct() { "ok " } else { "BAD" },
+                    o.gaps[0],
+                    o.gaps[1],
+                    o.gaps[2],
+                    pe.join(" "),
+                    o.seconds
+                );
+                outcomes.push(o);
+            }
+            Err(e) => eprintln!("{}: error: {e}", case.id),
+        }
+    }
+    match markdown(&outcomes) {
+        Ok(md) => println!("{md}"),
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    }
+}

@@ -1,0 +1,337 @@
+//! WHERE the nominal sim and the plant disagree, from the training logs.
+//!
+//! * **Multiplicative error** e(f) = |(G_meas(f) − G_sim(f)) / G_sim(f)| at every frequency bin,
+//!   with G_meas the Welch H1 estimate pooled over all training logs (cross- and auto-spectra
+//!   summed over logs) and G_sim the nominal model's response at the same frequencies. Only bins
+//!   whose pooled magnitude-squared coherence is at least `coherence_min` are used.
+//! * **Bands** (`bands_hz`): runs of consecutive used bins with e > `threshold`.
+//! * **Worst** (`worst_hz`, `worst_error`): the used bin with the largest e; the **worst band**
+//!   is the run of used bins around it where e stays above half that peak.
+//! * **Coherence drops** (`coherence_drops_hz`): runs of bins (DC excluded) with coherence
+//!   below `coherence_min`; runs separated by at most two bins are merged.
+//! * **Amplitude dependence**: with two or more training logs, the H1 estimates of the logs
+//!   with the smallest and largest input RMS are compared over the bins used in both;
+//!   `amplitude_change` is the median of |G_low − G_high| / |G_high| and the gap is
+//!   `amplitude_dependent` when that exceeds `amplitude_tol`. A linear plant gives the same
+//!   response at both amplitudes (up to noise); friction, dead zones, backlash and saturation
+//!   do not.
+//! * **Residual regions**: the free-run residual of the linear re-fit on the training logs,
+//!   RMS inside a region divided by its overall RMS. Regions: `near_zero_output` and
+//!   `near_zero_output_rate` (the 20 % of samples where |ŷ − median ŷ| resp. |Δŷ| of the
+//!   re-fit's output is smallest: near zero velocity for velocity resp. position outputs),
+//!   `input_extremes` (the 10 % of samples with the largest |u|) and `near_zero_input` (the
+//!   20 % with the smallest |u|). A ratio >= 1.5 is flagged as a concentration.
+use super::diagnose::GapOptions;
+use super::report::BandError;
+use crate::error::{Error, Result};
+use crate::lti::StateSpace;
+use crate::spectral::{excluded_bands, Etfe, Welch};
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Residual RMS ratio at or above which a region is flagged.
+pub const CONCENTRATION_RATIO: f64 = 1.5;
+
+/// One time-domain region of the residual.
+#[derive(Debug, Clone, Serialize)]
+pub struct Region {
+    /// Region name (see the module docs).
+    pub region: String,
+    /// RMS of the residual inside the region / overall RMS.
+    pub rms_ratio: f64,
+    /// Whether `rms_ratio >= CONCENTRATION_RATIO`.
+    pub concentrates: bool,
+}
+
+/// The "where" part of the report (see the module docs for each field's definition).
+#[derive(Debug, Clone, Serialize)]
+pub struct Where {
+    /// Bands (Hz) where the multiplicative error exceeds the threshold.
+    pub bands_hz: Vec<[f64; 2]>,
+    /// Frequency of the largest multiplicative error, Hz (null when no bin is usable).
+    pub worst_hz: f64,
+    /// The largest multiplicative error (ratio, not %).
+    pub worst_error: f64,
+    /// Band around the worst frequency, Hz.
+    pub worst_band_hz: [f64; 2],
+    /// Bands (Hz) of coherence below the gate.
+    pub coherence_drops_hz: Vec<[f64; 2]>,
+    /// Whether low- and high-amplitude responses differ beyond the tolerance.
+    pub amplitude_dependent: bool,
+    /// Median relative difference of the low- and high-amplitude responses (null with a single
+    /// training log).
+    pub amplitude_change: f64,
+    /// Residual concentration of the linear re-fit.
+    pub residual_regions: Vec<Region>,
+    /// Welch segment length used.
+    pub nperseg: usize,
+    /// Bin frequencies, Hz (for figures).
+    #[serde(skip)]
+    pub freq_hz: Vec<f64>,
+    /// Multiplicative error per bin (NaN where not gated).
+    #[serde(skip)]
+    pub mult_error: Vec<f64>,
+    /// Pooled coherence per bin.
+    #[serde(skip)]
+    pub coherence: Vec<f64>,
+}
+
+/// Pooled Welch H1 estimate (Hann, 50 % overlap, constant detrend: [`crate::spectral`]) over
+/// the given records.
+fn pooled_etfe(records: &[(&[f64], &[f64])], nperseg: usize, ts: f64) -> Result<Etfe> {
+    let mut acc = Welch::new(nperseg).accumulator(1.0 / ts)?;
+    for (u, y) in records {
+        acc.add(u, y)?;
+    }
+    acc.finish()
+}
+
+/// Default Welch segment: the largest power of two <= n/8, clamped to 64..=4096.
+pub fn default_nperseg(n: usize) -> usize {
+    let mut p = 64;
+    while p * 2 <= n / 8 && p < 4096 {
+        p *= 2;
+    }
+    p
+}
+
+/// Runs of indices where `pred` holds, as (first, last) inclusive; runs separated by at most
+/// `merge_gap` failing indices are merged.
+fn runs(n: usize, pred: impl Fn(usize) -> bool, merge_gap: usize) -> Vec<(usize, usize)> {
+    let mut out: Vec<(usize, usize)> = Vec::new();
+    let mut k = 0;
+    while k < n {
+        if pred(k) {
+            let s = k;
+            while k + 1 < n && pred(k + 1) {
+                k += 1;
+            }
+            match out.last_mut() {
+                Some(last) if s - last.1 - 1 <= merge_gap => last.1 = k,
+                _ => out.push((s, k)),
+            }
+        }
+        k += 1;
+    }
+    out
+}
+
+fn quantile_threshold(v: &[f64], q: f64) -> f64 {
+    let mut s: Vec<f64> = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    if s.is_empty() {
+        return f64::NAN;
+    }
+    s[((q * (s.len() - 1) as f64).round() as usize).min(s.len() - 1)]
+}
+
+/// Computes the "where" analysis (module docs). `y_lin` and `resid_lin` are the linear
+/// re-fit's output and residual on each training log; `paths` name the logs in errors.
+#[allow(clippy::too_many_arguments)]
+pub fn locate(
+    sim: &StateSpace,
+    u: &[Vec<f64>],
+    y: &[Vec<f64>],
+    y_lin: &[Vec<f64>],
+    resid_lin: &[Vec<f64>],
+    warmup: usize,
+    ts: f64,
+    opts: &GapOptions,
+    paths: &[PathBuf],
+) -> Result<Where> {
+    let shortest = u.iter().map(|v| v.len() - warmup).min().unwrap_or(0);
+    let nperseg = opts.nperseg.unwrap_or_else(|| default_nperseg(shortest));
+    if nperseg < 8 || nperseg > shortest {
+        return Err(Error::Data {
+            file: paths.first().cloned().unwrap_or_default(),
+            msg: format!(
+                "Welch segment of {nperseg} samples does not fit the shortest training log \
+                 ({shortest} samples after the warm-up)"
+            ),
+        });
+    }
+    let recs: Vec<(&[f64], &[f64])> = u
+        .iter()
+        .zip(y)
+        .map(|(u, y)| (&u[warmup..], &y[warmup..]))
+        .collect();
+    let pooled = pooled_etfe(&recs, nperseg, ts)?;
+    let freq = pooled.freq_hz.clone();
+    let g_meas = &pooled.h;
+    let coh = pooled.coherence.clone();
+    let g_sim = sim.freq_responses_siso_hz(&freq[1..])?;
+    let mut mult = vec![f64::NAN; freq.len()];
+    for k in 1..freq.len() {
+        let gs = g_sim[k - 1];
+        if coh[k] >= opts.coherence_min && gs.norm() > 0.0 && g_meas[k].re.is_finite() {
+            mult[k] = ((g_meas[k] - gs) / gs).norm();
+        }
+    }
+    let used = |k: usize| mult[k].is_finite();
+    let to_hz = |r: &[(usize, usize)]| -> Vec<[f64; 2]> {
+        r.iter().map(|&(a, b)| [freq[a], freq[b]]).collect()
+    };
+    let bands_hz = to_hz(&runs(
+        freq.len(),
+        |k| used(k) && mult[k] > opts.threshold,
+        0,
+    ));
+    let worst = (1..freq.len())
+        .filter(|&k| used(k))
+        .max_by(|&a, &b| mult[a].total_cmp(&mult[b]));
+    let (worst_hz, worst_error, worst_band_hz) = match worst {
+        Some(k) => {
+            let half = 0.5 * mult[k];
+            let (mut a, mut b) = (k, k);
+            while a > 1 && used(a - 1) && mult[a - 1] > half {
+                a -= 1;
+            }
+            while b + 1 < freq.len() && used(b + 1) && mult[b + 1] > half {
+                b += 1;
+            }
+            (freq[k], mult[k], [freq[a], freq[b]])
+        }
+        None => (f64::NAN, f64::NAN, [freq[1], freq[freq.len() - 1]]),
+    };
+    // Coherence drops above DC; runs separated by at most two bins merged.
+    let mut coherence_drops_hz: Vec<[f64; 2]> = Vec::new();
+    for b in excluded_bands(&freq[1..], &coh[1..], opts.coherence_min) {
+        match coherence_drops_hz.last_mut() {
+            Some(last) if b.f_lo_hz - last[1] <= 3.0 * (freq[1] - freq[0]) * (1.0 + 1e-9) => {
+                last[1] = b.f_hi_hz
+            }
+            _ => coherence_drops_hz.push([b.f_lo_hz, b.f_hi_hz]),
+        }
+    }
+
+    // Amplitude dependence: smallest vs largest input RMS.
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    let (amplitude_dependent, amplitude_change) = if u.len() >= 2 {
+        let order: Vec<usize> = {
+            let mut o: Vec<usize> = (0..u.len()).collect();
+            o.sort_by(|&a, &b| rms(&u[a]).total_cmp(&rms(&u[b])));
+            o
+        };
+        let (lo, hi) = (order[0], order[order.len() - 1]);
+        let sl = pooled_etfe(&recs[lo..=lo], nperseg, ts)?;
+        let sh = pooled_etfe(&recs[hi..=hi], nperseg, ts)?;
+        let (gl, gh) = (&sl.h, &sh.h);
+        let (cl, ch) = (&sl.coherence, &sh.coherence);
+        let mut d: Vec<f64> = (1..freq.len())
+            .filter(|&k| cl[k] >= opts.coherence_min && ch[k] >= opts.coherence_min)
+            .map(|k| ((gl[k] - gh[k]) / gh[k]).norm())
+            .filter(|v| v.is_finite())
+            .collect();
+        if d.is_empty() {
+            (false, f64::NAN)
+        } else {
+            d.sort_by(f64::total_cmp);
+            let med = d[d.len() / 2];
+            (med > opts.amplitude_tol, med)
+        }
+    } else {
+        (false, f64::NAN)
+    };
+
+    // Residual regions on the pooled training samples after the warm-up.
+    let mut r_all = Vec::new();
+    let mut yabs = Vec::new();
+    let mut yrate = Vec::new();
+    let mut uabs = Vec::new();
+    for l in 0..u.len() {
+        let yl = &y_lin[l];
+        let mut s: Vec<f64> = yl[warmup..].to_vec();
+        s.sort_by(f64::total_cmp);
+        let med = s[s.len() / 2];
+        for k in warmup.max(1)..u[l].len() {
+            r_all.push(resid_lin[l][k]);
+            yabs.push((yl[k] - med).abs());
+            yrate.push((yl[k] - yl[k - 1]).abs());
+            uabs.push(u[l][k].abs());
+        }
+    }
+    let total_rms = rms(&r_all);
+    let region = |name: &str, sel: &dyn Fn(usize) -> bool| -> Region {
+        let v: Vec<f64> = (0..r_all.len())
+            .filter(|&i| sel(i))
+            .map(|i| r_all[i])
+            .collect();
+        let ratio = if v.is_empty() || total_rms == 0.0 {
+            f64::NAN
+        } else {
+            rms(&v) / total_rms
+        };
+        Region {
+            region: name.into(),
+            rms_ratio: ratio,
+            concentrates: ratio >= CONCENTRATION_RATIO,
+        }
+    };
+    let t_y = quantile_threshold(&yabs, 0.2);
+    let t_r = quantile_threshold(&yrate, 0.2);
+    let t_ux = quantile_threshold(&uabs, 0.9);
+    let t_u0 = quantile_threshold(&uabs, 0.2);
+    let residual_regions = vec![
+        region("near_zero_output", &|i| yabs[i] <= t_y),
+        region("near_zero_output_rate", &|i| yrate[i] <= t_r),
+        region("input_extremes", &|i| uabs[i] >= t_ux),
+        region("near_zero_input", &|i| uabs[i] <= t_u0),
+    ];
+    Ok(Where {
+        bands_hz,
+        worst_hz,
+        worst_error,
+        worst_band_hz,
+        coherence_drops_hz,
+        amplitude_dependent,
+        amplitude_change,
+        residual_regions,
+        nperseg,
+        freq_hz: freq,
+        mult_error: mult,
+        coherence: coh,
+    })
+}
+
+impl BandError {
+    /// Band error of each model output in `yhat` (nominal, linear, verdict) against `y` on the
+    /// samples after `warmup` (see [`BandError`]), from Welch PSDs ([`Welch::psd`]).
+    pub fn compute(
+        band_hz: [f64; 2],
+        y: &[f64],
+        yhat: &[&[f64]; 3],
+        warmup: usize,
+        ts: f64,
+        nperseg: usize,
+    ) -> Result<Self> {
+        let y = &y[warmup..];
+        let welch = Welch::new(nperseg.min(default_nperseg(y.len())).min(y.len()));
+        let fs = 1.0 / ts;
+        let syy = welch.psd(y, fs)?;
+        let f = &syy.freq_hz;
+        let mut inband: Vec<usize> = (0..f.len())
+            .filter(|&k| f[k] >= band_hz[0] && f[k] <= band_hz[1])
+            .collect();
+        if inband.is_empty() {
+            // A band narrower than one bin: use the nearest bin.
+            let c = 0.5 * (band_hz[0] + band_hz[1]);
+            let k = (0..f.len())
+                .min_by(|&a, &b| (f[a] - c).abs().total_cmp(&(f[b] - c).abs()))
+                .unwrap_or(0);
+            inband.push(k);
+        }
+        let py: f64 = inband.iter().map(|&k| syy.density[k]).sum();
+        let ratio = |yh: &[f64]| -> Result<f64> {
+            let r: Vec<f64> = y.iter().zip(&yh[warmup..]).map(|(a, b)| a - b).collect();
+            let s = welch.psd(&r, fs)?;
+            let pr: f64 = inband.iter().map(|&k| s.density[k]).sum();
+            Ok(if py > 0.0 { (pr / py).sqrt() } else { f64::NAN })
+        };
+        Ok(Self {
+            band_hz,
+            before: ratio(yhat[0])?,
+            linear: ratio(yhat[1])?,
+            after: ratio(yhat[2])?,
+        })
+    }
+}
