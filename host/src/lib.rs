@@ -16,8 +16,10 @@ pub mod io;
 pub mod lti;
 pub mod n4sid;
 pub mod preprocess;
+pub mod rational_fit;
 pub mod robust;
 pub mod spectral;
+pub mod target_frame;
 pub mod validate;
 
 pub use data::{Channel, Log};
