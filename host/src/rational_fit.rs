@@ -110,10 +110,18 @@ fn eval(a: &[f64], b: &[f64], nk: usize, q: Complex64) -> Complex64 {
 
 /// Σ c_i q^i.
 fn poly_q(c: &[f64], q: Complex64) -> Complex64 {
-    c.iter().rev().fold(Complex64::new(0.0, 0.0), |acc, &v| acc * q + v)
+    c.iter()
+        .rev()
+        .fold(Complex64::new(0.0, 0.0), |acc, &v| acc * q + v)
 }
 
-fn check_inputs(freq_hz: &[f64], h: &[Complex64], weights: Option<&[f64]>, ts: f64, o: &RationalFitOptions) -> Result<()> {
+fn check_inputs(
+    freq_hz: &[f64],
+    h: &[Complex64],
+    weights: Option<&[f64]>,
+    ts: f64,
+    o: &RationalFitOptions,
+) -> Result<()> {
     if !(ts.is_finite() && ts > 0.0) {
         return Err(Error::InvalidArgument(format!(
             "rational fit: sample time {ts} s must be finite and > 0"
@@ -139,7 +147,11 @@ fn check_inputs(freq_hz: &[f64], h: &[Complex64], weights: Option<&[f64]>, ts: f
                 h.len()
             )));
         }
-        if let Some((i, v)) = w.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v > 0.0)) {
+        if let Some((i, v)) = w
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+        {
             return Err(Error::InvalidArgument(format!(
                 "rational fit: weight {i} = {v} must be finite and > 0"
             )));
@@ -231,7 +243,10 @@ pub fn fit_discrete_rational(
         // Column scaling to unit norm, then column-pivoted QR least squares.
         let mut scale = vec![1.0; np];
         for (j, s) in scale.iter_mut().enumerate() {
-            let nrm = (0..2 * npts).map(|i| m[(i, j)] * m[(i, j)]).sum::<f64>().sqrt();
+            let nrm = (0..2 * npts)
+                .map(|i| m[(i, j)] * m[(i, j)])
+                .sum::<f64>()
+                .sqrt();
             if !(nrm > 0.0 && nrm.is_finite()) {
                 return Err(Error::Numerical(format!(
                     "rational fit: regressor column {j} is zero or not finite"
@@ -245,7 +260,9 @@ pub fn fit_discrete_rational(
         let qr = m.col_piv_qr();
         let rr = qr.R();
         let r0 = rr[(0, 0)].abs();
-        let rmin = (0..np).map(|i| rr[(i, i)].abs()).fold(f64::INFINITY, f64::min);
+        let rmin = (0..np)
+            .map(|i| rr[(i, i)].abs())
+            .fold(f64::INFINITY, f64::min);
         if !(rmin > 1e-12 * r0) {
             return Err(Error::Numerical(format!(
                 "rational fit: regression is rank deficient (pivot ratio {:.1e}); lower the \
@@ -256,12 +273,19 @@ pub fn fit_discrete_rational(
         let x = qr.solve_lstsq(&rhs);
         let theta: Vec<f64> = (0..np).map(|j| x[(j, 0)] / scale[j]).collect();
         if theta.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical("rational fit: coefficients not finite".into()));
+            return Err(Error::Numerical(
+                "rational fit: coefficients not finite".into(),
+            ));
         }
         a[1..].copy_from_slice(&theta[..na]);
         b.copy_from_slice(&theta[na..]);
         if let Some(prev) = &theta_prev {
-            let d: f64 = theta.iter().zip(prev).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+            let d: f64 = theta
+                .iter()
+                .zip(prev)
+                .map(|(x, y)| (x - y).powi(2))
+                .sum::<f64>()
+                .sqrt();
             let n: f64 = theta.iter().map(|x| x * x).sum::<f64>().sqrt();
             if d <= opts.tolerance * n.max(1e-300) {
                 converged = true;
@@ -316,7 +340,10 @@ pub fn fit_discrete_rational_delay_search(
         let o = RationalFitOptions { nk, ..*opts };
         match fit_discrete_rational(freq_hz, h, weights, ts, &o) {
             Ok(f) => {
-                if best.as_ref().is_none_or(|b| f.rms_rel_error < b.rms_rel_error) {
+                if best
+                    .as_ref()
+                    .is_none_or(|b| f.rms_rel_error < b.rms_rel_error)
+                {
                     best = Some(f);
                 }
             }

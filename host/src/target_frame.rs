@@ -186,14 +186,22 @@ impl TargetFrame {
                         })?;
                         header.push((k.to_string(), v.to_string()));
                     }
-                    let get = |k: &str| header.iter().find(|(hk, _)| hk == k).map(|(_, v)| v.as_str());
+                    let get = |k: &str| {
+                        header
+                            .iter()
+                            .find(|(hk, _)| hk == k)
+                            .map(|(_, v)| v.as_str())
+                    };
                     let fs_hz: f64 = parse_num(get("fs"), "fs", file, ln)?;
                     if !(fs_hz.is_finite() && fs_hz > 0.0) {
                         return Err(perr(ln, format!("fs = {fs_hz} Hz must be finite and > 0")));
                     }
                     let n: usize = parse_num(get("n"), "n", file, ln)?;
                     if !(n.is_power_of_two() && (64..=4096).contains(&n)) {
-                        return Err(perr(ln, format!("n = {n} is not a power of two in 64..=4096")));
+                        return Err(perr(
+                            ln,
+                            format!("n = {n} is not a power of two in 64..=4096"),
+                        ));
                     }
                     let averages = get("averages")
                         .map(|v| parse_num::<u64>(Some(v), "averages", file, ln))
@@ -222,7 +230,10 @@ impl TargetFrame {
                     let f = match (&mut frame, open) {
                         (Some(f), true) => f,
                         _ => {
-                            return Err(perr(ln, "FRAME line outside FRAME_BEGIN..FRAME_END".into()))
+                            return Err(perr(
+                                ln,
+                                "FRAME line outside FRAME_BEGIN..FRAME_END".into(),
+                            ))
                         }
                     };
                     if rest.len() != 6 {
@@ -237,7 +248,10 @@ impl TargetFrame {
                     let bin: usize = parse_num(Some(rest[0]), "bin", file, ln)?;
                     let expect = f.bins.len();
                     if bin != expect {
-                        return Err(perr(ln, format!("bin {bin} out of order: expected bin {expect}")));
+                        return Err(perr(
+                            ln,
+                            format!("bin {bin} out of order: expected bin {expect}"),
+                        ));
                     }
                     if bin > f.n / 2 {
                         return Err(perr(ln, format!("bin {bin} is beyond N/2 = {}", f.n / 2)));
@@ -273,14 +287,21 @@ impl TargetFrame {
                     if f.bins.len() != want {
                         return Err(perr(
                             ln,
-                            format!("frame holds {} bins, N = {} needs {want}", f.bins.len(), f.n),
+                            format!(
+                                "frame holds {} bins, N = {} needs {want}",
+                                f.bins.len(),
+                                f.n
+                            ),
                         ));
                     }
                     if let Some(t) = rest.first() {
                         let count: usize =
                             parse_num(t.strip_prefix("bins="), "FRAME_END bins=", file, ln)?;
                         if count != want {
-                            return Err(perr(ln, format!("FRAME_END says {count} bins, expected {want}")));
+                            return Err(perr(
+                                ln,
+                                format!("FRAME_END says {count} bins, expected {want}"),
+                            ));
                         }
                     }
                     open = false;
@@ -288,7 +309,10 @@ impl TargetFrame {
                 }
                 "RECEIPT" => {
                     if rest.len() < 10 {
-                        return Err(perr(ln, format!("RECEIPT needs 10 fields, got {}", rest.len())));
+                        return Err(perr(
+                            ln,
+                            format!("RECEIPT needs 10 fields, got {}", rest.len()),
+                        ));
                     }
                     let g = |j: usize, what: &str| parse_f64(Some(rest[j]), what, file, ln);
                     receipt.push(ReceiptRow {

@@ -34,10 +34,7 @@ fn resonance() -> (Vec<f64>, Vec<f64>) {
     let w = 2.0 * PI * 25.0;
     let r = (-0.1 * w * TS).exp();
     let th = w * TS * (1.0f64 - 0.01).sqrt();
-    (
-        vec![1.0, -2.0 * r * th.cos(), r * r],
-        vec![0.0122, 0.0118],
-    )
+    (vec![1.0, -2.0 * r * th.cos(), r * r], vec![0.0122, 0.0118])
 }
 
 fn grid(n: usize, f_hi: f64) -> Vec<f64> {
@@ -116,7 +113,11 @@ fn noisy_data_gives_a_close_model() {
         .fold(0.0f64, f64::max);
     assert!(worst < 5e-3, "worst model error {worst}");
     // The residual reflects the noise level (RMS of |noise| ~ 0.8 %).
-    assert!(fit.rms_rel_error > 3e-3 && fit.rms_rel_error < 1.5e-2, "{}", fit.rms_rel_error);
+    assert!(
+        fit.rms_rel_error > 3e-3 && fit.rms_rel_error < 1.5e-2,
+        "{}",
+        fit.rms_rel_error
+    );
 }
 
 #[test]

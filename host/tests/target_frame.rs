@@ -20,7 +20,13 @@ fn frame_text(h: impl Fn(usize) -> Complex64) -> String {
         let suu = if excited { 1e-3 } else { 1e-15 };
         let hk = h(k);
         let suy = hk * suu;
-        let coh = if k == 7 { 0.5 } else if excited { 0.999 } else { 0.2 };
+        let coh = if k == 7 {
+            0.5
+        } else if excited {
+            0.999
+        } else {
+            0.2
+        };
         let prefix = if k % 2 == 0 { "[INFO ] " } else { "" };
         s.push_str(&format!(
             "{prefix}FRAME {k} {suu:e} {} {} {} {coh}\n",
@@ -40,7 +46,10 @@ fn h_true(k: usize) -> Complex64 {
 #[test]
 fn parses_the_frame_and_the_receipt() {
     let f = TargetFrame::parse(&frame_text(h_true), Path::new("t.log")).unwrap();
-    assert_eq!((f.fs_hz, f.n, f.averages, f.excited_max_bin), (1000.0, 64, Some(4), Some(20)));
+    assert_eq!(
+        (f.fs_hz, f.n, f.averages, f.excited_max_bin),
+        (1000.0, 64, Some(4), Some(20))
+    );
     assert_eq!(f.gate, Some(0.9));
     assert_eq!(f.bins.len(), 33);
     assert_eq!(f.receipt.len(), 2);
@@ -88,17 +97,61 @@ fn malformed_lines_are_named() {
     // Line 4 is FRAME_BEGIN, lines 5..=37 the bins (bin k on line 5 + k), 38 FRAME_END.
     assert_line(parse_err(&with_line(4, "FRAME_BEGIN fs=abc n=64")), 4, "fs");
     assert_line(parse_err(&with_line(4, "FRAME_BEGIN fs=-1 n=64")), 4, "fs");
-    assert_line(parse_err(&with_line(4, "FRAME_BEGIN fs=1000 n=100")), 4, "n = 100");
-    assert_line(parse_err(&with_line(4, "FRAME_BEGIN fs=1000 n=64 oops")), 4, "key=value");
-    assert_line(parse_err(&with_line(4, "FRAME_BEGIN n=64")), 4, "missing fs");
-    assert_line(parse_err(&with_line(9, "FRAME 4 1e-3 1e-3 0.1")), 9, "6 fields");
-    assert_line(parse_err(&with_line(9, "FRAME 5 1e-3 1e-3 0.1 0.1 0.9")), 9, "out of order");
-    assert_line(parse_err(&with_line(9, "FRAME 4 1e-3 x 0.1 0.1 0.9")), 9, "S_yy");
-    assert_line(parse_err(&with_line(9, "FRAME 4 1e-3 inf 0.1 0.1 0.9")), 9, "not finite");
-    assert_line(parse_err(&with_line(9, "FRAME 4 -1e-3 1 0.1 0.1 0.9")), 9, "negative");
-    assert_line(parse_err(&with_line(9, "FRAME 4 1e-3 1 0.1 0.1 1.5")), 9, "coherence");
-    assert_line(parse_err(&with_line(38, "FRAME_END bins=40")), 38, "expected 33");
-    assert_line(parse_err(&with_line(2, "RECEIPT 3 46.875 0.99")), 2, "10 fields");
+    assert_line(
+        parse_err(&with_line(4, "FRAME_BEGIN fs=1000 n=100")),
+        4,
+        "n = 100",
+    );
+    assert_line(
+        parse_err(&with_line(4, "FRAME_BEGIN fs=1000 n=64 oops")),
+        4,
+        "key=value",
+    );
+    assert_line(
+        parse_err(&with_line(4, "FRAME_BEGIN n=64")),
+        4,
+        "missing fs",
+    );
+    assert_line(
+        parse_err(&with_line(9, "FRAME 4 1e-3 1e-3 0.1")),
+        9,
+        "6 fields",
+    );
+    assert_line(
+        parse_err(&with_line(9, "FRAME 5 1e-3 1e-3 0.1 0.1 0.9")),
+        9,
+        "out of order",
+    );
+    assert_line(
+        parse_err(&with_line(9, "FRAME 4 1e-3 x 0.1 0.1 0.9")),
+        9,
+        "S_yy",
+    );
+    assert_line(
+        parse_err(&with_line(9, "FRAME 4 1e-3 inf 0.1 0.1 0.9")),
+        9,
+        "not finite",
+    );
+    assert_line(
+        parse_err(&with_line(9, "FRAME 4 -1e-3 1 0.1 0.1 0.9")),
+        9,
+        "negative",
+    );
+    assert_line(
+        parse_err(&with_line(9, "FRAME 4 1e-3 1 0.1 0.1 1.5")),
+        9,
+        "coherence",
+    );
+    assert_line(
+        parse_err(&with_line(38, "FRAME_END bins=40")),
+        38,
+        "expected 33",
+    );
+    assert_line(
+        parse_err(&with_line(2, "RECEIPT 3 46.875 0.99")),
+        2,
+        "10 fields",
+    );
     // A FRAME line before any FRAME_BEGIN.
     assert_line(parse_err(&with_line(1, "FRAME 0 1 1 0 0 1")), 1, "outside");
     // A second frame.
