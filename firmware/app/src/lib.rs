@@ -1,0 +1,317 @@
+//! Power-up self-identification: the algorithms of the `powerup` image, free of hardware.
+//!
+//! * [`C32`]: a minimal `f32` complex number.
+//! * [`model_response`]: the flashed discrete model's frequency response
+//!   `G0(z) = C (zI − A)⁻¹ B + D` at `z = e^{jθ}`, by complex Gaussian elimination with partial
+//!   pivoting in `f32` (no inverse), on target.
+//! * [`weight_magnitude`]: `|W_m(jω)|` of the continuous uncertainty weight from its
+//!   coefficients (Horner in `s = jω`, rad/s).
+//! * [`check_bin`]: one check of the receipt, `|G_meas − G0| / |G0| <= |W_m|` where the
+//!   coherence passes the gate, and [`Overall`] for the verdict over all check frequencies.
+//! * [`plant`]: the discrete plant simulations that stand in for hardware under QEMU.
+//!
+//! Nothing here panics on any input: degenerate cases (singular `zI − A`, zero `|G0|`,
+//! non-finite estimates) become [`Verdict::Undefined`], which fails the receipt.
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub mod plant;
+
+/// A complex number in `f32`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct C32 {
+    /// Real part.
+    pub re: f32,
+    /// Imaginary part.
+    pub im: f32,
+}
+
+impl C32 {
+    /// `re + j·im`.
+    pub const fn new(re: f32, im: f32) -> Self {
+        Self { re, im }
+    }
+    /// Sum.
+    pub fn add(self, o: Self) -> Self {
+        Self::new(self.re + o.re, self.im + o.im)
+    }
+    /// Difference.
+    pub fn sub(self, o: Self) -> Self {
+        Self::new(self.re - o.re, self.im - o.im)
+    }
+    /// Product.
+    pub fn mul(self, o: Self) -> Self {
+        Self::new(
+            self.re * o.re - self.im * o.im,
+            self.re * o.im + self.im * o.re,
+        )
+    }
+    /// Product with a real number.
+    pub fn scale(self, k: f32) -> Self {
+        Self::new(self.re * k, self.im * k)
+    }
+    /// `|z|²`.
+    pub fn norm_sqr(self) -> f32 {
+        self.re * self.re + self.im * self.im
+    }
+    /// `|z|` (scaled to avoid overflow of the squares).
+    pub fn abs(self) -> f32 {
+        let m = self.re.abs().max(self.im.abs());
+        if m == 0.0 || !m.is_finite() {
+            return m;
+        }
+        let (r, i) = (self.re / m, self.im / m);
+        m * libm::sqrtf(r * r + i * i)
+    }
+    /// Quotient (Smith's algorithm); `None` for a zero or non-finite divisor or result.
+    pub fn div(self, o: Self) -> Option<Self> {
+        let q = if o.re.abs() >= o.im.abs() {
+            if o.re == 0.0 {
+                return None;
+            }
+            let r = o.im / o.re;
+            let den = o.re + o.im * r;
+            Self::new((self.re + self.im * r) / den, (self.im - self.re * r) / den)
+        } else {
+            let r = o.re / o.im;
+            let den = o.re * r + o.im;
+            Self::new((self.re * r + self.im) / den, (self.im * r - self.re) / den)
+        };
+        (q.re.is_finite() && q.im.is_finite()).then_some(q)
+    }
+    /// `e^{jθ}` for `θ = 2π·num/den` (computed in `f64`, rounded once).
+    pub fn unit_circle(num: u32, den: u32) -> Self {
+        let th = 2.0 * core::f64::consts::PI * f64::from(num) / f64::from(den.max(1));
+        Self::new(libm::cos(th) as f32, libm::sin(th) as f32)
+    }
+}
+
+/// Frequency response of the discrete model (A, B, C, D) from `input` to `output` at the point
+/// `z` (on the unit circle `z = e^{jωT}` for a frequency response):
+/// `C (zI − A)⁻¹ B + D`, solving `(zI − A) x = B[:, input]` by Gaussian elimination with
+/// partial pivoting (complex `f32`, `N×N` on the stack).
+///
+/// Returns `None` when `zI − A` is singular to working precision (z at a pole), when
+/// `input`/`output` is out of range, or when the result is not finite.
+pub fn model_response<const N: usize, const M: usize, const P: usize>(
+    a: &[[f32; N]; N],
+    b: &[[f32; M]; N],
+    c: &[[f32; N]; P],
+    d: &[[f32; M]; P],
+    z: C32,
+    input: usize,
+    output: usize,
+) -> Option<C32> {
+    if input >= M || output >= P {
+        return None;
+    }
+    let mut m = [[C32::default(); N]; N];
+    let mut x = [C32::default(); N];
+    let mut scale = 0.0f32;
+    for i in 0..N {
+        for j in 0..N {
+            let diag = if i == j { z } else { C32::default() };
+            m[i][j] = diag.sub(C32::new(a[i][j], 0.0));
+            scale = scale.max(m[i][j].abs());
+        }
+        x[i] = C32::new(b[i][input], 0.0);
+    }
+    let tiny = scale * f32::EPSILON * N as f32;
+    for k in 0..N {
+        // Pivot: largest |m[i][k]| for i >= k.
+        let mut p = k;
+        let mut best = m[k][k].abs();
+        for (i, row) in m.iter().enumerate().skip(k + 1) {
+            let v = row[k].abs();
+            if v > best {
+                best = v;
+                p = i;
+            }
+        }
+        if !(best > tiny) {
+            return None;
+        }
+        m.swap(k, p);
+        x.swap(k, p);
+        let piv = m[k][k];
+        for i in k + 1..N {
+            let f = m[i][k].div(piv)?;
+            for j in k..N {
+                let t = m[k][j];
+                m[i][j] = m[i][j].sub(f.mul(t));
+            }
+            let t = x[k];
+            x[i] = x[i].sub(f.mul(t));
+        }
+    }
+    // Back substitution.
+    for k in (0..N).rev() {
+        let mut s = x[k];
+        for j in k + 1..N {
+            s = s.sub(m[k][j].mul(x[j]));
+        }
+        x[k] = s.div(m[k][k])?;
+    }
+    let mut g = C32::new(d[output][input], 0.0);
+    for j in 0..N {
+        g = g.add(x[j].scale(c[output][j]));
+    }
+    (g.re.is_finite() && g.im.is_finite()).then_some(g)
+}
+
+/// Evaluates a polynomial with real coefficients (descending powers) at `s` (Horner).
+fn poly_at(p: &[f32], s: C32) -> C32 {
+    p.iter()
+        .fold(C32::default(), |acc, &k| acc.mul(s).add(C32::new(k, 0.0)))
+}
+
+/// `|W_m(jω)|` for `W_m(s) = num(s)/den(s)` (descending powers of s, s in rad/s) at
+/// `w_rad_s`; `None` when the denominator vanishes there or the result is not finite.
+pub fn weight_magnitude(num: &[f32], den: &[f32], w_rad_s: f32) -> Option<f32> {
+    let s = C32::new(0.0, w_rad_s);
+    let q = poly_at(num, s).div(poly_at(den, s))?;
+    let m = q.abs();
+    m.is_finite().then_some(m)
+}
+
+/// Outcome of one check frequency.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Coherence passed the gate and `|G_meas − G0|/|G0| <= |W_m|`.
+    Pass,
+    /// Coherence passed the gate and the relative deviation exceeds `|W_m|`.
+    Fail,
+    /// Coherence below the gate: no evidence at this frequency (not counted).
+    Skipped,
+    /// G0, W_m or the estimate could not be evaluated (singular model at this frequency, zero
+    /// |G0|, non-finite estimate): counts as a failure.
+    Undefined,
+}
+
+impl Verdict {
+    /// Upper-case name used in the receipt.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Verdict::Pass => "PASS",
+            Verdict::Fail => "FAIL",
+            Verdict::Skipped => "SKIP",
+            Verdict::Undefined => "UNDEFINED",
+        }
+    }
+}
+
+/// Everything the receipt reports about one check frequency.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CheckResult {
+    /// Welch bin.
+    pub bin: u16,
+    /// Bin frequency, Hz.
+    pub hz: f32,
+    /// Magnitude-squared coherence at the bin.
+    pub coherence: f32,
+    /// The flashed model's response G0 (zero when undefined).
+    pub g0: C32,
+    /// The measured H1 estimate (zero when undefined).
+    pub g_meas: C32,
+    /// `|G_meas − G0| / |G0|` (NaN when undefined).
+    pub rel_error: f32,
+    /// `|W_m(j2πf)|` (NaN when undefined).
+    pub wm: f32,
+    /// The outcome.
+    pub verdict: Verdict,
+}
+
+/// Checks one frequency: bin `bin` of an `n`-point Welch estimate at `fs_hz`, with the
+/// measured `h1` and `coherence` there, against the model response `g0` and the weight
+/// magnitude `wm` (both evaluated by the caller at `z = e^{j2π·bin/n}` resp.
+/// `ω = 2π·bin·fs/n`). The coherence gate applies first: below `gate` the check is
+/// [`Verdict::Skipped`].
+pub fn check_bin(
+    bin: u16,
+    hz: f32,
+    coherence: f32,
+    gate: f32,
+    h1: Option<C32>,
+    g0: Option<C32>,
+    wm: Option<f32>,
+) -> CheckResult {
+    let mut r = CheckResult {
+        bin,
+        hz,
+        coherence,
+        g0: g0.unwrap_or_default(),
+        g_meas: h1.unwrap_or_default(),
+        rel_error: f32::NAN,
+        wm: wm.unwrap_or(f32::NAN),
+        verdict: Verdict::Undefined,
+    };
+    if !(coherence >= gate) {
+        r.verdict = Verdict::Skipped;
+        return r;
+    }
+    let (Some(h1), Some(g0), Some(wm)) = (h1, g0, wm) else {
+        return r;
+    };
+    let g0_abs = g0.abs();
+    if !(g0_abs > 0.0) {
+        return r;
+    }
+    let rel = h1.sub(g0).abs() / g0_abs;
+    r.rel_error = rel;
+    r.verdict = if !rel.is_finite() {
+        Verdict::Undefined
+    } else if rel <= wm {
+        Verdict::Pass
+    } else {
+        Verdict::Fail
+    };
+    r
+}
+
+/// The receipt's verdict over all check frequencies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Overall {
+    /// Enough frequencies passed the coherence gate and every one of them passed.
+    Pass,
+    /// At least one gated frequency failed (or was undefined).
+    Fail,
+    /// Fewer than the required number of frequencies passed the coherence gate: the
+    /// measurement cannot vouch for the model either way.
+    Inconclusive,
+}
+
+impl Overall {
+    /// From the per-frequency verdicts: `min_checked` gated frequencies are needed.
+    pub fn from_checks(checks: &[CheckResult], min_checked: usize) -> Self {
+        let failed = checks
+            .iter()
+            .any(|c| matches!(c.verdict, Verdict::Fail | Verdict::Undefined));
+        let checked = checks
+            .iter()
+            .filter(|c| c.verdict != Verdict::Skipped)
+            .count();
+        if failed {
+            Overall::Fail
+        } else if checked < min_checked {
+            Overall::Inconclusive
+        } else {
+            Overall::Pass
+        }
+    }
+    /// Upper-case name used in the receipt.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Overall::Pass => "PASS",
+            Overall::Fail => "FAIL",
+            Overall::Inconclusive => "INCONCLUSIVE",
+        }
+    }
+    /// Process exit code: 0 pass, 1 fail, 2 inconclusive.
+    pub fn exit_code(self) -> i32 {
+        match self {
+            Overall::Pass => 0,
+            Overall::Fail => 1,
+            Overall::Inconclusive => 2,
+        }
+    }
+}

@@ -1,0 +1,381 @@
+//! `powerup`: power-up self-identification of the plant against the flashed model.
+//!
+//! At boot the image
+//! 1. designs a multisine on bins `1..=EXCITATION_MAX_BIN` of a `WELCH_N`-sample period (flat
+//!    amplitude, RMS `EXCITATION_RMS`, crest factor optimised) — all constants come from the
+//!    Rust module `ferrosid codegen` wrote (included at build time, see `build.rs`);
+//! 2. drives it into the plant for `SETTLE_PERIODS` periods (transient), then streams
+//!    `AVERAGES` periods of input and measured output into a `Welch<WELCH_N>` (rectangular
+//!    window, no overlap: period-synchronous, no leakage) with online coherence;
+//! 3. at every check bin evaluates the flashed model's response
+//!    `G0(e^{jθ}) = C (e^{jθ}I − A)⁻¹ B + D` and `|W_m(j2πf)|` on target (f32), and checks
+//!    `|G_meas − G0| / |G0| <= |W_m|` where the coherence reaches `COHERENCE_GATE`;
+//! 4. logs the receipt and the spectra frame through defmt, and exits with the verdict.
+//!
+//! Under QEMU there is no hardware: the plant is [`ferrosid_powerup::plant::Axis`], selected
+//! and parameterised on the semihosting command line (`-semihosting-config ...,arg=WORD`):
+//!
+//! * `plant=nominal|inertia|delay|friction` — the scenario (default `nominal`);
+//!   `inertia` scales J by `jscale` (default 1.3), `delay` adds `delay` samples (default 3),
+//!   `friction` adds Coulomb friction `coulomb` N·m (default 0.15);
+//! * `J=` kg·m², `b=` N·m·s/rad, `k=` N·m/rad, `gain=` N·m/unit, `noise=` rad RMS, `seed=`,
+//!   `substeps=`, `eps=` rad/s, and `jscale=`, `delay=`, `coulomb=` to override the scenario.
+//!
+//! Defaults (the bench of the end-to-end tests): J = 1e-4 kg·m², k = 2.4674011 N·m/rad
+//! (25 Hz), b = 3.1415927e-3 N·m·s/rad (ζ = 0.1), gain = k (unit DC gain), noise 1e-3 rad,
+//! seed 1, 16 RK4 substeps, ε = 0.1 rad/s.
+//!
+//! Log lines (decoded defmt; numbers in Rust's shortest round-trip notation):
+//! * `POWERUP sha256=<inputs digest> states=<n> fs=<Hz> n=<N> averages=<a> settle=<s> samples=<total>`
+//! * `PLANT scenario=<name> J=.. b=.. k=.. gain=.. coulomb=.. delay=.. noise=.. seed=..`
+//! * `RECEIPT <bin> <Hz> <coherence> <G0 re> <G0 im> <Gmeas re> <Gmeas im> <rel err> <|Wm|> <PASS|FAIL|SKIP|UNDEFINED>`
+//! * `FRAME_BEGIN fs=<Hz> n=<N> averages=<a> dropped=<d> window=rectangular overlap=0 detrend=mean excited_max_bin=<b> gate=<g>`
+//! * `FRAME <bin> <S_uu> <S_yy> <Re S_uy> <Im S_uy> <coherence>` for bins 0..=N/2 (one-sided
+//!   densities, units²/Hz), then `FRAME_END bins=<N/2+1>`
+//! * `STACK <bytes>`, then `VERDICT <PASS|FAIL|INCONCLUSIVE> checked=<c>/<total> failed_hz=[..]`
+//!
+//! Exit status: 0 pass, 1 fail (a gated frequency exceeds W_m), 2 inconclusive (fewer than
+//! `MIN_CHECKED` frequencies passed the coherence gate), 3 bad command line or set-up error,
+//! 101 panic.
+#![no_std]
+#![no_main]
+
+use core::f64::consts::PI;
+
+use cortex_m_rt::entry;
+use defmt_semihosting as _;
+use ferrosid_firmware::excitation::{Line, Multisine, MultisineScratch, MultisineSpec, Phases};
+use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
+use ferrosid_powerup::plant::{Axis, AxisParams};
+use ferrosid_powerup::{check_bin, model_response, weight_magnitude, CheckResult, Overall, C32};
+
+/// The generated model module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
+#[allow(dead_code)]
+mod flashed {
+    include!(concat!(env!("OUT_DIR"), "/flashed_model.rs"));
+}
+
+/// Welch segment length and multisine period.
+const N: usize = flashed::WELCH_N;
+/// Number of excited lines.
+const LINES: usize = flashed::EXCITATION_MAX_BIN;
+/// Crest-factor optimisation rounds of the multisine design.
+const CREST_ITERATIONS: u32 = 100;
+/// Exit status for a bad command line or set-up error.
+const EXIT_SETUP: i32 = 3;
+/// Exit status after a panic.
+const EXIT_PANIC: i32 = 101;
+
+const _: () = assert!(flashed::N_INPUTS >= 1 && flashed::N_OUTPUTS >= 1);
+const _: () = assert!(LINES >= 1 && LINES < N / 2);
+
+fn exit(code: i32) -> ! {
+    semihosting::process::exit(code)
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    use semihosting::io::Write as _;
+    if let Ok(mut e) = semihosting::io::stderr() {
+        let _ = e.write_all(b"powerup: panicked\n");
+    }
+    exit(EXIT_PANIC)
+}
+
+/// Plant scenario and parameters from the command line.
+struct Scenario {
+    name: &'static str,
+    params: AxisParams,
+}
+
+fn parse_f32(key: &'static str, v: &str) -> Result<f32, &'static str> {
+    v.parse::<f32>().ok().filter(|x| x.is_finite()).ok_or(key)
+}
+
+/// Parses the semihosting command line (see the crate docs). Errors name the offending key.
+fn parse_args() -> Result<Scenario, &'static str> {
+    let k_nom = 2.467_401_1f32;
+    let mut p = AxisParams {
+        inertia: 1e-4,
+        damping: 3.141_592_7e-3,
+        stiffness: k_nom,
+        gain: k_nom,
+        coulomb: 0.0,
+        coulomb_smoothing: 0.1,
+        delay_samples: 0,
+        noise_rms: 1e-3,
+        seed: 1,
+        substeps: 16,
+    };
+    let mut name = "nominal";
+    let (mut jscale, mut delay, mut coulomb) = (None, None, None);
+    let args = semihosting::experimental::env::args::<1024>().map_err(|_| "command line")?;
+    for (i, a) in (&args).enumerate() {
+        let a = a.map_err(|_| "command line (not UTF-8)")?;
+        if i == 0 {
+            continue; // program name
+        }
+        let (key, v) = a.split_once('=').ok_or("argument without '='")?;
+        match key {
+            "plant" => {
+                name = match v {
+                    "nominal" => "nominal",
+                    "inertia" => "inertia",
+                    "delay" => "delay",
+                    "friction" => "friction",
+                    _ => return Err("plant (nominal|inertia|delay|friction)"),
+                }
+            }
+            "J" => p.inertia = parse_f32("J", v)?,
+            "b" => p.damping = parse_f32("b", v)?,
+            "k" => p.stiffness = parse_f32("k", v)?,
+            "gain" => p.gain = parse_f32("gain", v)?,
+            "noise" => p.noise_rms = parse_f32("noise", v)?,
+            "eps" => p.coulomb_smoothing = parse_f32("eps", v)?,
+            "seed" => p.seed = v.parse().map_err(|_| "seed")?,
+            "substeps" => p.substeps = v.parse().map_err(|_| "substeps")?,
+            "jscale" => jscale = Some(parse_f32("jscale", v)?),
+            "delay" => delay = Some(v.parse::<u32>().map_err(|_| "delay")?),
+            "coulomb" => coulomb = Some(parse_f32("coulomb", v)?),
+            _ => return Err("unknown key"),
+        }
+    }
+    let (js, d, fc) = match name {
+        "inertia" => (1.3, 0, 0.0),
+        "delay" => (1.0, 3, 0.0),
+        "friction" => (1.0, 0, 0.15),
+        _ => (1.0, 0, 0.0),
+    };
+    p.inertia *= jscale.unwrap_or(js);
+    p.delay_samples = delay.unwrap_or(d);
+    p.coulomb = coulomb.unwrap_or(fc);
+    Ok(Scenario { name, params: p })
+}
+
+/// Stack high-water mark by painting (the stack is outside every section, so llvm-size does
+/// not count it).
+mod stack {
+    const PAINT: u32 = 0x5AFE_C0DE;
+    const GUARD: usize = 256;
+    extern "C" {
+        static _stack_start: u32;
+    }
+    pub struct Painted {
+        low: usize,
+        high: usize,
+    }
+    #[inline(never)]
+    pub fn paint(bytes: usize) -> Painted {
+        let sp = cortex_m::register::msp::read() as usize;
+        let high = (sp - GUARD) & !3;
+        let low = high - (bytes & !3);
+        let mut a = low;
+        while a < high {
+            // SAFETY: below the live stack, above all statics (4 MiB RAM, images use far less).
+            unsafe { core::ptr::write_volatile(a as *mut u32, PAINT) };
+            a += 4;
+        }
+        Painted { low, high }
+    }
+    impl Painted {
+        pub fn high_water(&self) -> usize {
+            let mut a = self.low;
+            // SAFETY: reads of the region painted above.
+            while a < self.high && unsafe { core::ptr::read_volatile(a as *const u32) } == PAINT {
+                a += 4;
+            }
+            core::ptr::addr_of!(_stack_start) as usize - a
+        }
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let painted = stack::paint(48 * 1024);
+    let scenario = match parse_args() {
+        Ok(s) => s,
+        Err(key) => {
+            defmt::println!("ERROR bad command line: {=str}", key);
+            exit(EXIT_SETUP)
+        }
+    };
+    let p = scenario.params;
+    defmt::println!(
+        "POWERUP sha256={=str} states={=usize} fs={=f32} n={=usize} averages={=u32} settle={=u32} samples={=u64}",
+        flashed::INPUTS_SHA256,
+        flashed::N_STATES,
+        flashed::FS_HZ,
+        N,
+        flashed::AVERAGES,
+        flashed::SETTLE_PERIODS,
+        flashed::SELF_ID_SAMPLES
+    );
+    defmt::println!(
+        "PLANT scenario={=str} J={=f32} b={=f32} k={=f32} gain={=f32} coulomb={=f32} delay={=u32} noise={=f32} seed={=u64}",
+        scenario.name,
+        p.inertia,
+        p.damping,
+        p.stiffness,
+        p.gain,
+        p.coulomb,
+        p.delay_samples,
+        p.noise_rms,
+        p.seed
+    );
+    let mut axis = match Axis::new(p, flashed::TS_S) {
+        Ok(a) => a,
+        Err(e) => {
+            defmt::println!("ERROR plant parameter out of range: {=str}", e.0);
+            exit(EXIT_SETUP)
+        }
+    };
+
+    // Excitation: flat multisine on bins 1..=LINES with total RMS EXCITATION_RMS.
+    let amplitude = flashed::EXCITATION_RMS * libm::sqrtf(2.0 / LINES as f32);
+    let mut lines = [Line {
+        bin: 0,
+        amplitude: 0.0,
+    }; LINES];
+    for (i, l) in lines.iter_mut().enumerate() {
+        *l = Line {
+            bin: i + 1,
+            amplitude,
+        };
+    }
+    let spec = MultisineSpec {
+        lines: &lines,
+        phases: Phases::Schroeder,
+        crest_iterations: CREST_ITERATIONS,
+    };
+    let Some(scratch) = cortex_m::singleton!(: MultisineScratch<N> = MultisineScratch::new())
+    else {
+        exit(EXIT_SETUP)
+    };
+    let Some(ms) = cortex_m::singleton!(: Multisine<N> = match Multisine::design(&spec, scratch) {
+        Ok(m) => m,
+        Err(_) => {
+            defmt::println!("ERROR multisine design rejected the line set");
+            exit(EXIT_SETUP)
+        }
+    }) else {
+        exit(EXIT_SETUP)
+    };
+    let Some(welch) = cortex_m::singleton!(: Welch<N> = Welch::unconfigured()) else {
+        exit(EXIT_SETUP)
+    };
+    let cfg = WelchConfig {
+        fs_hz: flashed::FS_HZ,
+        overlap: 0,
+        window: Window::Rectangular,
+        detrend_mean: true,
+    };
+    if welch.configure(cfg).is_err() {
+        defmt::println!("ERROR Welch rejected fs = {=f32} Hz", flashed::FS_HZ);
+        exit(EXIT_SETUP)
+    }
+
+    // Transient, then period-synchronous averaging.
+    for _ in 0..flashed::SETTLE_PERIODS as usize * N {
+        axis.step(ms.next_sample());
+    }
+    for _ in 0..flashed::AVERAGES as usize * N {
+        let u = ms.next_sample();
+        let y = axis.step(u);
+        welch.push(u, y);
+    }
+
+    // The receipt.
+    let mut results = [CheckResult {
+        bin: 0,
+        hz: 0.0,
+        coherence: 0.0,
+        g0: C32::default(),
+        g_meas: C32::default(),
+        rel_error: 0.0,
+        wm: 0.0,
+        verdict: ferrosid_powerup::Verdict::Undefined,
+    }; flashed::CHECK_COUNT];
+    for (i, r) in results.iter_mut().enumerate() {
+        let bin = flashed::CHECK_BIN[i];
+        let k = usize::from(bin);
+        let z = C32::unit_circle(u32::from(bin), N as u32);
+        let g0 = model_response(&flashed::A, &flashed::B, &flashed::C, &flashed::D, z, 0, 0);
+        let w = (2.0 * PI * f64::from(bin) * f64::from(flashed::FS_HZ) / N as f64) as f32;
+        let wm = weight_magnitude(&flashed::WM_NUM, &flashed::WM_DEN, w);
+        let h1 = welch.h1(k).map(|(re, im)| C32::new(re, im));
+        *r = check_bin(
+            bin,
+            flashed::CHECK_HZ[i],
+            welch.coherence(k),
+            flashed::COHERENCE_GATE,
+            h1,
+            g0,
+            wm,
+        );
+        defmt::println!(
+            "RECEIPT {=u16} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=str}",
+            r.bin,
+            r.hz,
+            r.coherence,
+            r.g0.re,
+            r.g0.im,
+            r.g_meas.re,
+            r.g_meas.im,
+            r.rel_error,
+            r.wm,
+            r.verdict.as_str()
+        );
+    }
+
+    // The spectra frame, for the host to re-identify from.
+    defmt::println!(
+        "FRAME_BEGIN fs={=f32} n={=usize} averages={=u32} dropped={=u32} window=rectangular overlap=0 detrend=mean excited_max_bin={=usize} gate={=f32}",
+        flashed::FS_HZ,
+        N,
+        welch.averages(),
+        welch.dropped_segments(),
+        LINES,
+        flashed::COHERENCE_GATE
+    );
+    for k in 0..welch.bins() {
+        let (sre, sim) = welch.suy(k);
+        defmt::println!(
+            "FRAME {=usize} {=f32} {=f32} {=f32} {=f32} {=f32}",
+            k,
+            welch.suu(k),
+            welch.syy(k),
+            sre,
+            sim,
+            welch.coherence(k)
+        );
+    }
+    defmt::println!("FRAME_END bins={=usize}", welch.bins());
+
+    let overall = Overall::from_checks(&results, flashed::MIN_CHECKED);
+    let mut failed = [0.0f32; flashed::CHECK_COUNT];
+    let mut n_failed = 0;
+    for r in &results {
+        if matches!(
+            r.verdict,
+            ferrosid_powerup::Verdict::Fail | ferrosid_powerup::Verdict::Undefined
+        ) {
+            if let Some(slot) = failed.get_mut(n_failed) {
+                *slot = r.hz;
+                n_failed += 1;
+            }
+        }
+    }
+    let checked = results
+        .iter()
+        .filter(|r| r.verdict != ferrosid_powerup::Verdict::Skipped)
+        .count();
+    defmt::println!("STACK {=usize}", painted.high_water());
+    defmt::println!(
+        "VERDICT {=str} checked={=usize}/{=usize} failed_hz={=[?]}",
+        overall.as_str(),
+        checked,
+        flashed::CHECK_COUNT,
+        &failed[..n_failed]
+    );
+    exit(overall.exit_code())
+}

@@ -1,0 +1,183 @@
+//! Discrete plant simulations that stand in for the hardware under QEMU.
+//!
+//! [`Axis`]: a flexible axis (gimbal, joint with a compliant transmission, magnetic-bearing
+//! axis with a restoring stiffness) driven by a torque actuator through a zero-order hold,
+//!
+//! ```text
+//! J θ'' + b θ' + k θ = K·u(t − d·T) − F_c·ω/√(ω² + ε²),   ω = θ',
+//! ```
+//!
+//! with θ in rad (the measured output), u in actuator units, J in kg·m², b in N·m·s/rad, k in
+//! N·m/rad, K in N·m per actuator unit, F_c the Coulomb friction torque in N·m (smoothed over
+//! |ω| ≲ ε rad/s so the integrator stays well posed), d whole samples of transport delay and T
+//! the sample time in s. The continuous dynamics are integrated by classical Runge–Kutta (RK4)
+//! with `substeps` steps per sample, the input held constant over the sample (ZOH), so without
+//! friction the sampled plant is the ZOH discretisation of
+//! `G(s) = K / (J s² + b s + k)` times `z^-d` (RK4 error ~ (ωT/substeps)⁵ per step).
+//! The measured output is `y[k] = θ(kT) + n[k]`, n white with RMS `noise_rms_rad`
+//! (Irwin–Hall sum of four uniforms from a seeded SplitMix64: near-Gaussian, bounded).
+//!
+//! Scenarios of the power-up check: nominal; drifted inertia (e.g. J × 1.3); extra delay;
+//! Coulomb friction.
+use ferrosid_firmware::rng::SplitMix64;
+
+/// Longest transport delay the simulation holds, samples.
+pub const MAX_DELAY: usize = 64;
+/// Most RK4 substeps per sample.
+pub const MAX_SUBSTEPS: u32 = 256;
+
+/// Physical parameters of an [`Axis`] (units in the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisParams {
+    /// Inertia J, kg·m² (> 0).
+    pub inertia: f32,
+    /// Viscous damping b, N·m·s/rad (>= 0).
+    pub damping: f32,
+    /// Stiffness k, N·m/rad (>= 0).
+    pub stiffness: f32,
+    /// Actuator gain K, N·m per input unit (!= 0).
+    pub gain: f32,
+    /// Coulomb friction torque F_c, N·m (>= 0).
+    pub coulomb: f32,
+    /// Friction smoothing velocity ε, rad/s (> 0).
+    pub coulomb_smoothing: f32,
+    /// Extra transport delay, whole samples (`0..MAX_DELAY`).
+    pub delay_samples: u32,
+    /// RMS of the additive measurement noise, rad (>= 0).
+    pub noise_rms: f32,
+    /// Seed of the noise generator.
+    pub seed: u64,
+    /// RK4 steps per sample (`1..=MAX_SUBSTEPS`).
+    pub substeps: u32,
+}
+
+/// A parameter of [`AxisParams`] is out of range; names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InvalidParameter(pub &'static str);
+
+/// The simulated axis (see the module docs).
+#[derive(Debug, Clone)]
+pub struct Axis {
+    p: AxisParams,
+    h: f32,
+    theta: f32,
+    omega: f32,
+    line: [f32; MAX_DELAY],
+    pos: usize,
+    rng: SplitMix64,
+}
+
+impl Axis {
+    /// An axis at rest, sampled every `ts_s` seconds.
+    ///
+    /// # Errors
+    /// [`InvalidParameter`] naming the first parameter out of range (see [`AxisParams`]), or
+    /// `"ts_s"` when the sample time is not finite and positive.
+    pub fn new(p: AxisParams, ts_s: f32) -> Result<Self, InvalidParameter> {
+        let ok = |v: f32, lo: f32| v.is_finite() && v >= lo;
+        if !(ok(p.inertia, 0.0) && p.inertia > 0.0) {
+            return Err(InvalidParameter("inertia"));
+        }
+        if !ok(p.damping, 0.0) {
+            return Err(InvalidParameter("damping"));
+        }
+        if !ok(p.stiffness, 0.0) {
+            return Err(InvalidParameter("stiffness"));
+        }
+        if !(p.gain.is_finite() && p.gain != 0.0) {
+            return Err(InvalidParameter("gain"));
+        }
+        if !ok(p.coulomb, 0.0) {
+            return Err(InvalidParameter("coulomb"));
+        }
+        if !(ok(p.coulomb_smoothing, 0.0) && p.coulomb_smoothing > 0.0) {
+            return Err(InvalidParameter("coulomb_smoothing"));
+        }
+        if p.delay_samples as usize >= MAX_DELAY {
+            return Err(InvalidParameter("delay"));
+        }
+        if !ok(p.noise_rms, 0.0) {
+            return Err(InvalidParameter("noise"));
+        }
+        if !(1..=MAX_SUBSTEPS).contains(&p.substeps) {
+            return Err(InvalidParameter("substeps"));
+        }
+        if !(ts_s.is_finite() && ts_s > 0.0) {
+            return Err(InvalidParameter("ts_s"));
+        }
+        Ok(Self {
+            p,
+            h: ts_s / p.substeps as f32,
+            theta: 0.0,
+            omega: 0.0,
+            line: [0.0; MAX_DELAY],
+            pos: 0,
+            rng: SplitMix64::new(p.seed),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &AxisParams {
+        &self.p
+    }
+
+    /// Angular acceleration for state (θ, ω) under applied torque `tau` (N·m).
+    fn accel(&self, theta: f32, omega: f32, tau: f32) -> f32 {
+        let p = &self.p;
+        let friction = if p.coulomb > 0.0 {
+            let e = p.coulomb_smoothing;
+            p.coulomb * omega / libm::sqrtf(omega * omega + e * e)
+        } else {
+            0.0
+        };
+        (tau - p.damping * omega - p.stiffness * theta - friction) / p.inertia
+    }
+
+    /// Near-Gaussian noise sample of unit variance (Irwin–Hall, four uniforms).
+    fn unit_noise(&mut self) -> f32 {
+        let mut s = 0.0f32;
+        for _ in 0..4 {
+            s += (self.rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0);
+        }
+        (s - 2.0) * 1.732_050_8
+    }
+
+    /// One sample period: returns the measured output `y[k] = θ(kT) + n[k]`, then applies the
+    /// command `u` (after the transport delay) through the ZOH for one period.
+    pub fn step(&mut self, u: f32) -> f32 {
+        let noise = if self.p.noise_rms > 0.0 {
+            self.p.noise_rms * self.unit_noise()
+        } else {
+            0.0
+        };
+        let y = self.theta + noise;
+        let d = self.p.delay_samples as usize;
+        let u_applied = if d == 0 {
+            u
+        } else {
+            let slot = self.pos % d;
+            let old = self.line.get(slot).copied().unwrap_or(0.0);
+            if let Some(s) = self.line.get_mut(slot) {
+                *s = u;
+            }
+            self.pos = (slot + 1) % d;
+            old
+        };
+        let tau = self.p.gain * u_applied;
+        let h = self.h;
+        for _ in 0..self.p.substeps {
+            let (t0, w0) = (self.theta, self.omega);
+            let k1t = w0;
+            let k1w = self.accel(t0, w0, tau);
+            let k2t = w0 + 0.5 * h * k1w;
+            let k2w = self.accel(t0 + 0.5 * h * k1t, k2t, tau);
+            let k3t = w0 + 0.5 * h * k2w;
+            let k3w = self.accel(t0 + 0.5 * h * k2t, k3t, tau);
+            let k4t = w0 + h * k3w;
+            let k4w = self.accel(t0 + h * k3t, k4t, tau);
+            self.theta = t0 + h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t);
+            self.omega = w0 + h / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w);
+        }
+        y
+    }
+}
