@@ -10,6 +10,9 @@
 use crate::Error;
 use clap::{Parser, Subcommand};
 
+pub mod frf;
+pub mod output;
+
 /// Exit status of a command that ran to completion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ExitCode {
@@ -36,7 +39,10 @@ pub struct Cli {
 
 /// All subcommands. Each variant wraps its module's `Args`.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Empirical frequency response (Welch H1 or period-synchronous) with coherence gating.
+    Frf(frf::Args),
+}
 
 /// Maps an error to the documented process exit code.
 pub fn exit_code_for(err: &Error) -> i32 {
@@ -49,5 +55,7 @@ pub fn exit_code_for(err: &Error) -> i32 {
 
 /// Runs the parsed command line.
 pub fn run(cli: &Cli) -> Result<ExitCode, Error> {
-    match cli.command {}
+    match &cli.command {
+        Command::Frf(a) => frf::run(a),
+    }
 }
