@@ -35,8 +35,13 @@
 //! Tustin prewarped at the design crossover ([`super::discretize`]), so the discrete
 //! controller's response at ω_c equals the continuous one exactly. [`DiscretePid`] exposes the
 //! parallel-form difference equations (what the firmware runs):
-//! p[k] = Kp·e[k]; i[k] = i[k−1] + k_i·(e[k] + e[k−1]); d[k] = a_d·d[k−1] + b_d·(e[k] − e[k−1]);
-//! v[k] = p[k] + i[k] + d[k]; u = biquad roll-off of v (if any).
+//!
+//! ```text
+//! p[k] = Kp·e[k]
+//! i[k] = i[k−1] + k_i·(e[k] + e[k−1])
+//! d[k] = a_d·d[k−1] + b_d·(e[k] − e[k−1])
+//! v[k] = p[k] + i[k] + d[k];   u[k] = roll-off biquad of v (or v)
+//! ```
 use super::discretize::{tustin, tustin_constant};
 use super::loops::{analysis_grid, FeedbackLoop};
 use super::norms::{hinf_norm, sigma_max};
@@ -198,7 +203,7 @@ impl Pid {
     }
 }
 
-/// A second-order section y[k] = b0 x[k] + b1 x[k−1] + b2 x[k−2] − a1 y[k−1] − a2 y[k−2]
+/// A second-order section `y[k] = b0 x[k] + b1 x[k−1] + b2 x[k−2] − a1 y[k−1] − a2 y[k−2]`
 /// (a0 = 1).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Biquad {
@@ -218,16 +223,16 @@ pub struct DiscretePid {
     pub prewarp_hz: Option<f64>,
     /// Proportional gain Kp.
     pub kp: f64,
-    /// Integrator coefficient k_i = Ki/c (trapezoidal): i[k] = i[k−1] + k_i (e[k] + e[k−1]).
+    /// Integrator coefficient k_i = Ki/c (trapezoidal): `i[k] = i[k−1] + k_i (e[k] + e[k−1])`.
     pub ki_d: f64,
-    /// Derivative filter pole a_d = (τ_f c − 1)/(τ_f c + 1): d[k] = a_d d[k−1] + b_d Δe[k].
+    /// Derivative filter pole a_d = (τ_f c − 1)/(τ_f c + 1): `d[k] = a_d d[k−1] + b_d Δe[k]`.
     pub a_d: f64,
     /// Derivative gain b_d = Kd c/(τ_f c + 1).
     pub b_d: f64,
     /// Roll-off section applied to v = p + i + d (None: u = v).
     pub rolloff: Option<Biquad>,
     /// The whole controller as one transfer function in z, descending powers (= ascending
-    /// powers of z⁻¹), den[0] = 1.
+    /// powers of z⁻¹), `den[0] = 1`.
     pub num: Vec<f64>,
     /// Denominator matching `num`.
     pub den: Vec<f64>,

@@ -2,8 +2,8 @@
 //! by the firmware controller ([`DiscretePid::update_detailed`]) through a clamp at
 //! ±`actuator_limit`.
 //!
-//! Per sample k: y[k] = C x[k] + D u[k]; e[k] = r − y[k]; u[k] = clamp(PID(e[k])); x[k+1] =
-//! A x[k] + B u[k]. With a plant feedthrough D ≠ 0 the loop is algebraic; e[k] is then solved
+//! Per sample k: `y[k] = C x[k] + D u[k]; e[k] = r − y[k]; u[k] = clamp(PID(e[k]));
+//! x[k+1] = A x[k] + B u[k]`. With a plant feedthrough D ≠ 0 the loop is algebraic; `e[k]` is then solved
 //! from e = r − C x − D·u(e) by bisection (the map is monotone when the loop is well posed,
 //! 1 + D·g > 0 with g the controller's instantaneous gain).
 //!
@@ -53,11 +53,11 @@ pub struct StepResponse {
     pub amplitude: f64,
     /// Actuator limit used.
     pub actuator_limit: f64,
-    /// Sample times t[k] = k·ts, s.
+    /// Sample times `t[k] = k·ts`, s.
     pub t: Vec<f64>,
-    /// Plant output y[k].
+    /// Plant output `y[k]`.
     pub y: Vec<f64>,
-    /// Applied (clamped) actuator command u[k].
+    /// Applied (clamped) actuator command `u[k]`.
     pub u: Vec<f64>,
     /// Controller demand before the clamp.
     pub u_demand: Vec<f64>,
@@ -65,7 +65,7 @@ pub struct StepResponse {
     pub hits_rail: bool,
     /// Number of samples at the rail.
     pub samples_at_rail: usize,
-    /// max_k |u_demand[k]| / actuator_limit (> 1 means the rail clipped the command).
+    /// `max_k |u_demand[k]| / actuator_limit` (> 1 means the rail clipped the command).
     pub peak_demand_ratio: f64,
     /// Overshoot beyond the reference in percent of |amplitude| (>= 0).
     pub overshoot_pct: f64,

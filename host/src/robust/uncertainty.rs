@@ -23,8 +23,8 @@
 //! ln k* = max_i [ln l_m(ω_i) − ln|N/D(jω_i)|], so the constraint is eliminated and the reduced
 //! (non-smooth) objective over the section parameters (log ω, log ζ, log a) is minimised by
 //! Nelder–Mead ([`crate::gap::optim::nelder_mead`], restarted on a shrinking simplex) from many
-//! starts. Order n + 1 is started from the order-n optimum extended by an exactly cancelling pole/zero pair, so a higher order is never looser.
-//! A final exact check evaluates |W_m(jω_i)| from the polynomial coefficients and raises k if
+//! starts. Order n + 1 is started from the order-n optimum extended by an exactly cancelling
+//! pole/zero pair, so a higher order is never looser. A final exact check evaluates |W_m(jω_i)| from the polynomial coefficients and raises k if
 //! rounding left any ratio below 1.
 //!
 //! Units: `freq_hz` in Hz; W_m(s) is continuous with s in rad/s.
@@ -134,11 +134,11 @@ pub struct UncertaintyWeight {
     pub freq_hz: Vec<f64>,
     /// Envelope l_m at `freq_hz` after flooring at `min_level` (dimensionless).
     pub envelope: Vec<f64>,
-    /// |W_m(j2πf_i)| / envelope[i] at every measured frequency.
+    /// `|W_m(j2πf_i)| / envelope[i]` at every measured frequency.
     pub overbound_ratio: Vec<f64>,
-    /// max_i overbound_ratio[i]: how loose the weight is at its loosest bin.
+    /// `max_i overbound_ratio[i]`: how loose the weight is at its loosest bin.
     pub worst_overbound_ratio: f64,
-    /// min_i overbound_ratio[i] (>= 1 when the constraint holds).
+    /// `min_i overbound_ratio[i]` (>= 1 when the constraint holds).
     pub min_overbound_ratio: f64,
     /// True when |W_m| >= l_m at every measured frequency.
     pub constraint_holds: bool,
