@@ -596,9 +596,10 @@ fn enforce_stability(a: &Mat<f64>, margin: f64) -> Result<(Mat<f64>, Vec<String>
     }
 }
 
-/// Output-error regressors for (x0, B, D) given (A, C) over `len` samples: returns the
-/// (len·p) × (n + n·m + p·m) matrix (columns: x0 entries if `with_x0`, B entries column-major
-/// by input, D entries if `with_d`) with rows ordered output-major (row = i·len + t).
+/// Output-error regressors for (x0, B, D) given (A, C) over `len` samples, column-major in a
+/// flat buffer: (len·p) rows × (n + n·m + p·m) columns (x0 entries if `with_x0`, B entries
+/// column-major by input, D entries if `with_d`), rows ordered output-major (row = i·len + t).
+/// Returns (buffer, rows, cols); view it with `MatRef::from_column_major_slice`.
 fn oe_regressors(
     a: &Mat<f64>,
     c: &Mat<f64>,
@@ -606,45 +607,47 @@ fn oe_regressors(
     len: usize,
     with_x0: bool,
     with_d: bool,
-) -> Mat<f64> {
+) -> (Vec<f64>, usize, usize) {
     let n = a.nrows();
     let p = c.nrows();
     let m = u.len();
+    let rows = len * p;
     let ncols = if with_x0 { n } else { 0 } + n * m + if with_d { p * m } else { 0 };
-    let mut phi = Mat::<f64>::zeros(len * p, ncols);
+    let mut buf = vec![0.0; rows * ncols];
     let ar: Vec<f64> = (0..n * n).map(|k| a[(k / n, k % n)]).collect();
     let cr: Vec<f64> = (0..p * n).map(|k| c[(k / n, k % n)]).collect();
-    let mut col0 = 0;
+    if rows == 0 || ncols == 0 {
+        return (buf, rows, ncols);
+    }
+    let mut cols = buf.chunks_mut(rows);
     if with_x0 {
-        unit_direction_responses(&ar, &cr, n, p, None, len, col0, &mut phi);
-        col0 += n;
+        let mut block: Vec<&mut [f64]> = cols.by_ref().take(n).collect();
+        unit_direction_responses(&ar, &cr, n, p, None, len, &mut block);
     }
     for uj in u {
-        unit_direction_responses(&ar, &cr, n, p, Some(uj), len, col0, &mut phi);
-        col0 += n;
+        let mut block: Vec<&mut [f64]> = cols.by_ref().take(n).collect();
+        unit_direction_responses(&ar, &cr, n, p, Some(uj), len, &mut block);
     }
     if with_d {
-        for (j, uj) in u.iter().enumerate() {
+        for uj in u {
             for i in 0..p {
-                let col = col0 + j * p + i;
-                for t in 0..len {
-                    phi[(i * len + t, col)] = uj[t];
+                if let Some(col) = cols.next() {
+                    col[i * len..(i + 1) * len].copy_from_slice(uj);
                 }
             }
         }
     }
-    phi
+    (buf, rows, ncols)
 }
 
-/// Output-error regressors of one input (or of the initial state) for every state direction,
-/// written to `phi[(i·len + t, col0 + d)]`, d in 0..n. `ar`, `cr` are row-major.
+/// Output-error regressors of one input (or of the initial state) for every state direction:
+/// `cols[d][i·len + t]`, d in 0..n. `ar`, `cr` are row-major.
 ///
 /// With `input = Some(u)`: the response of output i at time t to u entering state d,
 /// Σ_{τ<t} (C A^{t−1−τ})[i, d]·u(τ); with `None`: the free response (C Aᵗ)[i, d] from
 /// x(0) = e_d. Both are rows of R(t) = C·X(t) where X(t) is a polynomial in A, so X commutes
 /// with A and R obeys the p×n recursion R(t+1) = R(t)·A + u(t)·C (R(0) = 0), resp.
 /// R(t+1) = R(t)·A (R(0) = C): O(p·n²) per sample instead of simulating n systems.
-#[allow(clippy::too_many_arguments)]
 fn unit_direction_responses(
     ar: &[f64],
     cr: &[f64],
@@ -652,8 +655,7 @@ fn unit_direction_responses(
     p: usize,
     input: Option<&[f64]>,
     len: usize,
-    col0: usize,
-    phi: &mut Mat<f64>,
+    cols: &mut [&mut [f64]],
 ) {
     let mut r = if input.is_none() {
         cr.to_vec()
@@ -661,12 +663,10 @@ fn unit_direction_responses(
         vec![0.0; p * n]
     };
     let mut rn = vec![0.0; p * n];
-    // out[(d·p + i)·len + t]
-    let mut out = vec![0.0; n * p * len];
     for t in 0..len {
         for i in 0..p {
-            for d in 0..n {
-                out[(d * p + i) * len + t] = r[i * n + d];
+            for (d, col) in cols.iter_mut().enumerate() {
+                col[i * len + t] = r[i * n + d];
             }
         }
         let ut = input.map_or(0.0, |s| s[t]);
@@ -684,13 +684,6 @@ fn unit_direction_responses(
             }
         }
         std::mem::swap(&mut r, &mut rn);
-    }
-    for d in 0..n {
-        let col = phi.col_as_slice_mut(col0 + d);
-        for i in 0..p {
-            col[i * len..(i + 1) * len]
-                .copy_from_slice(&out[(d * p + i) * len..(d * p + i + 1) * len]);
-        }
     }
 }
 
@@ -733,7 +726,8 @@ pub fn estimate_x0<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
             )));
         }
     }
-    let phi = oe_regressors(&model.a, &model.c, &[], len, true, false);
+    let (buf, rows, cols) = oe_regressors(&model.a, &model.c, &[], len, true, false);
+    let phi = MatRef::from_column_major_slice(&buf, rows, cols);
     let rhs = Mat::from_fn(len * p, 1, |r, _| {
         let (i, t) = (r / len, r % len);
         y[i].as_ref()[t] - y0[i][t]
@@ -819,7 +813,7 @@ fn identify(
         .chain(y.iter().zip(&sy))
         .map(|(c, s)| c.iter().map(|v| v / s).collect())
         .collect();
-    let us: Vec<Vec<f64>> = w[..m].to_vec();
+    let us: &[Vec<f64>] = &w[..m];
     let jcols = len - 2 * k + 1;
 
     // 2. LQ factor.
@@ -910,22 +904,22 @@ fn identify(
         yf,
         p,
     };
-    let ys: Vec<Vec<f64>> = w[m..].to_vec();
+    let ys: &[Vec<f64>] = &w[m..];
     let mut order_bic = Vec::new();
     let (fit, order_reason, criterion) = if let Some(n) = fixed {
-        let fit = fit_order(n, &sub, &us, &ys, opts)?;
+        let fit = fit_order(n, &sub, us, ys, opts)?;
         (fit, format!("order {n} fixed by the caller"), Vec::new())
     } else {
         let sel = select_order(&sv_weighted, &cc, n_lo, n_hi, jcols, m, p);
         if sel.gap >= CLEAR_GAP {
-            let fit = fit_order(sel.order, &sub, &us, &ys, opts)?;
+            let fit = fit_order(sel.order, &sub, us, ys, opts)?;
             (fit, sel.reason, sel.svc)
         } else {
             // No clear gap: compare the candidate orders by BIC on their output-error fits.
             let mut best: Option<(f64, OrderFit)> = None;
             let mut failures = Vec::new();
             for n in n_lo..=sel.n_svc {
-                match fit_order(n, &sub, &us, &ys, opts) {
+                match fit_order(n, &sub, us, ys, opts) {
                     Ok(f) => {
                         let k = n * (m + p) + if opts.estimate_d { p * m } else { 0 };
                         let bic = len as f64 * f.resid_logdet + k as f64 * (len as f64).ln();
@@ -1155,7 +1149,8 @@ fn fit_order(
     }
 
     // 7. B, D, x0 by output-error least squares.
-    let phi = oe_regressors(&a_s, &c_s, us, len, opts.estimate_x0, opts.estimate_d);
+    let (buf, rows, cols) = oe_regressors(&a_s, &c_s, us, len, opts.estimate_x0, opts.estimate_d);
+    let phi = MatRef::from_column_major_slice(&buf, rows, cols);
     let ybig = Mat::from_fn(len * p, 1, |r, _| ys[r / len][r % len]);
     let theta = lstsq(phi.as_ref(), ybig.as_ref(), "B/D least squares").map_err(|e| {
         if rho >= 1.0 && opts.stability_margin.is_none() {
@@ -1372,41 +1367,63 @@ fn kalman_gain(
             faer::Par::Seq,
         );
     }
-    // Residuals for t = k .. len−2 (x̂(t+1) needed): E = y − C x̂ − D u, W = x̂⁺ − A x̂ − B u.
+    // Residuals for t = k .. len−2 (x̂(t+1) needed): e = y − C x̂ − D u, ŵ = x̂⁺ − A x̂ − B u,
+    // accumulated into Σŵŵᵀ, Σŵeᵀ, Σeeᵀ without storing them.
     let nres = count - 1;
-    let x_now = states.as_ref().subcols(0, nres);
-    let x_next = states.as_ref().subcols(1, nres);
-    let u_now = Mat::from_fn(m, nres, |i, s| w[i][k + s]);
-    let mut e = Mat::from_fn(p, nres, |i, s| w[m + i][k + s]);
-    faer::linalg::matmul::matmul(e.as_mut(), faer::Accum::Add, c, x_now, -1.0, faer::Par::Seq);
-    faer::linalg::matmul::matmul(
-        e.as_mut(),
-        faer::Accum::Add,
-        d,
-        u_now.as_ref(),
-        -1.0,
-        faer::Par::Seq,
-    );
-    let mut wr = x_next.to_owned();
-    faer::linalg::matmul::matmul(
-        wr.as_mut(),
-        faer::Accum::Add,
-        a,
-        x_now,
-        -1.0,
-        faer::Par::Seq,
-    );
-    faer::linalg::matmul::matmul(
-        wr.as_mut(),
-        faer::Accum::Add,
-        b,
-        u_now.as_ref(),
-        -1.0,
-        faer::Par::Seq,
-    );
-    let qww = &wr * wr.transpose();
-    let sww = &wr * e.transpose();
-    let see = &e * e.transpose();
+    let rm = |x: &Mat<f64>| -> Vec<f64> {
+        (0..x.nrows() * x.ncols())
+            .map(|k| x[(k / x.ncols(), k % x.ncols())])
+            .collect()
+    };
+    let (ar, br, cr, dr) = (rm(a), rm(b), rm(c), rm(d));
+    let mut qww = Mat::<f64>::zeros(n, n);
+    let mut sww = Mat::<f64>::zeros(n, p);
+    let mut see = Mat::<f64>::zeros(p, p);
+    let (mut qacc, mut sacc, mut racc) = (vec![0.0; n * n], vec![0.0; n * p], vec![0.0; p * p]);
+    let mut e = vec![0.0; p];
+    let mut wv = vec![0.0; n];
+    let mut ut = vec![0.0; m];
+    for s_ in 0..nres {
+        let t = k + s_;
+        let xs = states.col_as_slice(s_);
+        let xs1 = states.col_as_slice(s_ + 1);
+        for (j, v) in ut.iter_mut().enumerate() {
+            *v = w[j][t];
+        }
+        for i in 0..p {
+            e[i] =
+                w[m + i][t] - dot(&cr[i * n..(i + 1) * n], xs) - dot(&dr[i * m..(i + 1) * m], &ut);
+        }
+        for i in 0..n {
+            wv[i] = xs1[i] - dot(&ar[i * n..(i + 1) * n], xs) - dot(&br[i * m..(i + 1) * m], &ut);
+        }
+        for i in 0..n {
+            for j in 0..n {
+                qacc[i * n + j] += wv[i] * wv[j];
+            }
+            for j in 0..p {
+                sacc[i * p + j] += wv[i] * e[j];
+            }
+        }
+        for i in 0..p {
+            for j in 0..p {
+                racc[i * p + j] += e[i] * e[j];
+            }
+        }
+    }
+    for i in 0..n {
+        for j in 0..n {
+            qww[(i, j)] = qacc[i * n + j];
+        }
+        for j in 0..p {
+            sww[(i, j)] = sacc[i * p + j];
+        }
+    }
+    for i in 0..p {
+        for j in 0..p {
+            see[(i, j)] = racc[i * p + j];
+        }
+    }
     let inv = 1.0 / nres as f64;
     let q = Mat::from_fn(n, n, |i, j| qww[(i, j)] * inv);
     let s = Mat::from_fn(n, p, |i, j| sww[(i, j)] * inv);
