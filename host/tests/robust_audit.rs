@@ -186,7 +186,7 @@ fn bad_inputs_are_clear_errors() {
     let o = AuditOptions::new(10.0);
     let err =
         |runs: &[FrfRun], o: &AuditOptions| audit_nonlinearity(runs, o).unwrap_err().to_string();
-    assert!(err(&[good.clone()], &o).contains("at least 2 runs"));
+    assert!(err(std::slice::from_ref(&good), &o).contains("at least 2 runs"));
     let f2 = logspace(1.0, 120.0, 50);
     assert!(err(
         &[good.clone(), run("b", 1.0, &f2, h.clone(), vec![0.9; 50])],

@@ -178,7 +178,7 @@ fn dc_motor_sampled_loop() {
     let m = margins(&lp.l, None).unwrap();
     let fc = m.gain_crossover_hz.unwrap();
     assert!(
-        fc <= 50.0 * 1.001 && fc >= 25.0,
+        (25.0..=50.0 * 1.001).contains(&fc),
         "crossover {fc} Hz, design {:?}",
         t.design
     );
@@ -265,7 +265,7 @@ fn infeasible_and_bad_specs_are_clear_errors() {
     let f = logspace(0.1, 100.0, 10);
     let wm = fit_uncertainty_weight(
         &f,
-        &vec![2.0; 10],
+        &[2.0; 10],
         &WeightFitOptions {
             order: 1,
             ..Default::default()

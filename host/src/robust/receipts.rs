@@ -331,7 +331,7 @@ pub fn phase_agreement(
     let mut per_bin = Vec::new();
     for i in 0..n {
         let f = etfe.freq_hz[i];
-        if !(f > 0.0 && f <= f_max_hz) || !etfe.gate.is_none_or(|g| g[i]) {
+        if !(f > 0.0 && f <= f_max_hz && etfe.gate.is_none_or(|g| g[i])) {
             continue;
         }
         let h = etfe.h[i];

@@ -118,7 +118,7 @@ pub fn saturated_step(
         )));
     }
     let n_samples = (spec.duration_s / plant.ts).floor();
-    if !(n_samples.is_finite() && n_samples >= 2.0 && n_samples <= 5e7) {
+    if !(n_samples.is_finite() && (2.0..=5e7).contains(&n_samples)) {
         return Err(Error::InvalidArgument(format!(
             "saturated step: duration {} s at ts = {} s gives {n_samples} samples (need 2..5e7)",
             spec.duration_s, plant.ts

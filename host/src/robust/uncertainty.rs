@@ -244,6 +244,9 @@ impl Layout {
     }
 }
 
+/// Zeros (quadratics as (ω, ζ), reals as a) and poles of one fit, for warm starts.
+type Sections = (Vec<(f64, f64)>, Vec<f64>, Vec<(f64, f64)>, Vec<f64>);
+
 struct Problem<'a> {
     nu: &'a [f64],
     ln_l: Vec<f64>,
@@ -380,7 +383,7 @@ pub fn fit_uncertainty_weights(
 
     let mut fits = Vec::new();
     // Best parameters of the previous order (as sections) for warm starts.
-    let mut prev: Option<(Vec<(f64, f64)>, Vec<f64>, Vec<(f64, f64)>, Vec<f64>)> = None;
+    let mut prev: Option<Sections> = None;
     for order in 1..=opts.order {
         let lay = Layout::new(order, w_lo, w_hi);
         let mut starts: Vec<Vec<f64>> = Vec::new();
