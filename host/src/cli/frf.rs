@@ -293,7 +293,7 @@ impl LogSummary {
 
 /// Estimator description in the JSON output.
 #[derive(Debug, Clone, Serialize)]
-#[serde(tag = "method", rename_all = "snake_case")]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum MethodSummary {
     /// Welch H1.
     Welch {

@@ -11,6 +11,7 @@ use crate::Error;
 use clap::{Parser, Subcommand};
 
 pub mod frf;
+pub mod identify;
 pub mod output;
 
 /// Exit status of a command that ran to completion.
@@ -42,6 +43,8 @@ pub struct Cli {
 pub enum Command {
     /// Empirical frequency response (Welch H1 or period-synchronous) with coherence gating.
     Frf(frf::Args),
+    /// N4SID state-space model with order selection, validation and a model file.
+    Identify(identify::Args),
 }
 
 /// Maps an error to the documented process exit code.
@@ -57,5 +60,6 @@ pub fn exit_code_for(err: &Error) -> i32 {
 pub fn run(cli: &Cli) -> Result<ExitCode, Error> {
     match &cli.command {
         Command::Frf(a) => frf::run(a),
+        Command::Identify(a) => identify::run(a),
     }
 }
