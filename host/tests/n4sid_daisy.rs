@@ -38,6 +38,30 @@ fn robot_arm_is_fourth_order() {
     assert_eq!(r.order, 4, "{}", r.order_reason);
     assert!(fit[0] > 95.0, "fit {fit:?}");
     assert!(r.model.is_stable(0.0).unwrap());
+    // Cross-validation: identify on the first 700 samples, validate on the last 324.
+    let (ue, ye) = (&u[0][..700], &y[0][..700]);
+    let re = n4sid_slices(
+        1.0,
+        &[ue],
+        &[ye],
+        &N4sidOptions {
+            order: OrderSelection::Fixed(4),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let v = ferrosid::validate::simulation_fit(
+        &re.model,
+        &[&u[0][700..]],
+        &[&y[0][700..]],
+        ferrosid::validate::InitialState::Estimate,
+    )
+    .unwrap();
+    println!(
+        "robot_arm: order 4 on 0..700, validation fit on 700..1024: {:?}",
+        v.fit_percent
+    );
+    assert!(v.fit_percent[0] > 80.0, "{:?}", v.fit_percent);
 }
 
 #[test]
