@@ -10,9 +10,11 @@
 use crate::Error;
 use clap::{Parser, Subcommand};
 
+pub mod fleet;
 pub mod frf;
 pub mod identify;
 pub mod output;
+pub mod run;
 
 /// Exit status of a command that ran to completion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -45,6 +47,12 @@ pub enum Command {
     Frf(frf::Args),
     /// N4SID state-space model with order selection, validation and a model file.
     Identify(identify::Args),
+    /// The whole chain from raw logs to receipts, driven by a PIPELINE.toml: model, receipts,
+    /// HTML report; exits 1 when a receipt fails.
+    Run(run::Args),
+    /// The pipeline on every unit of a fleet directory in parallel, with parameter
+    /// distributions across serial numbers.
+    Fleet(fleet::Args),
 }
 
 /// Maps an error to the documented process exit code.
@@ -61,5 +69,7 @@ pub fn run(cli: &Cli) -> Result<ExitCode, Error> {
     match &cli.command {
         Command::Frf(a) => frf::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Run(a) => run::run(a),
+        Command::Fleet(a) => fleet::run(a),
     }
 }

@@ -1,0 +1,233 @@
+//! `ferrosid fleet DIR`: the pipeline on every unit (serial number) of a fleet directory, in
+//! parallel, with a summary of the parameter distributions across units (see
+//! [`crate::pipeline::fleet`] for the directory layouts and the statistics).
+//!
+//! Each unit's outputs (receipts, model, report) go to `<out>/<serial>/`, the summary to
+//! `<out>/fleet.json` (default `<out>` = `out/fleet` in the current directory).
+//!
+//! Exit status: 0 when every unit passes every receipt, 1 when a unit fails a receipt or its
+//! pipeline could not run (the table says which), 3 when the fleet directory or the template is
+//! unusable.
+use super::ExitCode;
+use crate::error::{Error, Result};
+use crate::pipeline::fleet::{run_fleet, FleetOptions, FleetSummary};
+use crate::pipeline::{fmt_num, LoadedConfig};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+
+/// Flags of `ferrosid fleet`.
+#[derive(Debug, Clone, clap::Args)]
+#[command(after_help = "Examples:\n  ferrosid fleet examples/fleet\n  \
+    ferrosid fleet logs/line3 --pipeline axis.toml --jobs 4 --json > fleet.json\n\n\
+    Layouts: DIR/<serial>/<file> (one subdirectory per unit) or DIR/<serial>_<file>.\n\
+    Exit status: 0 all units pass, 1 a unit fails or errors, 3 unusable directory or template.")]
+pub struct Args {
+    /// Fleet directory.
+    #[arg(value_name = "DIR")]
+    pub dir: PathBuf,
+    /// Pipeline template (default: DIR/pipeline.toml); its log paths are per unit.
+    #[arg(long, value_name = "TEMPLATE.toml")]
+    pub pipeline: Option<PathBuf>,
+    /// Worker threads (default: one per CPU).
+    #[arg(long, value_name = "N")]
+    pub jobs: Option<usize>,
+    /// Output directory for per-unit results and fleet.json (default: out/fleet).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Print the summary as JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn print(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(source) => Err(Error::Io {
+            file: PathBuf::from("<stdout>"),
+            source,
+        }),
+    }
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or("-".into(), fmt_num)
+}
+
+fn table(rows: &[Vec<String>], right: &[bool]) -> String {
+    let ncol = rows.iter().map(|r| r.len()).max().unwrap_or(0);
+    let w: Vec<usize> = (0..ncol)
+        .map(|j| {
+            rows.iter()
+                .map(|r| r.get(j).map_or(0, |c| c.chars().count()))
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
+    let mut s = String::new();
+    for r in rows {
+        let mut line = String::from(" ");
+        for j in 0..ncol {
+            let c = r.get(j).map_or("", |c| c.as_str());
+            let pad = " ".repeat(w[j] - c.chars().count());
+            line.push(' ');
+            if right.get(j).copied().unwrap_or(false) {
+                line.push_str(&pad);
+                line.push_str(c);
+            } else {
+                line.push_str(c);
+                line.push_str(&pad);
+            }
+            line.push(' ');
+        }
+        s.push_str(line.trim_end());
+        s.push('\n');
+    }
+    s
+}
+
+/// The human-readable summary.
+pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
+    let mut out = format!(
+        "fleet {dir}: {} units ({:?} layout): {} pass, {} fail, {} error\n\n",
+        s.units.len(),
+        s.layout,
+        s.units_pass,
+        s.units_fail,
+        s.units_error
+    )
+    .replace("Subdirectories", "subdirectory")
+    .replace("Prefix", "file-prefix");
+    let nmodes = s
+        .units
+        .iter()
+        .map(|u| u.oscillatory().len())
+        .max()
+        .unwrap_or(0)
+        .min(3);
+    let mut head = vec![
+        "serial".to_string(),
+        "status".into(),
+        "receipts".into(),
+        "order".into(),
+        "dc gain".into(),
+    ];
+    for k in 1..=nmodes {
+        head.push(format!("f{k} (Hz)"));
+        head.push(format!("ζ{k}"));
+    }
+    head.extend(["|W_m(0)|", "|W_m(∞)|", "fc (Hz)", "M_s", "fit %"].map(String::from));
+    let mut rows = vec![head];
+    for u in &s.units {
+        let mut r = vec![
+            u.serial.clone(),
+            u.status.to_string(),
+            format!("{}/{}", u.passed, u.receipts),
+            u.order.map_or("-".into(), |o| o.to_string()),
+            opt(u.dc_gain),
+        ];
+        let osc = u.oscillatory();
+        for k in 0..nmodes {
+            r.push(opt(osc.get(k).map(|m| m.natural_hz)));
+            r.push(opt(osc.get(k).map(|m| m.damping)));
+        }
+        r.extend([
+            opt(u.wm_low_gain),
+            opt(u.wm_high_gain),
+            opt(u.crossover_hz),
+            opt(u.ms),
+            opt(u.validation_fit_percent),
+        ]);
+        rows.push(r);
+    }
+    let mut right = vec![false, false, true, true, true];
+    right.extend(std::iter::repeat_n(true, 2 * nmodes + 5));
+    out.push_str(&table(&rows, &right));
+    let mut rows = vec![["parameter", "unit", "n", "min", "median", "max", "mean", "std"]
+        .map(String::from)
+        .to_vec()];
+    for d in &s.parameters {
+        rows.push(vec![
+            d.parameter.clone(),
+            d.unit.clone(),
+            d.count.to_string(),
+            fmt_num(d.min),
+            fmt_num(d.median),
+            fmt_num(d.max),
+            fmt_num(d.mean),
+            fmt_num(d.std),
+        ]);
+    }
+    out.push('\n');
+    out.push_str(&table(
+        &rows,
+        &[false, false, true, true, true, true, true, true],
+    ));
+    let errs: Vec<String> = s
+        .units
+        .iter()
+        .filter_map(|u| {
+            if let Some(e) = &u.error {
+                Some(format!("  {}: error: {e}", u.serial))
+            } else if !u.failed.is_empty() {
+                Some(format!("  {}: failing receipts: {}", u.serial, u.failed.join(", ")))
+            } else {
+                None
+            }
+        })
+        .collect();
+    if !errs.is_empty() {
+        out.push('\n');
+        out.push_str(&errs.join("\n"));
+        out.push('\n');
+    }
+    out
+}
+
+/// Runs `ferrosid fleet`.
+pub fn run(args: &Args) -> Result<ExitCode> {
+    let template_path = args
+        .pipeline
+        .clone()
+        .unwrap_or_else(|| args.dir.join("pipeline.toml"));
+    if !template_path.is_file() {
+        return Err(Error::Data {
+            file: template_path,
+            msg: "no pipeline template: give --pipeline TEMPLATE.toml or put pipeline.toml in \
+                  the fleet directory"
+                .into(),
+        });
+    }
+    let template = LoadedConfig::load(&template_path)?;
+    let (_, serials) = crate::pipeline::fleet::discover_units(&args.dir)?;
+    let pb = if std::io::stderr().is_terminal() {
+        ProgressBar::with_draw_target(Some(serials.len() as u64), ProgressDrawTarget::stderr())
+    } else {
+        ProgressBar::hidden()
+    };
+    if let Ok(style) = ProgressStyle::with_template("fleet [{bar:30}] {pos}/{len} units {msg} {elapsed}") {
+        pb.set_style(style.progress_chars("=> "));
+    }
+    let opts = FleetOptions {
+        jobs: args.jobs,
+        out_dir: Some(args.out.clone().unwrap_or_else(|| PathBuf::from("out/fleet"))),
+    };
+    let summary = run_fleet(&args.dir, &template, &opts, &|serial| {
+        pb.set_message(serial.to_string());
+        pb.inc(1);
+    });
+    pb.finish_and_clear();
+    let summary = summary?;
+    if args.json {
+        print(&crate::pipeline::json_pretty(&summary)?)?;
+    } else {
+        print(&summary_text(&args.dir.display().to_string(), &summary))?;
+    }
+    Ok(if summary.all_pass() {
+        ExitCode::Ok
+    } else {
+        ExitCode::CheckFailed
+    })
+}

@@ -1,0 +1,441 @@
+//! Many units, one pipeline: run the pipeline on every serial number's logs in parallel and
+//! summarise the parameter distributions across the fleet.
+//!
+//! # Layouts of the fleet directory
+//! * **One subdirectory per serial number** (`DIR/SN0001/low.csv`, ...): every subdirectory
+//!   that is not hidden and not named `out` is a unit; the template's log paths are resolved
+//!   inside it. A unit directory holding its own `pipeline.toml` uses that file instead.
+//! * **One file prefix per serial number** (`DIR/SN0001_low.csv`, ...), used when `DIR` has no
+//!   unit subdirectories: the serial number is the file name up to the first `_`, and a log
+//!   path `low.csv` in the template resolves to `DIR/<serial>_low.csv`.
+//!
+//! The template is `--pipeline FILE` or `DIR/pipeline.toml`. Units are processed in parallel
+//! (rayon, `jobs` threads) and reported in serial-number order, so the summary does not depend
+//! on scheduling. A unit whose data are unusable is reported with its error; it does not stop
+//! the others.
+//!
+//! # Summary
+//! Per unit: receipts passed/total, DC gain, the modes of the identified model (natural
+//! frequency in Hz and damping, from s = ln(z)/ts), the uncertainty weight's low- and
+//! high-frequency gains |W_m(0)| and |W_m(∞)|, the achieved crossover, M_s and the validation
+//! fit. Across units, for each parameter: count, min, median, max, mean and sample standard
+//! deviation. Oscillatory modes are matched across units by rank (1st, 2nd, ... lightly
+//! damped pair in increasing frequency).
+use super::config::LoadedConfig;
+use super::document::{weight_high_gain, weight_low_gain};
+use super::{run_pipeline, write_outputs, Mode, PipelineRun};
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Schema identifier of the fleet summary.
+pub const FLEET_SCHEMA: &str = "ferrosid.fleet/1";
+
+/// How units are laid out in the fleet directory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Layout {
+    /// `DIR/<serial>/<file>`.
+    Subdirectories,
+    /// `DIR/<serial>_<file>`.
+    Prefix,
+}
+
+/// Finds the units of a fleet directory (see the module docs), sorted by serial number.
+pub fn discover_units(dir: &Path) -> Result<(Layout, Vec<String>)> {
+    let io = |source| Error::Io {
+        file: dir.to_path_buf(),
+        source,
+    };
+    let mut subdirs = Vec::new();
+    let mut prefixes = std::collections::BTreeSet::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let entry = entry.map_err(io)?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') {
+            continue;
+        }
+        let ft = entry.file_type().map_err(io)?;
+        if ft.is_dir() {
+            if name != "out" {
+                subdirs.push(name);
+            }
+        } else if ft.is_file() {
+            let ext = Path::new(&name)
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(|e| e.to_ascii_lowercase())
+                .unwrap_or_default();
+            if matches!(ext.as_str(), "csv" | "mat" | "dat" | "txt") {
+                if let Some((serial, _)) = name.split_once('_') {
+                    if !serial.is_empty() {
+                        prefixes.insert(serial.to_string());
+                    }
+                }
+            }
+        }
+    }
+    subdirs.sort();
+    if !subdirs.is_empty() {
+        return Ok((Layout::Subdirectories, subdirs));
+    }
+    if !prefixes.is_empty() {
+        return Ok((Layout::Prefix, prefixes.into_iter().collect()));
+    }
+    Err(Error::Data {
+        file: dir.to_path_buf(),
+        msg: "no units found: expected one subdirectory per serial number, or log files named \
+              <serial>_<name>.csv"
+            .into(),
+    })
+}
+
+/// The configuration of one unit: the unit's own `pipeline.toml` if it has one (subdirectory
+/// layout), else the template with its log paths resolved for the unit.
+pub fn unit_config(
+    template: &LoadedConfig,
+    dir: &Path,
+    layout: Layout,
+    serial: &str,
+) -> Result<LoadedConfig> {
+    match layout {
+        Layout::Subdirectories => {
+            let udir = dir.join(serial);
+            let own = udir.join("pipeline.toml");
+            if own.is_file() {
+                return LoadedConfig::load(&own);
+            }
+            let mut c = template.clone();
+            c.base_dir = udir;
+            c.config.name = Some(unit_title(template, serial));
+            Ok(c)
+        }
+        Layout::Prefix => {
+            let mut c = template.clone();
+            c.base_dir = dir.to_path_buf();
+            let pre = |p: &PathBuf| -> PathBuf {
+                let name = p
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                let with = format!("{serial}_{name}");
+                match p.parent() {
+                    Some(par) if !par.as_os_str().is_empty() => par.join(with),
+                    _ => PathBuf::from(with),
+                }
+            };
+            for r in &mut c.config.runs {
+                r.file = pre(&r.file);
+            }
+            if let Some(v) = &mut c.config.validation {
+                v.file = pre(&v.file);
+            }
+            c.config.name = Some(unit_title(template, serial));
+            Ok(c)
+        }
+    }
+}
+
+fn unit_title(template: &LoadedConfig, serial: &str) -> String {
+    match &template.config.name {
+        Some(n) => format!("{n} — {serial}"),
+        None => serial.to_string(),
+    }
+}
+
+/// One unit's outcome.
+#[derive(Debug, Clone, Serialize)]
+pub struct UnitResult {
+    /// Serial number.
+    pub serial: String,
+    /// `pass`, `fail` (a receipt failed) or `error` (the pipeline could not run).
+    pub status: &'static str,
+    /// The error, for `error`.
+    pub error: Option<String>,
+    /// Receipts passed.
+    pub passed: usize,
+    /// Receipts issued.
+    pub receipts: usize,
+    /// Names of failing receipts.
+    pub failed: Vec<String>,
+    /// Model order.
+    pub order: Option<usize>,
+    /// Static gain (output/input units).
+    pub dc_gain: Option<f64>,
+    /// Modes of the identified model.
+    pub modes: Vec<Mode>,
+    /// |W_m(0)|.
+    pub wm_low_gain: Option<f64>,
+    /// |W_m(∞)|.
+    pub wm_high_gain: Option<f64>,
+    /// Achieved design crossover, Hz.
+    pub crossover_hz: Option<f64>,
+    /// M_s of the implemented loop.
+    pub ms: Option<f64>,
+    /// Validation fit, %.
+    pub validation_fit_percent: Option<f64>,
+    /// Output directory of the unit (when outputs were written).
+    pub out_dir: Option<String>,
+}
+
+impl UnitResult {
+    fn from_run(serial: &str, run: &PipelineRun, out_dir: Option<String>) -> Self {
+        let rs = &run.receipts;
+        let passed = rs.receipts.iter().filter(|r| r.pass).count();
+        Self {
+            serial: serial.into(),
+            status: if rs.all_pass { "pass" } else { "fail" },
+            error: None,
+            passed,
+            receipts: rs.receipts.len(),
+            failed: rs.failed().map(|r| r.name.clone()).collect(),
+            order: Some(run.ident.order),
+            dc_gain: Some(run.dc_gain),
+            modes: run.modes.clone(),
+            wm_low_gain: run.weight.as_ref().map(|w| weight_low_gain(&w.num, &w.den)),
+            wm_high_gain: run.weight.as_ref().map(|w| weight_high_gain(&w.num, &w.den)),
+            crossover_hz: run.tuned.as_ref().map(|t| t.design.crossover_hz),
+            ms: rs.get("sensitivity_peak").map(|r| r.value),
+            validation_fit_percent: run.validation_fit.as_ref().map(|f| f.fit_percent[0]),
+            out_dir,
+        }
+    }
+
+    fn error(serial: &str, e: &Error) -> Self {
+        Self {
+            serial: serial.into(),
+            status: "error",
+            error: Some(e.to_string()),
+            passed: 0,
+            receipts: 0,
+            failed: Vec::new(),
+            order: None,
+            dc_gain: None,
+            modes: Vec::new(),
+            wm_low_gain: None,
+            wm_high_gain: None,
+            crossover_hz: None,
+            ms: None,
+            validation_fit_percent: None,
+            out_dir: None,
+        }
+    }
+
+    /// Oscillatory modes (complex pairs), increasing frequency.
+    pub fn oscillatory(&self) -> Vec<Mode> {
+        self.modes.iter().filter(|m| m.oscillatory).copied().collect()
+    }
+}
+
+/// Distribution of one parameter across units.
+#[derive(Debug, Clone, Serialize)]
+pub struct Distribution {
+    /// Parameter name.
+    pub parameter: String,
+    /// Unit of the parameter.
+    pub unit: String,
+    /// Units contributing.
+    pub count: usize,
+    /// Smallest value.
+    pub min: f64,
+    /// Median.
+    pub median: f64,
+    /// Largest value.
+    pub max: f64,
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation (0 for one unit).
+    pub std: f64,
+}
+
+impl Distribution {
+    /// Statistics of `values` (non-finite values are ignored); None when none is finite.
+    pub fn of(parameter: &str, unit: &str, values: &[f64]) -> Option<Self> {
+        let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(|a, b| a.total_cmp(b));
+        let n = v.len();
+        let mean = v.iter().sum::<f64>() / n as f64;
+        let var = if n > 1 {
+            v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+        } else {
+            0.0
+        };
+        let median = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
+        Some(Self {
+            parameter: parameter.into(),
+            unit: unit.into(),
+            count: n,
+            min: v[0],
+            median,
+            max: v[n - 1],
+            mean,
+            std: var.sqrt(),
+        })
+    }
+}
+
+/// The fleet summary (`--json` output and `fleet.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FleetSummary {
+    /// [`FLEET_SCHEMA`].
+    pub schema: &'static str,
+    /// Directory layout found.
+    pub layout: Layout,
+    /// Units passing every receipt.
+    pub units_pass: usize,
+    /// Units with a failing receipt.
+    pub units_fail: usize,
+    /// Units whose pipeline could not run.
+    pub units_error: usize,
+    /// Per unit, in serial-number order.
+    pub units: Vec<UnitResult>,
+    /// Distributions across units.
+    pub parameters: Vec<Distribution>,
+}
+
+impl FleetSummary {
+    /// Summarises unit results.
+    pub fn new(layout: Layout, units: Vec<UnitResult>, output_unit: &str, input_unit: &str) -> Self {
+        let mut parameters = Vec::new();
+        let ok: Vec<&UnitResult> = units.iter().filter(|u| u.status != "error").collect();
+        let col = |f: &dyn Fn(&UnitResult) -> Option<f64>| -> Vec<f64> {
+            ok.iter().filter_map(|u| f(u)).collect()
+        };
+        let gain_unit = format!("{output_unit}/{input_unit}");
+        parameters.extend(Distribution::of("dc_gain", &gain_unit, &col(&|u| u.dc_gain)));
+        let max_modes = ok.iter().map(|u| u.oscillatory().len()).max().unwrap_or(0);
+        for k in 0..max_modes {
+            let f = col(&|u| u.oscillatory().get(k).map(|m| m.natural_hz));
+            let z = col(&|u| u.oscillatory().get(k).map(|m| m.damping));
+            parameters.extend(Distribution::of(
+                &format!("mode{}_natural_frequency", k + 1),
+                "Hz",
+                &f,
+            ));
+            parameters.extend(Distribution::of(&format!("mode{}_damping", k + 1), "1", &z));
+        }
+        parameters.extend(Distribution::of("wm_low_frequency_gain", "1", &col(&|u| u.wm_low_gain)));
+        parameters.extend(Distribution::of(
+            "wm_high_frequency_gain",
+            "1",
+            &col(&|u| u.wm_high_gain),
+        ));
+        parameters.extend(Distribution::of("crossover", "Hz", &col(&|u| u.crossover_hz)));
+        parameters.extend(Distribution::of("sensitivity_peak", "1", &col(&|u| u.ms)));
+        parameters.extend(Distribution::of(
+            "validation_fit",
+            "%",
+            &col(&|u| u.validation_fit_percent),
+        ));
+        parameters.extend(Distribution::of(
+            "receipts_passed",
+            "count",
+            &col(&|u| Some(u.passed as f64)),
+        ));
+        Self {
+            schema: FLEET_SCHEMA,
+            layout,
+            units_pass: units.iter().filter(|u| u.status == "pass").count(),
+            units_fail: units.iter().filter(|u| u.status == "fail").count(),
+            units_error: units.iter().filter(|u| u.status == "error").count(),
+            units,
+            parameters,
+        }
+    }
+
+    /// True when every unit passed every receipt.
+    pub fn all_pass(&self) -> bool {
+        self.units_fail == 0 && self.units_error == 0
+    }
+}
+
+/// Options of [`run_fleet`].
+#[derive(Debug, Clone, Default)]
+pub struct FleetOptions {
+    /// Worker threads (None: rayon's default, the number of CPUs).
+    pub jobs: Option<usize>,
+    /// Write each unit's outputs to `<out>/<serial>/` and the summary to `<out>/fleet.json`.
+    pub out_dir: Option<PathBuf>,
+}
+
+/// Runs the template on every unit of `dir` (see the module docs). `on_unit_done` is called
+/// (from worker threads) with each serial number as its pipeline finishes. Errors only for an
+/// unreadable fleet directory, a bad template, or an unwritable output directory; per-unit
+/// failures are in the summary.
+pub fn run_fleet(
+    dir: &Path,
+    template: &LoadedConfig,
+    opts: &FleetOptions,
+    on_unit_done: &(dyn Fn(&str) + Sync),
+) -> Result<FleetSummary> {
+    let (layout, serials) = discover_units(dir)?;
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(j) = opts.jobs {
+        if j == 0 {
+            return Err(Error::InvalidArgument("--jobs must be >= 1".into()));
+        }
+        builder = builder.num_threads(j);
+    }
+    let pool = builder
+        .build()
+        .map_err(|e| Error::InvalidArgument(format!("cannot start {:?} worker threads: {e}", opts.jobs)))?;
+    let units: Vec<UnitResult> = pool.install(|| {
+        serials
+            .par_iter()
+            .map(|serial| {
+                let r = unit_config(template, dir, layout, serial).and_then(|cfg| {
+                    let run = run_pipeline(&cfg, &|_| {})?;
+                    let out = match &opts.out_dir {
+                        Some(o) => {
+                            let d = o.join(serial);
+                            write_outputs(&run, &d)?;
+                            Some(d.to_string_lossy().replace('\\', "/"))
+                        }
+                        None => None,
+                    };
+                    Ok(UnitResult::from_run(serial, &run, out))
+                });
+                on_unit_done(serial);
+                match r {
+                    Ok(u) => u,
+                    Err(e) => UnitResult::error(serial, &e),
+                }
+            })
+            .collect()
+    });
+    let s = &template.config.signals;
+    let summary = FleetSummary::new(layout, units, &s.output_unit, &s.input_unit);
+    if let Some(o) = &opts.out_dir {
+        std::fs::create_dir_all(o).map_err(|source| Error::Io {
+            file: o.clone(),
+            source,
+        })?;
+        let p = o.join("fleet.json");
+        std::fs::write(&p, super::json_pretty(&summary)?).map_err(|source| Error::Io {
+            file: p.clone(),
+            source,
+        })?;
+    }
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distribution_statistics() {
+        let d = Distribution::of("x", "Hz", &[3.0, 1.0, 2.0, f64::NAN, 4.0]).unwrap();
+        assert_eq!((d.count, d.min, d.max, d.median, d.mean), (4, 1.0, 4.0, 2.5, 2.5));
+        assert!((d.std - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
+        assert!(Distribution::of("x", "", &[f64::NAN]).is_none());
+    }
+}

@@ -1,0 +1,489 @@
+//! A small declarative layer over plotters' SVG backend: a figure is a stack of panels, each
+//! with linear or logarithmic axes, line/dashed/point series, shaded x-bands and reference
+//! lines. Rendering is deterministic (same data → same SVG text).
+use crate::error::{Error, Result};
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+/// Colours (matplotlib's tab10, which print and read well).
+pub mod colors {
+    use plotters::style::RGBColor;
+    /// Blue.
+    pub const BLUE: RGBColor = RGBColor(31, 119, 180);
+    /// Orange.
+    pub const ORANGE: RGBColor = RGBColor(255, 127, 14);
+    /// Green.
+    pub const GREEN: RGBColor = RGBColor(44, 160, 44);
+    /// Red.
+    pub const RED: RGBColor = RGBColor(214, 39, 40);
+    /// Purple.
+    pub const PURPLE: RGBColor = RGBColor(148, 103, 189);
+    /// Brown.
+    pub const BROWN: RGBColor = RGBColor(140, 86, 75);
+    /// Grey.
+    pub const GREY: RGBColor = RGBColor(127, 127, 127);
+    /// Light grey.
+    pub const LIGHT_GREY: RGBColor = RGBColor(190, 190, 190);
+    /// Olive.
+    pub const OLIVE: RGBColor = RGBColor(188, 189, 34);
+    /// Cyan.
+    pub const CYAN: RGBColor = RGBColor(23, 190, 207);
+    /// Shading of bands the coherence gate excluded.
+    pub const EXCLUDED: RGBColor = RGBColor(253, 208, 162);
+    /// Shading of a region of interest.
+    pub const REGION: RGBColor = RGBColor(222, 235, 247);
+    /// Cycle for several logs.
+    pub const CYCLE: [RGBColor; 6] = [BLUE, GREEN, PURPLE, BROWN, OLIVE, CYAN];
+}
+
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kind {
+    /// Solid polyline of the given width (px).
+    Line(u32),
+    /// Dashed polyline of the given width (px).
+    Dashed(u32),
+    /// Filled circles of the given radius (px).
+    Points(u32),
+    /// Hollow circles of the given radius (px).
+    Hollow(u32),
+}
+
+/// One data series.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend label (None: not in the legend).
+    pub label: Option<String>,
+    /// (x, y) points; non-finite or (on log axes) non-positive points are skipped, and a
+    /// line is broken there.
+    pub points: Vec<(f64, f64)>,
+    /// Colour.
+    pub color: RGBColor,
+    /// Drawing kind.
+    pub kind: Kind,
+}
+
+impl Series {
+    /// A labelled series.
+    pub fn new(label: &str, points: Vec<(f64, f64)>, color: RGBColor, kind: Kind) -> Self {
+        Self {
+            label: (!label.is_empty()).then(|| label.to_string()),
+            points,
+            color,
+            kind,
+        }
+    }
+}
+
+/// A horizontal or vertical reference line.
+#[derive(Debug, Clone)]
+pub struct RefLine {
+    /// Position (data units).
+    pub at: f64,
+    /// Colour.
+    pub color: RGBColor,
+    /// Legend label (None: unlabelled).
+    pub label: Option<String>,
+}
+
+/// A shaded x-interval spanning the panel's height.
+#[derive(Debug, Clone, Copy)]
+pub struct Band {
+    /// Start (x units).
+    pub x0: f64,
+    /// End (x units).
+    pub x1: f64,
+    /// Fill colour.
+    pub color: RGBColor,
+}
+
+/// Legend placement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LegendAt {
+    /// Upper right.
+    UpperRight,
+    /// Upper left.
+    UpperLeft,
+    /// Lower left.
+    LowerLeft,
+    /// Lower right.
+    LowerRight,
+    /// No legend.
+    None,
+}
+
+/// One chart.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    /// Title drawn above the chart ("" for none).
+    pub title: String,
+    /// x-axis description.
+    pub x_desc: String,
+    /// y-axis description.
+    pub y_desc: String,
+    /// Logarithmic x axis.
+    pub x_log: bool,
+    /// Logarithmic y axis.
+    pub y_log: bool,
+    /// x range (None: from the data).
+    pub x_range: Option<(f64, f64)>,
+    /// y range (None: from the data, with 5 % padding).
+    pub y_range: Option<(f64, f64)>,
+    /// Shaded bands (drawn first).
+    pub bands: Vec<Band>,
+    /// Label for the shaded bands in the legend (None: unlabelled).
+    pub band_label: Option<String>,
+    /// Horizontal reference lines (dashed).
+    pub hlines: Vec<RefLine>,
+    /// Vertical reference lines (dashed).
+    pub vlines: Vec<RefLine>,
+    /// Data series, drawn in order.
+    pub series: Vec<Series>,
+    /// Legend position.
+    pub legend: LegendAt,
+}
+
+impl Panel {
+    /// An empty panel with axis descriptions.
+    pub fn new(title: &str, x_desc: &str, y_desc: &str, x_log: bool, y_log: bool) -> Self {
+        Self {
+            title: title.into(),
+            x_desc: x_desc.into(),
+            y_desc: y_desc.into(),
+            x_log,
+            y_log,
+            x_range: None,
+            y_range: None,
+            bands: Vec::new(),
+            band_label: None,
+            hlines: Vec::new(),
+            vlines: Vec::new(),
+            series: Vec::new(),
+            legend: LegendAt::UpperRight,
+        }
+    }
+
+    fn usable(&self, x: f64, y: f64) -> bool {
+        x.is_finite() && y.is_finite() && (!self.x_log || x > 0.0) && (!self.y_log || y > 0.0)
+    }
+
+    fn ranges(&self) -> ((f64, f64), (f64, f64)) {
+        let mut xs = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut ys = (f64::INFINITY, f64::NEG_INFINITY);
+        for s in &self.series {
+            for &(x, y) in &s.points {
+                if self.usable(x, y) {
+                    xs = (xs.0.min(x), xs.1.max(x));
+                    ys = (ys.0.min(y), ys.1.max(y));
+                }
+            }
+        }
+        for h in &self.hlines {
+            if h.at.is_finite() && (!self.y_log || h.at > 0.0) {
+                ys = (ys.0.min(h.at), ys.1.max(h.at));
+            }
+        }
+        let x = self.x_range.unwrap_or(xs);
+        let y = self.y_range.unwrap_or_else(|| pad(ys, self.y_log));
+        (fix_range(x, self.x_log), fix_range(y, self.y_log))
+    }
+}
+
+fn pad(r: (f64, f64), log: bool) -> (f64, f64) {
+    if !(r.0.is_finite() && r.1.is_finite()) {
+        return r;
+    }
+    if log {
+        let (a, b) = (r.0.ln(), r.1.ln());
+        let p = 0.05 * (b - a).max(0.1);
+        ((a - p).exp(), (b + p).exp())
+    } else {
+        let p = 0.05 * (r.1 - r.0).max(1e-12 * r.1.abs().max(1.0));
+        (r.0 - p, r.1 + p)
+    }
+}
+
+fn fix_range(r: (f64, f64), log: bool) -> (f64, f64) {
+    let (mut a, mut b) = r;
+    if !(a.is_finite() && b.is_finite()) {
+        return if log { (0.1, 10.0) } else { (-1.0, 1.0) };
+    }
+    if b <= a {
+        if log {
+            a /= 2.0;
+            b = a * 4.0;
+        } else {
+            let d = a.abs().max(1.0) * 0.5;
+            a -= d;
+            b += d;
+        }
+    }
+    (a, b)
+}
+
+/// Tick label: up to 4 significant digits, no trailing zeros, scientific outside 1e-3..1e5.
+pub fn tick(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return "0".into();
+    }
+    let a = v.abs();
+    if !(1e-3..1e5).contains(&a) {
+        let s = format!("{v:.1e}");
+        return s.replace(".0e", "e");
+    }
+    let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+    let s = format!("{v:.digits$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s
+    }
+}
+
+fn err<E: std::fmt::Debug>(what: &str) -> impl Fn(E) -> Error + '_ {
+    move |e| Error::Numerical(format!("rendering figure `{what}`: {e:?}"))
+}
+
+/// Renders `panels` stacked vertically into an SVG of `width` × Σ heights pixels.
+pub fn render(name: &str, width: u32, panels: &[(Panel, u32)]) -> Result<String> {
+    let height: u32 = panels.iter().map(|p| p.1).sum();
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(err(name))?;
+        let mut rest = root.clone();
+        for (i, (p, h)) in panels.iter().enumerate() {
+            let area = if i + 1 == panels.len() {
+                rest.clone()
+            } else {
+                let (a, b) = rest.split_vertically(*h);
+                rest = b;
+                a
+            };
+            let ((x0, x1), (y0, y1)) = p.ranges();
+            match (p.x_log, p.y_log) {
+                (false, false) => draw_panel(name, &area, p, x0..x1, y0..y1)?,
+                (true, false) => draw_panel(name, &area, p, (x0..x1).log_scale(), y0..y1)?,
+                (false, true) => draw_panel(name, &area, p, x0..x1, (y0..y1).log_scale())?,
+                (true, true) => {
+                    draw_panel(name, &area, p, (x0..x1).log_scale(), (y0..y1).log_scale())?
+                }
+            }
+        }
+        root.present().map_err(err(name))?;
+    }
+    Ok(svg)
+}
+
+fn draw_panel<XR, YR>(
+    name: &str,
+    area: &DrawingArea<SVGBackend<'_>, Shift>,
+    p: &Panel,
+    xr: XR,
+    yr: YR,
+) -> Result<()>
+where
+    XR: AsRangedCoord<Value = f64>,
+    YR: AsRangedCoord<Value = f64>,
+    XR::CoordDescType: ValueFormatter<f64>,
+    YR::CoordDescType: ValueFormatter<f64>,
+{
+    let e = err(name);
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .margin_top(8)
+        .margin_bottom(4)
+        .margin_left(8)
+        .margin_right(24)
+        .x_label_area_size(46)
+        .y_label_area_size(72);
+    if !p.title.is_empty() {
+        builder.caption(&p.title, ("sans-serif", 17).into_font());
+    }
+    let mut chart = builder.build_cartesian_2d(xr, yr).map_err(&e)?;
+    let fx = |v: &f64| tick(*v);
+    let fy = |v: &f64| tick(*v);
+    chart
+        .configure_mesh()
+        .x_desc(p.x_desc.as_str())
+        .y_desc(p.y_desc.as_str())
+        .x_label_formatter(&fx)
+        .y_label_formatter(&fy)
+        .x_labels(10)
+        .y_labels(8)
+        .label_style(("sans-serif", 13))
+        .axis_desc_style(("sans-serif", 14))
+        .light_line_style(RGBColor(238, 238, 238))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .draw()
+        .map_err(&e)?;
+    let (xrange, yrange) = (chart.x_range(), chart.y_range());
+    let (ylo, yhi) = (yrange.start, yrange.end);
+    let (xlo, xhi) = (xrange.start, xrange.end);
+    // Shaded bands, clipped to the x range.
+    let mut first_band = true;
+    for b in &p.bands {
+        let (a, c) = (b.x0.max(xlo), b.x1.min(xhi));
+        if !(a <= c) {
+            continue;
+        }
+        let anno = chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(a, ylo), (c, yhi)],
+                b.color.mix(0.55).filled(),
+            )))
+            .map_err(&e)?;
+        if first_band {
+            if let Some(l) = &p.band_label {
+                let col = b.color;
+                anno.label(l.as_str()).legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 6), (x + 20, y + 6)], col.mix(0.55).filled())
+                });
+            }
+            first_band = false;
+        }
+    }
+    for h in &p.hlines {
+        if !(h.at.is_finite() && h.at > ylo && h.at < yhi) {
+            continue;
+        }
+        let col = h.color;
+        let anno = chart
+            .draw_series(DashedLineSeries::new(
+                vec![(xlo, h.at), (xhi, h.at)],
+                6,
+                4,
+                col.stroke_width(1),
+            ))
+            .map_err(&e)?;
+        if let Some(l) = &h.label {
+            anno.label(l.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+        }
+    }
+    for v in &p.vlines {
+        if !(v.at.is_finite() && v.at > xlo && v.at < xhi) {
+            continue;
+        }
+        let col = v.color;
+        let anno = chart
+            .draw_series(DashedLineSeries::new(
+                vec![(v.at, ylo), (v.at, yhi)],
+                6,
+                4,
+                col.stroke_width(1),
+            ))
+            .map_err(&e)?;
+        if let Some(l) = &v.label {
+            anno.label(l.as_str())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
+        }
+    }
+    let inside = |x: f64, y: f64| p.usable(x, y);
+    for s in &p.series {
+        let col = s.color;
+        // Split lines at unusable points.
+        let mut pieces: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+        for &(x, y) in &s.points {
+            if inside(x, y) {
+                let yc = y.clamp(ylo, yhi);
+                if let Some(last) = pieces.last_mut() {
+                    last.push((x, yc));
+                }
+            } else if pieces.last().is_some_and(|l| !l.is_empty()) {
+                pieces.push(Vec::new());
+            }
+        }
+        let mut labelled = false;
+        for piece in pieces.iter().filter(|pc| !pc.is_empty()) {
+            let anno = match s.kind {
+                Kind::Line(w) => chart
+                    .draw_series(LineSeries::new(piece.iter().copied(), col.stroke_width(w)))
+                    .map_err(&e)?,
+                Kind::Dashed(w) => chart
+                    .draw_series(DashedLineSeries::new(
+                        piece.iter().copied(),
+                        7,
+                        4,
+                        col.stroke_width(w),
+                    ))
+                    .map_err(&e)?,
+                Kind::Points(r) => chart
+                    .draw_series(piece.iter().map(|&pt| Circle::new(pt, r, col.filled())))
+                    .map_err(&e)?,
+                Kind::Hollow(r) => chart
+                    .draw_series(
+                        piece
+                            .iter()
+                            .map(|&pt| Circle::new(pt, r, col.stroke_width(1))),
+                    )
+                    .map_err(&e)?,
+            };
+            if !labelled {
+                if let Some(l) = &s.label {
+                    match s.kind {
+                        Kind::Line(w) | Kind::Dashed(w) => {
+                            anno.label(l.as_str()).legend(move |(x, y)| {
+                                PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(w))
+                            });
+                        }
+                        Kind::Points(r) => {
+                            anno.label(l.as_str()).legend(move |(x, y)| {
+                                Circle::new((x + 10, y), r.max(3), col.filled())
+                            });
+                        }
+                        Kind::Hollow(r) => {
+                            anno.label(l.as_str()).legend(move |(x, y)| {
+                                Circle::new((x + 10, y), r.max(3), col.stroke_width(1))
+                            });
+                        }
+                    }
+                }
+                labelled = true;
+            }
+        }
+    }
+    let pos = match p.legend {
+        LegendAt::UpperRight => SeriesLabelPosition::UpperRight,
+        LegendAt::UpperLeft => SeriesLabelPosition::UpperLeft,
+        LegendAt::LowerLeft => SeriesLabelPosition::LowerLeft,
+        LegendAt::LowerRight => SeriesLabelPosition::LowerRight,
+        LegendAt::None => return Ok(()),
+    };
+    let any_label = p.series.iter().any(|s| s.label.is_some())
+        || p.hlines.iter().any(|h| h.label.is_some())
+        || p.vlines.iter().any(|h| h.label.is_some())
+        || (p.band_label.is_some() && !p.bands.is_empty());
+    if any_label {
+        chart
+            .configure_series_labels()
+            .position(pos)
+            .margin(8)
+            .label_font(("sans-serif", 13))
+            .background_style(WHITE.mix(0.9))
+            .border_style(RGBColor(160, 160, 160))
+            .draw()
+            .map_err(&e)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_are_short() {
+        assert_eq!(tick(10.0), "10");
+        assert_eq!(tick(0.5), "0.5");
+        assert_eq!(tick(1234.0), "1234");
+        assert_eq!(tick(2e-5), "2e-5");
+        assert_eq!(tick(-3.25), "-3.25");
+    }
+}
