@@ -18,6 +18,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+pub mod e2e;
+
 /// Target triple of the firmware images (Cortex-M4F with hardware floating point).
 pub const TARGET: &str = "thumbv7em-none-eabihf";
 

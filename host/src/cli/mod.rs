@@ -10,10 +10,12 @@
 use crate::Error;
 use clap::{Parser, Subcommand};
 
+pub mod codegen;
 pub mod fleet;
 pub mod frf;
 pub mod identify;
 pub mod output;
+pub mod reidentify;
 pub mod run;
 
 /// Exit status of a command that ran to completion.
@@ -47,6 +49,10 @@ pub enum Command {
     Frf(frf::Args),
     /// N4SID state-space model with order selection, validation and a model file.
     Identify(identify::Args),
+    /// C header and no_std Rust module of a model, PID, W_m and power-up check settings.
+    Codegen(codegen::Args),
+    /// Re-identify a model from the spectra frame a target emitted at power-up.
+    Reidentify(reidentify::Args),
     /// The whole chain from raw logs to receipts, driven by a PIPELINE.toml: model, receipts,
     /// HTML report; exits 1 when a receipt fails.
     Run(run::Args),
@@ -69,6 +75,8 @@ pub fn run(cli: &Cli) -> Result<ExitCode, Error> {
     match &cli.command {
         Command::Frf(a) => frf::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Codegen(a) => codegen::run(a),
+        Command::Reidentify(a) => reidentify::run(a),
         Command::Run(a) => run::run(a),
         Command::Fleet(a) => fleet::run(a),
     }

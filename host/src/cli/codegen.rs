@@ -1,0 +1,558 @@
+//! `ferrosid codegen`: C header and `no_std` Rust module of an identified model, its PID gains,
+//! its uncertainty weight W_m and the power-up self-identification settings (crate
+//! `ferrosid-codegen`, askama templates).
+//!
+//! Inputs (JSON files written by other `ferrosid` commands, read leniently):
+//! * `--model`: `{"ts", "a", "b", "c", "d"}` (row-major; what `ferrosid identify` writes; an
+//!   object with that under `"model"` also works). A continuous model (`ts = 0`) is discretised
+//!   (ZOH) at `--ts`; a discrete one must already be at the control rate, and its inverse ZOH is
+//!   documented as the continuous model when it exists.
+//! * `--pid`: a continuous PID (`kp, ki, kd, tau_f[, rolloff]`, Tustin-discretised at the model
+//!   rate, prewarped at `--prewarp-hz`), a discrete one (`ki_d, a_d, b_d, ...`), or a tuning
+//!   result (`{"pid", "discrete", "design", ...}`, its discrete controller is used).
+//! * `--wm`: `{"num", "den"}` (a fitted `UncertaintyWeight`), or `--wm-level L` for a flat
+//!   relative tolerance W_m = L.
+//! * `--receipts`: `receipts.json` (`{"receipts": [...]}`, also nested one level deeper).
+//! * `--source FILE` (repeatable): logs and settings files whose SHA-256 goes into the
+//!   provenance; the model/PID/W_m/receipts files are always included.
+//!
+//! Output: `<out-dir>/<prefix>.h` and `<out-dir>/<prefix>.rs` (prefix sanitised), written only
+//! when their content changes (so firmware builds that include them stay cached). The same
+//! inputs always give byte-identical files.
+//!
+//! Templates: `--templates DIR` renders `DIR/model.h` and/or `DIR/model.rs` instead of the
+//! built-in ones (run-time engine, same context; see the `ferrosid_codegen` crate docs);
+//! `--write-templates DIR` writes the built-in templates there as a starting point and exits.
+//!
+//! Examples:
+//! ```text
+//! ferrosid codegen --model model.json --pid tuned.json --wm wm.json --receipts receipts.json \
+//!     --source logs/unit_a.csv --prefix axis1 --out-dir firmware/generated
+//! ferrosid codegen --model model.json --wm-level 0.2 --check-hz 5,10,20,40 --prefix axis1 --out-dir gen
+//! ```
+use super::ExitCode;
+use crate::error::{Error, Result};
+use crate::lti::{StateSpace, StateSpaceData};
+use crate::robust::pid::{DiscretePid, Pid};
+use ferrosid_codegen as cg;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// Flags of `ferrosid codegen`.
+#[derive(Debug, Clone, clap::Args)]
+#[command(
+    after_help = "Examples:\n  ferrosid codegen --model model.json --pid tuned.json --wm wm.json \
+    --receipts receipts.json --source logs/unit_a.csv --prefix axis1 --out-dir gen\n  \
+    ferrosid codegen --model model.json --wm-level 0.2 --check-hz 5,10,20,40 --prefix axis1 --out-dir gen\n  \
+    ferrosid codegen --write-templates my_templates"
+)]
+pub struct Args {
+    /// Model JSON ({"ts","a","b","c","d"}, row-major; ts = 0 for continuous).
+    #[arg(long, value_name = "FILE", required_unless_present = "write_templates")]
+    pub model: Option<PathBuf>,
+    /// Control sample time in s, to discretise a continuous model (ZOH).
+    #[arg(long, value_name = "S")]
+    pub ts: Option<f64>,
+    /// PID JSON: continuous (kp, ki, kd, tau_f), discrete (ki_d, a_d, b_d) or a tuning result.
+    #[arg(long, value_name = "FILE")]
+    pub pid: Option<PathBuf>,
+    /// Tustin prewarp frequency (Hz) for a continuous PID (default: plain Tustin).
+    #[arg(long, value_name = "HZ")]
+    pub prewarp_hz: Option<f64>,
+    /// Uncertainty weight JSON ({"num","den"}, continuous, s in rad/s).
+    #[arg(long, value_name = "FILE", conflicts_with = "wm_level")]
+    pub wm: Option<PathBuf>,
+    /// Flat relative tolerance instead of a fitted W_m (e.g. 0.2 = 20 %).
+    #[arg(long, value_name = "L")]
+    pub wm_level: Option<f64>,
+    /// Receipts JSON for the provenance summary.
+    #[arg(long, value_name = "FILE")]
+    pub receipts: Option<PathBuf>,
+    /// Source file (log, settings) whose SHA-256 goes into the provenance. Repeatable.
+    #[arg(long = "source", value_name = "FILE")]
+    pub sources: Vec<PathBuf>,
+    /// Identifier prefix (sanitised to a C identifier, e.g. `axis-1` -> `AXIS_1`).
+    #[arg(long, value_name = "NAME", default_value = "ferrosid")]
+    pub prefix: String,
+    /// Output directory (created if missing).
+    #[arg(long, value_name = "DIR", required_unless_present = "write_templates")]
+    pub out_dir: Option<PathBuf>,
+    /// Directory with user templates model.h / model.rs (others fall back to the built-ins).
+    #[arg(long, value_name = "DIR")]
+    pub templates: Option<PathBuf>,
+    /// Write the built-in templates to DIR (a starting point for --templates) and exit.
+    #[arg(long, value_name = "DIR")]
+    pub write_templates: Option<PathBuf>,
+    /// Check frequencies in Hz, comma separated (snapped to Welch bins). Default: 8
+    /// log-spaced frequencies from 2 bins to the highest excited frequency.
+    #[arg(long, value_name = "HZ,...", value_delimiter = ',')]
+    pub check_hz: Vec<f64>,
+    /// Welch segment length N of the power-up self-identification (power of two, 64..=4096).
+    #[arg(long, value_name = "N", default_value_t = 512)]
+    pub welch_n: usize,
+    /// Periods averaged on target.
+    #[arg(long, value_name = "K", default_value_t = 4)]
+    pub averages: u32,
+    /// Periods discarded before averaging (transient).
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    pub settle_periods: u32,
+    /// Coherence gate of the on-target check.
+    #[arg(long, value_name = "C", default_value_t = 0.9)]
+    pub gate: f64,
+    /// RMS of the power-up multisine, in plant input units.
+    #[arg(long, value_name = "U", default_value_t = 1.0)]
+    pub excitation_rms: f64,
+    /// Highest excited frequency, Hz (default fs/4).
+    #[arg(long, value_name = "HZ")]
+    pub excitation_max_hz: Option<f64>,
+    /// Fewest check frequencies that must pass the coherence gate (default: half, rounded up).
+    #[arg(long, value_name = "K")]
+    pub min_checked: Option<usize>,
+    /// Print a JSON summary on stdout instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn read_json(path: &Path) -> Result<Value> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    serde_json::from_str(&text).map_err(|e| Error::Parse {
+        file: path.to_path_buf(),
+        line: e.line(),
+        msg: format!("not valid JSON: {e}"),
+    })
+}
+
+fn data_err(path: &Path, msg: impl Into<String>) -> Error {
+    Error::Data {
+        file: path.to_path_buf(),
+        msg: msg.into(),
+    }
+}
+
+fn rows(m: &faer::Mat<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+        .collect()
+}
+
+fn matrices(s: &StateSpace) -> cg::Matrices {
+    cg::Matrices {
+        a: rows(&s.a),
+        b: rows(&s.b),
+        c: rows(&s.c),
+        d: rows(&s.d),
+    }
+}
+
+/// Reads a model file: a `StateSpaceData` at the top level or under `"model"`.
+pub fn read_model(path: &Path) -> Result<StateSpace> {
+    let v = read_json(path)?;
+    let inner = if v.get("a").is_some() {
+        v
+    } else if let Some(m) = v.get("model") {
+        m.clone()
+    } else {
+        return Err(data_err(
+            path,
+            "no model: expected an object with \"ts\", \"a\", \"b\", \"c\", \"d\" (or under \"model\")",
+        ));
+    };
+    let data: StateSpaceData =
+        serde_json::from_value(inner).map_err(|e| data_err(path, format!("model fields: {e}")))?;
+    StateSpace::try_from(&data).map_err(|e| data_err(path, e.to_string()))
+}
+
+/// The discrete model at the control rate and the continuous model for documentation.
+fn models(
+    path: &Path,
+    sys: &StateSpace,
+    ts: Option<f64>,
+) -> Result<(StateSpace, Option<cg::ContinuousModel>)> {
+    if sys.is_discrete() {
+        if let Some(t) = ts {
+            if (t - sys.ts).abs() > 1e-9 * sys.ts {
+                return Err(data_err(
+                    path,
+                    format!(
+                        "the model is discrete at ts = {} s but --ts {t} s was given; identify \
+                         at the control rate",
+                        sys.ts
+                    ),
+                ));
+            }
+        }
+        let cont = sys.d2c_zoh().ok().map(|c| cg::ContinuousModel {
+            matrices: matrices(&c),
+            note: "inverse ZOH (matrix logarithm) of the discrete model".into(),
+        });
+        Ok((sys.clone(), cont))
+    } else {
+        let t = ts.ok_or_else(|| {
+            data_err(
+                path,
+                "the model is continuous (ts = 0): give the control sample time with --ts",
+            )
+        })?;
+        let d = sys.c2d_zoh(t)?;
+        Ok((
+            d,
+            Some(cg::ContinuousModel {
+                matrices: matrices(sys),
+                note: format!("the model as given; discretised by ZOH at ts = {t} s"),
+            }),
+        ))
+    }
+}
+
+fn pid_gains(dp: &DiscretePid, cont: Option<&Pid>) -> cg::PidGains {
+    cg::PidGains {
+        ts_s: dp.ts,
+        kp: dp.kp,
+        ki_d: dp.ki_d,
+        a_d: dp.a_d,
+        b_d: dp.b_d,
+        rolloff: dp.rolloff.map(|bq| cg::Biquad { b: bq.b, a: bq.a }),
+        prewarp_hz: dp.prewarp_hz,
+        continuous: cont.map(|p| cg::ContinuousPid {
+            kp: p.kp,
+            ki: p.ki,
+            kd: p.kd,
+            tau_f: p.tau_f,
+        }),
+    }
+}
+
+/// Reads a PID file (continuous, discrete, or a tuning result) for a model sampled at `ts`.
+pub fn read_pid(path: &Path, ts: f64, prewarp_hz: Option<f64>) -> Result<cg::PidGains> {
+    let v = read_json(path)?;
+    fn de<T: serde::de::DeserializeOwned>(path: &Path, what: &str, v: Value) -> Result<T> {
+        serde_json::from_value(v).map_err(|e| data_err(path, format!("{what}: {e}")))
+    }
+    if v.get("ki_d").is_some() {
+        let dp: DiscretePid = de(path, "discrete PID", v)?;
+        return Ok(pid_gains(&dp, None));
+    }
+    if let Some(p) = v.get("pid") {
+        let pid: Pid = de(path, "tuning result `pid`", p.clone())?;
+        if let Some(d) = v.get("discrete").filter(|d| !d.is_null()) {
+            let dp: DiscretePid = de(path, "tuning result `discrete`", d.clone())?;
+            return Ok(pid_gains(&dp, Some(&pid)));
+        }
+        let prewarp = v
+            .get("design")
+            .and_then(|d| d.get("crossover_hz"))
+            .and_then(Value::as_f64)
+            .or(prewarp_hz);
+        let dp = pid.discretize(ts, prewarp)?;
+        return Ok(pid_gains(&dp, Some(&pid)));
+    }
+    if v.get("kp").is_some() {
+        let pid: Pid = de(path, "continuous PID", v)?;
+        let dp = pid.discretize(ts, prewarp_hz)?;
+        return Ok(pid_gains(&dp, Some(&pid)));
+    }
+    Err(data_err(
+        path,
+        "not a PID: expected \"ki_d\" (discrete), \"kp\" (continuous) or \"pid\" (tuning result)",
+    ))
+}
+
+/// Reads W_m coefficients (`num`, `den`) from a JSON file.
+pub fn read_weight(path: &Path) -> Result<cg::WeightCoefficients> {
+    let v = read_json(path)?;
+    let coeffs = |k: &str| -> Result<Vec<f64>> {
+        let arr = v
+            .get(k)
+            .and_then(Value::as_array)
+            .ok_or_else(|| data_err(path, format!("missing array \"{k}\"")))?;
+        arr.iter()
+            .enumerate()
+            .map(|(i, x)| {
+                x.as_f64()
+                    .ok_or_else(|| data_err(path, format!("\"{k}\"[{i}] is not a number")))
+            })
+            .collect()
+    };
+    let order = v.get("order").and_then(Value::as_u64);
+    let ratio = v.get("worst_overbound_ratio").and_then(Value::as_f64);
+    let mut note = String::from("fitted multiplicative uncertainty weight");
+    if let Some(o) = order {
+        note.push_str(&format!(", order {o}"));
+    }
+    if let Some(r) = ratio {
+        note.push_str(&format!(", worst overbound ratio {r:.3}"));
+    }
+    Ok(cg::WeightCoefficients {
+        num: coeffs("num")?,
+        den: coeffs("den")?,
+        note,
+    })
+}
+
+/// Reads a receipts summary from `receipts.json` (the `ferrosid.receipts/1` list, top level or
+/// nested one level deeper).
+pub fn read_receipts(path: &Path) -> Result<Vec<cg::ReceiptLine>> {
+    let v = read_json(path)?;
+    let list = v
+        .get("receipts")
+        .and_then(|r| {
+            r.as_array()
+                .or_else(|| r.get("receipts").and_then(Value::as_array))
+        })
+        .ok_or_else(|| data_err(path, "no \"receipts\" array"))?;
+    let mut out = Vec::with_capacity(list.len());
+    for (i, r) in list.iter().enumerate() {
+        let s = |k: &str| r.get(k).and_then(Value::as_str).map(str::to_string);
+        let name = s("name").ok_or_else(|| data_err(path, format!("receipt {i}: no \"name\"")))?;
+        let pass = r
+            .get("pass")
+            .and_then(Value::as_bool)
+            .ok_or_else(|| data_err(path, format!("receipt {i} ({name}): no boolean \"pass\"")))?;
+        let value = s("value_text")
+            .or_else(|| r.get("value").map(|v| v.to_string()))
+            .unwrap_or_else(|| "?".into());
+        let op = match s("comparison").as_deref() {
+            Some("at_most") => "<=",
+            Some("at_least") => ">=",
+            Some("less_than") => "<",
+            Some("greater_than") => ">",
+            _ => "vs",
+        };
+        let limit = r.get("limit").map(|v| v.to_string()).unwrap_or_default();
+        let unit = s("unit").unwrap_or_default();
+        out.push(cg::ReceiptLine {
+            name,
+            value,
+            condition: format!("{op} {limit} {unit}").trim().to_string(),
+            pass,
+        });
+    }
+    Ok(out)
+}
+
+/// SHA-256 of a file's bytes with its label.
+pub fn digest_file(path: &Path, role: &str) -> Result<cg::SourceDigest> {
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    Ok(cg::SourceDigest {
+        label: format!("{role}: {}", path.display()),
+        sha256: cg::sha256_hex(&bytes),
+    })
+}
+
+/// Default check frequencies: 8 log-spaced from 2 bins to `f_max`.
+pub fn default_check_hz(fs: f64, n: usize, f_max: f64) -> Vec<f64> {
+    let df = fs / n as f64;
+    let lo = 2.0 * df;
+    let hi = f_max.max(lo);
+    let k = 8usize;
+    let mut bins: Vec<usize> = (0..k)
+        .map(|i| {
+            let f = lo * (hi / lo).powf(i as f64 / (k - 1) as f64);
+            ((f / df).round() as usize).max(1)
+        })
+        .collect();
+    bins.dedup();
+    bins.into_iter().map(|b| b as f64 * df).collect()
+}
+
+/// Builds the generator input from the parsed flags (everything but writing files).
+pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
+    let model_path = args
+        .model
+        .as_deref()
+        .ok_or_else(|| Error::InvalidArgument("--model is required".into()))?;
+    let sys = read_model(model_path)?;
+    let (disc, cont) = models(model_path, &sys, args.ts)?;
+    let ts = disc.ts;
+    let fs = 1.0 / ts;
+    let mut sources = vec![digest_file(model_path, "model")?];
+    let pid = match &args.pid {
+        Some(p) => {
+            sources.push(digest_file(p, "pid")?);
+            Some(read_pid(p, ts, args.prewarp_hz)?)
+        }
+        None => None,
+    };
+    let weight =
+        match (&args.wm, args.wm_level) {
+            (Some(p), _) => {
+                sources.push(digest_file(p, "wm")?);
+                read_weight(p)?
+            }
+            (None, Some(l)) => {
+                if !(l.is_finite() && l > 0.0) {
+                    return Err(Error::InvalidArgument(format!(
+                        "--wm-level must be finite and > 0, got {l}"
+                    )));
+                }
+                cg::WeightCoefficients {
+                    num: vec![l],
+                    den: vec![1.0],
+                    note: format!("flat relative tolerance {l} (--wm-level)"),
+                }
+            }
+            (None, None) => return Err(Error::InvalidArgument(
+                "the power-up check needs an uncertainty weight: give --wm FILE or --wm-level L"
+                    .into(),
+            )),
+        };
+    let receipts = match &args.receipts {
+        Some(p) => {
+            sources.push(digest_file(p, "receipts")?);
+            read_receipts(p)?
+        }
+        None => Vec::new(),
+    };
+    for s in &args.sources {
+        sources.push(digest_file(s, "source")?);
+    }
+    let f_max = args.excitation_max_hz.unwrap_or(fs / 4.0);
+    let check_hz = if args.check_hz.is_empty() {
+        default_check_hz(fs, args.welch_n, f_max)
+    } else {
+        args.check_hz.clone()
+    };
+    let min_checked = args.min_checked.unwrap_or(check_hz.len().div_ceil(2));
+    Ok(cg::CodegenInput {
+        prefix: args.prefix.clone(),
+        model: cg::DiscreteModel {
+            ts_s: ts,
+            matrices: matrices(&disc),
+        },
+        continuous: cont,
+        pid,
+        weight,
+        self_id: cg::SelfIdSettings {
+            welch_n: args.welch_n,
+            check_hz,
+            coherence_gate: args.gate,
+            averages: args.averages,
+            settle_periods: args.settle_periods,
+            excitation_rms: args.excitation_rms,
+            excitation_max_hz: f_max,
+            min_checked,
+        },
+        provenance: cg::Provenance {
+            tool: format!("ferrosid {}", env!("CARGO_PKG_VERSION")),
+            sources,
+            receipts,
+            notes: Vec::new(),
+        },
+    })
+}
+
+/// Generates the files for `input` (with `templates` when given) and writes them into
+/// `out_dir`, each only when its content changed. Returns the generated set and the paths.
+pub fn generate_to_dir(
+    input: &cg::CodegenInput,
+    templates: Option<&Path>,
+    out_dir: &Path,
+) -> Result<(cg::Generated, PathBuf, PathBuf)> {
+    let g = match templates {
+        Some(dir) => cg::generate_with_templates(input, dir),
+        None => cg::generate(input),
+    }
+    .map_err(|e| match e {
+        cg::Error::TemplateIo { file, source } => Error::Io { file, source },
+        other => Error::InvalidArgument(other.to_string()),
+    })?;
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
+        file: out_dir.to_path_buf(),
+        source,
+    })?;
+    let h = out_dir.join(&g.c_file_name);
+    let r = out_dir.join(&g.rs_file_name);
+    for (path, text) in [(&h, &g.c_header), (&r, &g.rust_module)] {
+        write_if_changed(path, text)?;
+    }
+    Ok((g, h, r))
+}
+
+/// Writes `text` to `path` unless the file already holds exactly that.
+pub fn write_if_changed(path: &Path, text: &str) -> Result<()> {
+    if std::fs::read(path).ok().as_deref() == Some(text.as_bytes()) {
+        return Ok(());
+    }
+    std::fs::write(path, text).map_err(|source| Error::Io {
+        file: path.to_path_buf(),
+        source,
+    })
+}
+
+#[derive(serde::Serialize)]
+struct Summary<'a> {
+    c_header: &'a Path,
+    rust_module: &'a Path,
+    prefix: &'a str,
+    inputs_sha256: &'a str,
+    checks: &'a [cg::CheckPoint],
+    self_id_samples: u64,
+}
+
+/// Runs `ferrosid codegen`.
+pub fn run(args: &Args) -> Result<ExitCode> {
+    if let Some(dir) = &args.write_templates {
+        std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+            file: dir.clone(),
+            source,
+        })?;
+        for name in [cg::C_TEMPLATE, cg::RUST_TEMPLATE] {
+            let text = cg::builtin_template(name).unwrap_or_default();
+            write_if_changed(&dir.join(name), text)?;
+        }
+        println!(
+            "wrote {} and {} to {}; edit them and pass --templates {}",
+            cg::C_TEMPLATE,
+            cg::RUST_TEMPLATE,
+            dir.display(),
+            dir.display()
+        );
+        println!("template variables (all under `c`):");
+        for (name, what) in cg::context_variables() {
+            println!("  {name}: {what}");
+        }
+        return Ok(ExitCode::Ok);
+    }
+    let out_dir = args
+        .out_dir
+        .as_deref()
+        .ok_or_else(|| Error::InvalidArgument("--out-dir is required".into()))?;
+    let input = build_input(args)?;
+    let (g, h, r) = generate_to_dir(&input, args.templates.as_deref(), out_dir)?;
+    let samples = u64::from(input.self_id.settle_periods + input.self_id.averages)
+        * input.self_id.welch_n as u64;
+    if args.json {
+        let s = Summary {
+            c_header: &h,
+            rust_module: &r,
+            prefix: &g.prefix,
+            inputs_sha256: &g.inputs_sha256,
+            checks: &g.checks,
+            self_id_samples: samples,
+        };
+        let text = serde_json::to_string_pretty(&s)
+            .map_err(|e| Error::InvalidArgument(format!("JSON summary: {e}")))?;
+        println!("{text}");
+    } else {
+        println!("C header:    {}", h.display());
+        println!("Rust module: {}", r.display());
+        println!("prefix {}, inputs sha256 {}", g.prefix, g.inputs_sha256);
+        println!(
+            "power-up self-identification: {} samples ({} s at {} Hz)",
+            samples,
+            samples as f64 * input.model.ts_s,
+            1.0 / input.model.ts_s
+        );
+        println!("check frequencies (requested -> bin -> Hz):");
+        for c in &g.checks {
+            println!("  {:>10.4} -> {:>4} -> {:.4}", c.requested_hz, c.bin, c.hz);
+        }
+    }
+    Ok(ExitCode::Ok)
+}

@@ -1,0 +1,440 @@
+//! End to end: the host identifies the bench axis from logs, fits W_m, tunes a robust PID and
+//! generates the headers; the generated C compiles and simulates like the host; the power-up
+//! firmware is built around the generated Rust module and run under QEMU against the nominal
+//! and drifted plants; the host re-identifies the drifted plant from the target's spectra frame.
+//!
+//! References are independent of the code under test: the bench axis' exact ZOH response
+//! (host matrix exponential) for the plants the firmware simulates (RK4 in f32), the host's
+//! Hessenberg frequency response and polynomial W_m evaluation for the firmware's f32 complex
+//! solve and Horner evaluation, the host `lti` simulation and `DiscretePid::update` for the C
+//! program. Tolerances are stated at each assertion.
+//!
+//! Needs gcc, qemu-system-arm, llvm-size and the thumbv7em-none-eabihf target: when missing,
+//! these tests FAIL with a message pointing at scripts/setup.sh.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+use ferrosid::cli::reidentify::reidentify;
+use ferrosid::rational_fit::RationalFitOptions;
+use ferrosid::robust::pid::DiscretePidState;
+use ferrosid_tests::e2e::{
+    build_powerup, run_codegen, run_pipeline, run_powerup, Axis, Pipeline, PowerupRun, CHECK_HZ,
+    TS, WELCH_N,
+};
+use ferrosid_tests::{image_size, repo_root};
+use num_complex::Complex64;
+
+fn work_dir() -> PathBuf {
+    repo_root().join("target").join("e2e")
+}
+
+/// The host pipeline, run once per test binary.
+fn pipeline() -> &'static Pipeline {
+    static P: OnceLock<Result<Pipeline, String>> = OnceLock::new();
+    match P.get_or_init(|| run_pipeline(&work_dir())) {
+        Ok(p) => p,
+        Err(e) => panic!("host pipeline failed: {e}"),
+    }
+}
+
+/// The power-up image built around the generated module, once per test binary.
+fn powerup_elf() -> &'static Path {
+    static E: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    match E.get_or_init(|| build_powerup(&pipeline().rust_module).map_err(|e| e.to_string())) {
+        Ok(p) => p,
+        Err(e) => panic!("building the power-up image: {e}"),
+    }
+}
+
+fn run(args: &[String]) -> PowerupRun {
+    let r = run_powerup(powerup_elf(), args).unwrap_or_else(|e| panic!("QEMU: {e}"));
+    for l in r.lines.iter().filter(|l| !l.text.starts_with("FRAME ")) {
+        println!("target: {l}");
+    }
+    r
+}
+
+fn scenario(words: &[&str]) -> Vec<String> {
+    let mut a = Axis::nominal().firmware_args();
+    a.extend(words.iter().map(|w| w.to_string()));
+    a
+}
+
+/// |G_plant − G0| / |G0| / |W_m| at `f` for a plant given by its response.
+fn predicted_ratio(p: &Pipeline, f: f64, g_plant: Complex64) -> f64 {
+    let g0 = p.model.freq_response_siso(f).unwrap();
+    (g_plant - g0).norm() / g0.norm() / p.weight.magnitude_hz(f)
+}
+
+#[test]
+fn host_identifies_the_axis_fits_wm_tunes_and_generates() {
+    let p = pipeline();
+    println!(
+        "N4SID order {}; W_m order {} (worst overbound ratio {:.3}); PID {:?}; crossover {:.2} Hz, \
+         Ms {:.3}, ||W_m T|| {:?}; receipts all pass: {}",
+        p.order,
+        p.weight.order,
+        p.weight.worst_overbound_ratio,
+        p.tuned.pid,
+        p.tuned.design.crossover_hz,
+        p.tuned.ms,
+        p.tuned.wm_t,
+        p.receipts_all_pass
+    );
+    assert_eq!(p.order, 2, "the axis is second order");
+    // Identified model vs the exact ZOH response of unit A: 1 % up to 150 Hz (noise 1e-3 rad
+    // on 16 k samples).
+    let ax = Axis::nominal();
+    for k in 1..=75 {
+        let f = 2.0 * k as f64;
+        let g0 = p.model.freq_response_siso(f).unwrap();
+        let g = ax.response_hz(f, 0);
+        assert!(
+            (g0 - g).norm() <= 0.01 * g.norm(),
+            "model off by more than 1 % at {f} Hz"
+        );
+    }
+    // The weight overbounds the measured envelope, and the nominal plant sits inside it at
+    // every check frequency.
+    assert!(p.weight.constraint_holds);
+    for &f in &CHECK_HZ {
+        let r = predicted_ratio(p, f, ax.response_hz(f, 0));
+        assert!(r < 1.0, "nominal plant outside W_m at {f} Hz (ratio {r})");
+    }
+    assert!(p.tuned.wm_t.is_some_and(|v| v < 1.0));
+    assert!(p.c_header.exists() && p.rust_module.exists());
+}
+
+fn gcc(dir: &Path, src: &str, exe: Option<&str>) {
+    let c = dir.join(if exe.is_some() { "prog.c" } else { "inc.c" });
+    std::fs::write(&c, src).unwrap();
+    let mut cmd = Command::new("gcc");
+    cmd.args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(dir);
+    match exe {
+        Some(e) => cmd.arg("-o").arg(dir.join(e)).arg(&c),
+        None => cmd.arg("-c").arg("-o").arg(dir.join("inc.o")).arg(&c),
+    };
+    let out = cmd
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run gcc ({e}): install gcc (Debian package gcc)"));
+    assert!(
+        out.status.success(),
+        "gcc failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+const STEPS: usize = 2000;
+
+#[test]
+fn generated_c_compiles_and_simulates_like_the_host() {
+    let p = pipeline();
+    let dir = p.c_header.parent().unwrap().to_path_buf();
+    gcc(
+        &dir,
+        "#include \"axis_1.h\"\nint main(void) { return 0; }\n",
+        None,
+    );
+    // A C program: step response with the emitted float matrices, and the documented PID law
+    // on a fixed error sequence, printed with 9 significant digits.
+    let prog = format!(
+        r#"#include <stdio.h>
+#include "axis_1.h"
+int main(void) {{
+    float x[AXIS_1_N_STATES] = {{0}}, xn[AXIS_1_N_STATES];
+    float e1 = 0, i = 0, d = 0, v1 = 0, v2 = 0, u1 = 0, u2 = 0;
+    int k, r, c;
+    for (k = 0; k < {STEPS}; k++) {{
+        float y = AXIS_1_D[0][0];
+        for (c = 0; c < AXIS_1_N_STATES; c++) y += AXIS_1_C[0][c] * x[c];
+        for (r = 0; r < AXIS_1_N_STATES; r++) {{
+            xn[r] = AXIS_1_B[r][0];
+            for (c = 0; c < AXIS_1_N_STATES; c++) xn[r] += AXIS_1_A[r][c] * x[c];
+        }}
+        for (r = 0; r < AXIS_1_N_STATES; r++) x[r] = xn[r];
+        printf("Y %.9g\n", (double)y);
+    }}
+#if AXIS_1_HAS_PID
+    for (k = 0; k < {STEPS}; k++) {{
+        float e = (k % 400 < 200 ? 0.1f : -0.05f) + 0.02f * (float)(k % 7);
+        float p, v, u;
+        i = i + AXIS_1_PID_KI_D * (e + e1);
+        d = AXIS_1_PID_A_D * d + AXIS_1_PID_B_D * (e - e1);
+        p = AXIS_1_PID_KP * e;
+        v = p + i + d;
+        u = AXIS_1_PID_HAS_ROLLOFF
+            ? AXIS_1_PID_ROLLOFF_B[0] * v + AXIS_1_PID_ROLLOFF_B[1] * v1 + AXIS_1_PID_ROLLOFF_B[2] * v2
+              - AXIS_1_PID_ROLLOFF_A[1] * u1 - AXIS_1_PID_ROLLOFF_A[2] * u2
+            : v;
+        e1 = e; v2 = v1; v1 = v; u2 = u1; u1 = u;
+        printf("U %.9g\n", (double)u);
+    }}
+#endif
+    return 0;
+}}
+"#
+    );
+    gcc(&dir, &prog, Some("prog"));
+    let out = Command::new(dir.join("prog")).output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    let series = |tag: &str| -> Vec<f64> {
+        text.lines()
+            .filter_map(|l| l.strip_prefix(tag))
+            .map(|v| v.trim().parse().unwrap())
+            .collect()
+    };
+    let y_c = series("Y ");
+    let u_c = series("U ");
+    // Host simulation of the f64 model (lti::simulate): step from rest.
+    let y_h = p.model.simulate_siso(&vec![1.0; STEPS], None).unwrap();
+    let peak = y_h.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let worst = y_h
+        .iter()
+        .zip(&y_c)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f64, f64::max);
+    println!("C float step vs host f64 simulation: worst {worst:.3e} (peak {peak:.3e})");
+    // Float coefficients (relative 6e-8) and float arithmetic over 2000 steps of a resonance
+    // with |z| = 0.984: within 1e-4 of the peak.
+    assert_eq!(y_c.len(), STEPS);
+    assert!(
+        worst <= 1e-4 * peak,
+        "C step deviates {worst:e} > 1e-4 x {peak:e}"
+    );
+
+    // The PID law in C vs the host's DiscretePid::update (f64), same error sequence.
+    let dp = p.tuned.discrete.as_ref().expect("discrete PID");
+    let mut st = DiscretePidState::default();
+    let u_h: Vec<f64> = (0..STEPS)
+        .map(|k| {
+            let e = if k % 400 < 200 { 0.1 } else { -0.05 } + 0.02 * (k % 7) as f64;
+            dp.update(&mut st, e, None)
+        })
+        .collect();
+    let upeak = u_h.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let uworst = u_h
+        .iter()
+        .zip(&u_c)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f64, f64::max);
+    println!("C float PID vs host DiscretePid::update: worst {uworst:.3e} (peak {upeak:.3e})");
+    assert_eq!(u_c.len(), STEPS);
+    // The integrator accumulates float rounding over 2000 steps: 1e-4 of the peak command.
+    assert!(
+        uworst <= 1e-4 * upeak,
+        "C PID deviates {uworst:e} > 1e-4 x {upeak:e}"
+    );
+}
+
+#[test]
+fn codegen_rerun_gives_byte_identical_files() {
+    let p = pipeline();
+    let again = work_dir().join("generated-rerun");
+    run_codegen(p, &again).unwrap();
+    for name in ["axis_1.h", "axis_1.rs"] {
+        let a = std::fs::read(p.c_header.parent().unwrap().join(name)).unwrap();
+        let b = std::fs::read(again.join(name)).unwrap();
+        assert!(a == b, "{name} differs between two runs");
+    }
+}
+
+#[test]
+fn powerup_image_builds_with_the_generated_module() {
+    let p = pipeline();
+    let elf = powerup_elf();
+    let size = image_size(elf).unwrap_or_else(|e| panic!("{e}"));
+    println!(
+        "powerup image: flash {} B (text {} + data {}), static RAM {} B (data {} + bss {})",
+        size.flash(),
+        size.text,
+        size.data,
+        size.ram(),
+        size.data,
+        size.bss
+    );
+    // The image carries the generated module: its inputs digest is what the target reports.
+    let module = std::fs::read_to_string(&p.rust_module).unwrap();
+    let sha = module
+        .lines()
+        .find_map(|l| l.strip_prefix("pub const INPUTS_SHA256: &str = \""))
+        .map(|s| s.trim_end_matches("\";").to_string())
+        .unwrap();
+    let r = run(&scenario(&["plant=nominal"]));
+    assert!(
+        r.text.contains(&format!("POWERUP sha256={sha} ")),
+        "the target does not report the generated module's digest {sha}"
+    );
+}
+
+#[test]
+fn nominal_plant_passes_and_the_target_evaluates_g0_and_wm_like_the_host() {
+    let p = pipeline();
+    let r = run(&scenario(&["plant=nominal"]));
+    assert_eq!(r.verdict(), Some("PASS"), "verdict");
+    assert_eq!(r.exit_code, 0);
+    let samples = (1 + 4) * WELCH_N;
+    assert!(r.text.contains(&format!("samples={samples}")));
+    assert_eq!(r.receipt().len(), CHECK_HZ.len());
+    for row in r.receipt() {
+        assert_eq!(row.verdict, "PASS", "{row:?}");
+        // G0 on target (f32 complex elimination) vs host (f64 Hessenberg): 1e-4 relative
+        // (f32 rounding of A amplified by the resonance's conditioning, |z − p| ~ 0.02).
+        let g0 = p.model.freq_response_siso(row.hz).unwrap();
+        assert!(
+            (row.g0 - g0).norm() <= 1e-4 * g0.norm(),
+            "target G0 {} vs host {g0} at {} Hz",
+            row.g0,
+            row.hz
+        );
+        // |W_m| on target (f32 Horner) vs host (f64): 1e-5 relative.
+        let wm = p.weight.magnitude_hz(row.hz);
+        assert!(
+            (row.wm - wm).abs() <= 1e-5 * wm,
+            "target |W_m| {} vs {wm}",
+            row.wm
+        );
+        // The measured H1 vs the exact response of the plant simulated on target.
+        let g = Axis::nominal().response_hz(row.hz, 0);
+        let err = (row.g_meas - g).norm() / g.norm();
+        assert!(
+            err < 0.02,
+            "H1 off the true plant by {err} at {} Hz",
+            row.hz
+        );
+    }
+}
+
+/// A drifted plant fails, and the frequencies it fails at are the ones the host predicts from
+/// the drifted plant's exact response: every check frequency with predicted ratio
+/// |G − G0|/|G0|/|W_m| above 1.5 must FAIL, every one below 0.67 must PASS (bins in between
+/// may go either way with the estimation noise).
+fn drifted_fails_where_predicted(words: &[&str], plant: Axis, delay: u32) -> PowerupRun {
+    let p = pipeline();
+    let r = run(&scenario(words));
+    assert_eq!(r.verdict(), Some("FAIL"));
+    assert_eq!(r.exit_code, 1);
+    assert!(
+        !r.failed_hz.is_empty(),
+        "the VERDICT line must name the failed frequencies"
+    );
+    for row in r.receipt() {
+        let ratio = predicted_ratio(p, row.hz, plant.response_hz(row.hz, delay));
+        println!(
+            "{:>8.3} Hz: predicted ratio {ratio:.3}, target {}",
+            row.hz, row.verdict
+        );
+        if ratio > 1.5 {
+            assert_eq!(row.verdict, "FAIL", "{} Hz (ratio {ratio})", row.hz);
+            assert!(r.failed_hz.iter().any(|f| (f - row.hz).abs() < 1e-3));
+        }
+        if ratio < 0.67 {
+            assert_eq!(row.verdict, "PASS", "{} Hz (ratio {ratio})", row.hz);
+        }
+    }
+    r
+}
+
+#[test]
+fn inertia_drift_fails_naming_the_frequencies_and_is_reidentified() {
+    let drifted = Axis::nominal().with_inertia_scale(1.3);
+    let r = drifted_fails_where_predicted(&["plant=inertia", "jscale=1.3"], drifted, 0);
+    // The host re-identifies the drifted plant from the target's spectra frame.
+    let frame = r.frame.as_ref().expect("spectra frame");
+    let re = reidentify(frame, &RationalFitOptions::new(2, 1, 1), 1..=1, None, 1e-6).unwrap();
+    let ss = ferrosid::lti::StateSpace::try_from(&re.model).unwrap();
+    // Agreement with the drifted plant's exact response over 1..200 Hz: 2 %.
+    let worst = (1..=100)
+        .map(|k| {
+            let f = 2.0 * k as f64;
+            let g = drifted.response_hz(f, 0);
+            (ss.freq_response_siso(f).unwrap() - g).norm() / g.norm()
+        })
+        .fold(0.0f64, f64::max);
+    // Natural frequency: 25 Hz / sqrt(1.3) = 21.93 Hz, from the fitted poles: 0.5 %.
+    let fn_true = 25.0 / 1.3f64.sqrt();
+    let z = Complex64::new(re.fit.poles[0][0], re.fit.poles[0][1]);
+    let fn_fit = (z.ln() / TS).norm() / (2.0 * std::f64::consts::PI);
+    println!(
+        "re-identified on {} bins: worst response error {worst:.4}, natural frequency {fn_fit:.3} Hz (true {fn_true:.3})",
+        re.points.h.len()
+    );
+    assert!(
+        worst < 0.02,
+        "re-identified model off the drifted plant by {worst}"
+    );
+    assert!((fn_fit / fn_true - 1.0).abs() < 5e-3);
+}
+
+#[test]
+fn extra_delay_fails_naming_the_frequencies_and_the_delay_is_reidentified() {
+    let r = drifted_fails_where_predicted(&["plant=delay", "delay=3"], Axis::nominal(), 3);
+    let frame = r.frame.as_ref().expect("spectra frame");
+    let re = reidentify(frame, &RationalFitOptions::new(2, 1, 1), 1..=8, None, 1e-6).unwrap();
+    // One sample from the ZOH plus the three extra.
+    assert_eq!(re.fit.options.nk, 4, "re-identified delay");
+    let ss = ferrosid::lti::StateSpace::try_from(&re.model).unwrap();
+    let worst = (1..=100)
+        .map(|k| {
+            let f = 2.0 * k as f64;
+            let g = Axis::nominal().response_hz(f, 3);
+            (ss.freq_response_siso(f).unwrap() - g).norm() / g.norm()
+        })
+        .fold(0.0f64, f64::max);
+    println!("re-identified delayed plant: worst response error {worst:.4}");
+    assert!(
+        worst < 0.02,
+        "re-identified model off the delayed plant by {worst}"
+    );
+}
+
+#[test]
+fn coulomb_friction_fails_naming_the_frequencies() {
+    // Friction has no linear prediction; it must fail near the resonance, where the extra
+    // (amplitude-dependent) damping changes the response most.
+    let r = run(&scenario(&["plant=friction", "coulomb=0.4"]));
+    assert_eq!(r.verdict(), Some("FAIL"));
+    assert_eq!(r.exit_code, 1);
+    assert!(
+        r.failed_hz.iter().any(|f| (18.0..=32.0).contains(f)),
+        "no failure near the 25 Hz resonance: {:?}",
+        r.failed_hz
+    );
+}
+
+#[test]
+fn reidentify_command_writes_a_model_the_generator_accepts() {
+    use clap::Parser as _;
+    let dir = work_dir().join("reidentify");
+    std::fs::create_dir_all(&dir).unwrap();
+    let r = run(&scenario(&["plant=inertia", "jscale=1.3"]));
+    let log = dir.join("target.log");
+    std::fs::write(&log, &r.text).unwrap();
+    let model = dir.join("drifted.json");
+    let cli = ferrosid::cli::Cli::try_parse_from([
+        "ferrosid".as_ref(),
+        "reidentify".as_ref(),
+        log.as_os_str(),
+        "--out".as_ref(),
+        model.as_os_str(),
+    ])
+    .unwrap();
+    ferrosid::cli::run(&cli).unwrap();
+    let cli = ferrosid::cli::Cli::try_parse_from([
+        "ferrosid".as_ref(),
+        "codegen".as_ref(),
+        "--model".as_ref(),
+        model.as_os_str(),
+        "--wm-level".as_ref(),
+        "0.2".as_ref(),
+        "--out-dir".as_ref(),
+        dir.join("gen").as_os_str(),
+        "--prefix".as_ref(),
+        "drifted".as_ref(),
+    ])
+    .unwrap();
+    ferrosid::cli::run(&cli).unwrap();
+    assert!(dir.join("gen").join("drifted.h").exists());
+}
