@@ -46,6 +46,8 @@
 //!
 //! All models are discrete with the data's sample time `ts` (seconds); continuous
 //! equivalents come from [`StateSpace::d2c_zoh`].
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::lti::{eigenvalues, StateSpace, StateSpaceData};
@@ -1347,7 +1349,7 @@ fn kalman_gain(
     // Hankel view (k × count, element (j, s) = w[a][s + j]) — one GEMM per channel.
     let count = len - k + 1;
     let mut states = Mat::<f64>::zeros(n, count);
-    for a_ in 0..q {
+    for (a_, wa) in w.iter().enumerate() {
         let fa = Mat::from_fn(n, k, |i, j| {
             let col = if a_ < m {
                 j * m + a_
@@ -1356,8 +1358,7 @@ fn kalman_gain(
             };
             f[(i, col)]
         });
-        let hankel =
-            MatRef::from_column_major_slice_with_stride(&w[a_][..count + k - 1], k, count, 1);
+        let hankel = MatRef::from_column_major_slice_with_stride(&wa[..count + k - 1], k, count, 1);
         faer::linalg::matmul::matmul(
             states.as_mut(),
             faer::Accum::Add,

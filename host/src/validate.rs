@@ -12,6 +12,8 @@
 //!   when a gain K is supplied ([`ResidualKind::OneStepPrediction`]); without K it is the
 //!   output (simulation) error ([`ResidualKind::OutputError`]), whose autocorrelation only
 //!   tests whether the noise is white, while the cross-correlation still tests the model.
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::lti::StateSpace;
@@ -264,7 +266,7 @@ pub fn compare_with_etfe(
     let mut gated_out = 0;
     for k in 0..freq_hz.len() {
         let f = freq_hz[k];
-        if !f.is_finite() || !(h[k].re.is_finite() && h[k].im.is_finite()) {
+        if !(f.is_finite() && h[k].re.is_finite() && h[k].im.is_finite()) {
             return Err(Error::InvalidArgument(format!(
                 "ETFE bin {k} (f = {f} Hz) is not finite"
             )));

@@ -6,7 +6,10 @@ mod n4sid_support;
 use ferrosid::n4sid::{n4sid_slices, N4sidOptions, OrderSelection};
 use n4sid_support::*;
 
-fn load(rel: &str) -> Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+/// Input and output channels.
+type Channels = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+fn load(rel: &str) -> Option<Channels> {
     let p = shared_data(rel)?;
     let cols = read_columns(&p);
     let h = cols.len() / 2;

@@ -60,7 +60,7 @@ fn third_order_with_output_noise_picks_order_three_and_matches_the_plant() {
     assert!(
         (wn / (2.0 * std::f64::consts::PI) - 40.0).abs() < 0.05,
         "fn = {}",
-        wn / 6.283
+        wn / (2.0 * std::f64::consts::PI)
     );
     assert!((zeta - 0.02).abs() < 0.002, "ζ = {zeta}");
 }
