@@ -12,8 +12,10 @@
 //! * [`PeriodicAveraging`]: period-synchronous averaging for periodic excitation (multisines):
 //!   the DFT of every period (rectangular window) is averaged, `H = Ȳ/Ū` at the excited lines,
 //!   and the noise variances of `Ū`, `Ȳ` and `H` come from the spread over periods.
-//! * Coherence gating: [`coherence_gate`] (default threshold
-//!   [`DEFAULT_COHERENCE_THRESHOLD`] = 0.85) and [`excluded_bands`] for reports.
+//! * Coherence gating: [`Etfe::gate`] / [`PeriodicFrf::gate`] (default threshold
+//!   [`DEFAULT_COHERENCE_THRESHOLD`] = 0.85; the Welch gate also rejects bins without input
+//!   power) and [`Etfe::excluded_bands`] / [`PeriodicFrf::excluded_bands`] for reports; the
+//!   plain [`coherence_gate`] / [`excluded_bands`] work on any coherence vector.
 //!
 //! Frequencies are in Hz. One realfft plan and one set of buffers serve all segments of a call
 //! (no allocation per segment). MIMO logs: estimate each (input, output) pair separately.
@@ -416,15 +418,37 @@ impl WelchAccumulator {
 }
 
 impl Etfe {
-    /// Bins usable for fitting/validation: `coherence >= threshold` (see [`coherence_gate`]).
+    /// Bins usable for fitting/validation: `coherence >= threshold` **and** an excited input,
+    /// `suu >= MIN_RELATIVE_INPUT_POWER * max(suu)`. The second condition matters for periodic
+    /// or band-limited excitation: at a bin without input power S_uu is round-off, and a
+    /// deterministic output component there (e.g. nonlinear distortion of a multisine) can show
+    /// a spurious coherence near 1 with a meaningless H1.
     pub fn gate(&self, threshold: f64) -> Vec<bool> {
+        let excited = excited_bins(&self.suu);
         coherence_gate(&self.coherence, threshold)
+            .into_iter()
+            .zip(excited)
+            .map(|(c, e)| c && e)
+            .collect()
     }
 
-    /// Runs of bins below the threshold, for reports (see [`excluded_bands`]).
+    /// Runs of bins rejected by [`Etfe::gate`], for reports.
     pub fn excluded_bands(&self, threshold: f64) -> Vec<ExcludedBand> {
-        excluded_bands(&self.freq_hz, &self.coherence, threshold)
+        let gate = self.gate(threshold);
+        let excited = excited_bins(&self.suu);
+        bands_from_gate(&self.freq_hz, &self.coherence, &gate, &excited)
     }
+}
+
+/// Input power below this fraction of the largest input auto-spectrum bin counts as "not
+/// excited" in [`Etfe::gate`] (-100 dB; round-off leakage of a multisine sits near -150 dB).
+pub const MIN_RELATIVE_INPUT_POWER: f64 = 1e-10;
+
+fn excited_bins(suu: &[f64]) -> Vec<bool> {
+    let top = suu.iter().cloned().fold(0.0, f64::max);
+    suu.iter()
+        .map(|&p| p > 0.0 && p >= MIN_RELATIVE_INPUT_POWER * top)
+        .collect()
 }
 
 /// `true` where `coherence >= threshold` (NaN coherence is never accepted). The default
@@ -433,7 +457,7 @@ pub fn coherence_gate(coherence: &[f64], threshold: f64) -> Vec<bool> {
     coherence.iter().map(|&c| c >= threshold).collect()
 }
 
-/// A run of consecutive entries rejected by the coherence gate.
+/// A run of consecutive entries rejected by a gate.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ExcludedBand {
     /// Index of the first rejected entry.
@@ -444,21 +468,35 @@ pub struct ExcludedBand {
     pub f_lo_hz: f64,
     /// Frequency of the last entry in Hz.
     pub f_hi_hz: f64,
-    /// Lowest coherence in the run.
+    /// Lowest coherence in the run (NaN if any entry's coherence is NaN).
     pub min_coherence: f64,
+    /// How many entries of the run were rejected because the input had no power there
+    /// (see [`Etfe::gate`]); the others fell below the coherence threshold.
+    pub unexcited: usize,
 }
 
 /// Runs of consecutive entries with `coherence < threshold` (or NaN), in increasing order.
 /// `freq_hz` and `coherence` must have equal lengths (extra entries of the longer are ignored).
 pub fn excluded_bands(freq_hz: &[f64], coherence: &[f64], threshold: f64) -> Vec<ExcludedBand> {
     let gate = coherence_gate(coherence, threshold);
-    let n = freq_hz.len().min(coherence.len());
+    let all = vec![true; gate.len()];
+    bands_from_gate(freq_hz, coherence, &gate, &all)
+}
+
+fn bands_from_gate(
+    freq_hz: &[f64],
+    coherence: &[f64],
+    gate: &[bool],
+    excited: &[bool],
+) -> Vec<ExcludedBand> {
+    let n = freq_hz.len().min(coherence.len()).min(gate.len());
     let mut out: Vec<ExcludedBand> = Vec::new();
     for k in 0..n {
         if gate[k] {
             continue;
         }
         let c = coherence[k];
+        let unexcited = usize::from(!excited.get(k).copied().unwrap_or(true));
         match out.last_mut() {
             Some(b) if b.last + 1 == k => {
                 b.last = k;
@@ -468,6 +506,7 @@ pub fn excluded_bands(freq_hz: &[f64], coherence: &[f64], threshold: f64) -> Vec
                 } else {
                     b.min_coherence.min(c)
                 };
+                b.unexcited += unexcited;
             }
             _ => out.push(ExcludedBand {
                 first: k,
@@ -475,6 +514,7 @@ pub fn excluded_bands(freq_hz: &[f64], coherence: &[f64], threshold: f64) -> Vec
                 f_lo_hz: freq_hz[k],
                 f_hi_hz: freq_hz[k],
                 min_coherence: c,
+                unexcited,
             }),
         }
     }

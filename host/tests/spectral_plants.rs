@@ -317,3 +317,54 @@ fn bad_inputs_are_errors() {
         assert!((ok.h[k] - 1.0).norm() < 1e-12 && (ok.coherence[k] - 1.0).abs() < 1e-12);
     }
 }
+
+#[test]
+fn gate_rejects_bins_without_input_power_despite_coherence() {
+    // Periodic input exciting only every 4th bin of the Welch grid, and an output with an
+    // extra deterministic tone (as a nonlinearity would produce) on a non-excited bin: there
+    // S_uu is round-off and the coherence can be close to 1, but the bin must not pass.
+    let n = 256;
+    let (p, reps) = (n, 64);
+    let mut rng = Rng(9);
+    let lines: Vec<usize> = (4..120).step_by(4).collect();
+    let ph: Vec<f64> = lines.iter().map(|_| 2.0 * PI * rng.uniform()).collect();
+    let one: Vec<f64> = (0..p)
+        .map(|t| {
+            lines
+                .iter()
+                .zip(&ph)
+                .map(|(&k, &f)| (2.0 * PI * (k * t) as f64 / p as f64 + f).cos())
+                .sum()
+        })
+        .collect();
+    let u: Vec<f64> = one.iter().cycle().take(p * reps).cloned().collect();
+    let y: Vec<f64> = u
+        .iter()
+        .enumerate()
+        .map(|(t, &v)| 0.5 * v + 0.3 * (2.0 * PI * (50 * t) as f64 / p as f64).cos())
+        .collect();
+    let e = Welch {
+        window: Window::Rectangular,
+        noverlap: Some(0),
+        ..Welch::new(n)
+    }
+    .etfe(&u, &y, 1.0)
+    .unwrap();
+    let gate = e.gate(0.85);
+    for &k in &lines {
+        assert!(gate[k], "excited bin {k} rejected");
+        assert!((e.h[k] - 0.5).norm() < 1e-9);
+    }
+    assert!(
+        !gate[50],
+        "unexcited bin 50 passed (coherence {})",
+        e.coherence[50]
+    );
+    let band = e
+        .excluded_bands(0.85)
+        .into_iter()
+        .find(|b| b.first <= 50 && b.last >= 50)
+        .unwrap();
+    assert!(band.unexcited >= 1);
+    assert!(e.suu[50] < 1e-10 * e.suu[4]);
+}
