@@ -631,7 +631,8 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             }
             let (lp, _) = implemented_loop(&model, &t.pid, None, Some(fc))?;
             let nyq = 0.5 * fs;
-            let grid = log_grid(fc / 1e3, nyq * 0.999, 600);
+            let f_lo = (fc / 50.0).min(0.5 * nom.freq_hz.get(1).copied().unwrap_or(fc));
+            let grid = log_grid(f_lo, nyq * 0.999, 600);
             let curves = loop_curves(&lp, weight.as_ref(), &grid)?;
             (Some(rep), Some(curves))
         }

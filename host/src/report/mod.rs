@@ -43,6 +43,30 @@ pub struct Figure {
     pub svg: String,
 }
 
+/// A receipt number with its unit, the dimensionless unit "1" left out.
+fn with_unit(v: f64, unit: &str) -> String {
+    let n = if v.is_finite() {
+        fmt_num(v)
+    } else if v.is_nan() {
+        "undefined".into()
+    } else if v > 0.0 {
+        "∞".into()
+    } else {
+        "−∞".into()
+    };
+    if unit == "1" || unit.is_empty() {
+        n
+    } else {
+        format!("{n} {unit}")
+    }
+}
+
+fn receipt_value(run: &PipelineRun, name: &str) -> String {
+    run.receipts
+        .get(name)
+        .map_or("-".to_string(), |r| with_unit(r.value, &r.unit))
+}
+
 fn db(x: f64) -> f64 {
     20.0 * x.log10()
 }
@@ -164,32 +188,31 @@ fn fig_bode(run: &PipelineRun) -> Result<Figure> {
         .collect();
     for (k, l) in others.iter().enumerate() {
         let col = colors::CYCLE[(k + 1) % colors::CYCLE.len()];
-        let pts: Vec<(f64, f64)> = l
-            .etfe
-            .freq_hz
-            .iter()
-            .zip(&l.etfe.h)
-            .filter(|(f, _)| **f > 0.0)
-            .map(|(&f, h)| (f, db(h.norm())))
-            .collect();
+        // Only bins passing the gate; a rejected bin breaks the line (NaN).
+        let g = l.etfe.gate(gate_thr);
+        let (mut pm_pts, mut pp_pts) = (Vec::new(), Vec::new());
+        for i in 0..l.etfe.freq_hz.len() {
+            let f = l.etfe.freq_hz[i];
+            if f <= 0.0 {
+                continue;
+            }
+            if !g[i] {
+                pm_pts.push((f, f64::NAN));
+                pp_pts.push((f, f64::NAN));
+                continue;
+            }
+            let h = l.etfe.h[i];
+            let pm = mc.phase_at(f);
+            pm_pts.push((f, db(h.norm())));
+            pp_pts.push((f, pm + wrap_deg(h.arg().to_degrees() - pm)));
+        }
         mag.series.push(Series::new(
-            &format!("ETFE `{}`", l.name),
-            pts,
+            &format!("ETFE `{}` (gated bins)", l.name),
+            pm_pts,
             col,
             Kind::Line(1),
         ));
-        let pts: Vec<(f64, f64)> = l
-            .etfe
-            .freq_hz
-            .iter()
-            .zip(&l.etfe.h)
-            .filter(|(f, _)| **f > 0.0)
-            .map(|(&f, h)| {
-                let pm = mc.phase_at(f);
-                (f, pm + wrap_deg(h.arg().to_degrees() - pm))
-            })
-            .collect();
-        ph.series.push(Series::new("", pts, col, Kind::Line(1)));
+        ph.series.push(Series::new("", pp_pts, col, Kind::Line(1)));
     }
     let (mut in_m, mut out_m, mut in_p, mut out_p) = (vec![], vec![], vec![], vec![]);
     for i in 0..nom.etfe.freq_hz.len() {
@@ -236,7 +259,7 @@ fn fig_bode(run: &PipelineRun) -> Result<Figure> {
         colors::RED,
         Kind::Line(2),
     ));
-    mag.legend = LegendAt::LowerLeft;
+    mag.legend = LegendAt::UpperRight;
     ph.legend = LegendAt::None;
     // Magnitude range from the model and the gated bins (rejected bins may be wild).
     let ys: Vec<f64> = mag
@@ -383,20 +406,15 @@ fn fig_robustness(run: &PipelineRun) -> Result<Option<Figure>> {
         color: colors::GREY,
         label: None,
     });
-    let ys: Vec<f64> = c
-        .t_mag
+    let hi = p
+        .series
         .iter()
-        .chain(inv.iter())
-        .copied()
+        .flat_map(|s| s.points.iter().map(|q| q.1))
         .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
-    let hi = ys.iter().copied().fold(0.0, f64::max);
-    p.y_range = Some(((hi * 1e-4).max(1e-6), hi * 2.0));
+        .fold(0.0, f64::max);
+    p.y_range = Some(((hi * 1e-5).max(1e-9), hi * 2.0));
     p.legend = LegendAt::LowerLeft;
-    let value = run
-        .receipts
-        .get("robust_stability")
-        .map_or("-".to_string(), |r| r.value_text.clone());
+    let value = receipt_value(run, "robust_stability");
     Ok(Some(Figure {
         name: "robustness",
         caption: format!(
@@ -426,10 +444,14 @@ fn fig_uncertainty(run: &PipelineRun) -> Result<Option<Figure>> {
     ));
     p.series.push(Series::new(
         "assumed outside the measured band",
-        e.assumed_points()
-            .iter()
-            .map(|&(f, l)| (f, l.max(w.min_level)))
-            .collect(),
+        {
+            let pts = e.assumed_points();
+            let step = pts.len().div_ceil(40).max(1);
+            pts.iter()
+                .step_by(step)
+                .map(|&(f, l)| (f, l.max(w.min_level)))
+                .collect()
+        },
         colors::GREY,
         Kind::Hollow(3),
     ));
@@ -492,10 +514,7 @@ fn fig_sensitivity(run: &PipelineRun) -> Result<Option<Figure>> {
         .fold(0.0, f64::min);
     p.y_range = Some((lo.max(-80.0) - 3.0, db(ms).max(0.0) + 4.0));
     p.legend = LegendAt::LowerRight;
-    let value = run
-        .receipts
-        .get("sensitivity_peak")
-        .map_or("-".to_string(), |r| r.value_text.clone());
+    let value = receipt_value(run, "sensitivity_peak");
     Ok(Some(Figure {
         name: "sensitivity",
         caption: format!(
@@ -518,11 +537,20 @@ fn fig_step(run: &PipelineRun) -> Result<Option<Figure>> {
     let Some(s) = run.loop_report.as_ref().and_then(|r| r.step.as_ref()) else {
         return Ok(None);
     };
+    // Show the transient, not the whole simulated span: three settling times, at least six
+    // crossover periods.
+    let t_end = s.t.last().copied().unwrap_or(1.0);
+    let t_show = match s.settling_time_s {
+        Some(ts) => (3.0 * ts).max(6.0 / run.receipts_crossover_hz).min(t_end),
+        None => t_end,
+    };
+    let k_show = s.t.iter().take_while(|&&t| t <= t_show).count().max(2).min(s.t.len());
+    let (tt, yy, uu, ud) = (&s.t[..k_show], &s.y[..k_show], &s.u[..k_show], &s.u_demand[..k_show]);
     let sig = &run.config.signals;
     let mut py = Panel::new("", "", &format!("output ({})", sig.output_unit), false, false);
     py.series.push(Series::new(
         "y (plant output)",
-        thin(&s.t, &s.y, 3000),
+        thin(tt, yy, 3000),
         colors::BLUE,
         Kind::Line(2),
     ));
@@ -531,8 +559,8 @@ fn fig_step(run: &PipelineRun) -> Result<Option<Figure>> {
         color: colors::GREY,
         label: Some(format!("reference {}", fmt_num(s.amplitude))),
     });
-    let ymax = s.y.iter().copied().fold(s.amplitude, f64::max);
-    let ymin = s.y.iter().copied().fold(0.0, f64::min);
+    let ymax = yy.iter().copied().fold(s.amplitude, f64::max);
+    let ymin = yy.iter().copied().fold(0.0, f64::min);
     py.y_range = Some((ymin - 0.05 * (ymax - ymin), ymax + 0.1 * (ymax - ymin)));
     py.legend = LegendAt::LowerRight;
     let mut pu = Panel::new(
@@ -544,13 +572,13 @@ fn fig_step(run: &PipelineRun) -> Result<Option<Figure>> {
     );
     pu.series.push(Series::new(
         "u applied (after the clamp)",
-        thin(&s.t, &s.u, 3000),
+        thin(tt, uu, 3000),
         colors::ORANGE,
         Kind::Line(2),
     ));
     pu.series.push(Series::new(
         "u demanded by the controller",
-        thin(&s.t, &s.u_demand, 3000),
+        thin(tt, ud, 3000),
         colors::PURPLE,
         Kind::Dashed(1),
     ));
@@ -572,7 +600,7 @@ fn fig_step(run: &PipelineRun) -> Result<Option<Figure>> {
     pu.y_range = Some((-1.1 * umax, 1.1 * umax));
     pu.legend = LegendAt::UpperRight;
     for p in [&mut py, &mut pu] {
-        p.x_range = Some((0.0, s.t.last().copied().unwrap_or(1.0)));
+        p.x_range = Some((0.0, t_show));
     }
     Ok(Some(Figure {
         name: "step",
@@ -683,7 +711,11 @@ fn fig_validation(run: &PipelineRun) -> Result<Option<Figure>> {
         return Ok(None);
     };
     let ts = v.log.ts;
-    let t: Vec<f64> = (0..v.log.len()).map(|k| k as f64 * ts).collect();
+    let n = v.log.len();
+    // A readable window of about 300 samples from the middle of the log (the fit is over all).
+    let w = n.min(300);
+    let k0 = (n - w) / 2;
+    let t: Vec<f64> = (k0..k0 + w).map(|k| k as f64 * ts).collect();
     let mut p = Panel::new(
         "",
         "time (s)",
@@ -693,26 +725,29 @@ fn fig_validation(run: &PipelineRun) -> Result<Option<Figure>> {
     );
     p.series.push(Series::new(
         "measured",
-        thin(&t, v.log.y(), 4000),
+        t.iter().copied().zip(v.log.y()[k0..k0 + w].iter().copied()).collect(),
         colors::GREY,
-        Kind::Line(1),
+        Kind::Line(3),
     ));
     p.series.push(Series::new(
         &format!("model (free run), fit {} %", fmt_num(fit.fit_percent[0])),
-        thin(&t, &fit.y_sim[0], 4000),
+        t.iter().copied().zip(fit.y_sim[0][k0..k0 + w].iter().copied()).collect(),
         colors::RED,
         Kind::Line(1),
     ));
     p.legend = LegendAt::UpperRight;
-    let m = v.log.y().iter().map(|x| x.abs()).fold(0.0, f64::max);
-    p.y_range = Some((-1.15 * m, 1.5 * m));
-    p.x_range = Some((0.0, t.last().copied().unwrap_or(1.0)));
+    let m = v.log.y()[k0..k0 + w].iter().map(|x| x.abs()).fold(0.0, f64::max);
+    p.y_range = Some((-1.15 * m, 1.6 * m));
+    p.x_range = Some((t[0], *t.last().unwrap_or(&1.0)));
     Ok(Some(Figure {
         name: "validation",
         caption: format!(
             "Free-run simulation of the model on the validation log `{}` (after preprocessing), \
-             initial state estimated: fit {} % (NRMSE {}).",
+             initial state estimated, shown for {} of its {} samples: fit {} % over the whole log \
+             (NRMSE {}).",
             v.name,
+            w,
+            n,
             fmt_num(fit.fit_percent[0]),
             fmt_num(fit.nrmse[0])
         ),
@@ -854,11 +889,11 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
     } else {
         facts.push("no controller: tuning infeasible".into());
     }
-    if let Some(r) = rs.get("sensitivity_peak") {
-        facts.push(format!("M_s {}", r.value_text));
+    if rs.get("sensitivity_peak").is_some() {
+        facts.push(format!("M_s {}", receipt_value(run, "sensitivity_peak")));
     }
-    if let Some(r) = rs.get("robust_stability") {
-        facts.push(format!("‖W_m T‖∞ {}", r.value_text));
+    if rs.get("robust_stability").is_some() {
+        facts.push(format!("‖W_m T‖∞ {}", receipt_value(run, "robust_stability")));
     }
     if let Some(f) = &run.validation_fit {
         facts.push(format!("validation fit {} %", fmt_num(f.fit_percent[0])));
@@ -889,15 +924,14 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
         let _ = writeln!(
             h,
             "<tr class=\"{}\"><td><b>{}</b><br><span class=\"note\">{}</span></td><td \
-             class=\"num\">{}</td><td class=\"num\">{} {} {}</td><td><span class=\"badge \
+             class=\"num\">{}</td><td class=\"num\">{} {}</td><td><span class=\"badge \
              {}\">{}</span></td><td class=\"detail\">{}</td></tr>",
             if r.pass { "pass" } else { "fail" },
             esc(&r.name),
             esc(&r.description),
-            esc(&r.value_text),
+            esc(&with_unit(r.value, &r.unit)),
             esc(r.comparison.symbol()),
-            esc(&fmt_num(r.limit)),
-            esc(&r.unit),
+            esc(&with_unit(r.limit, &r.unit)),
             if r.pass { "pass" } else { "fail" },
             if r.pass { "PASS" } else { "FAIL" },
             esc(&r.detail)
@@ -1143,10 +1177,15 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
         if let Some(r) = &run.residuals {
             let _ = writeln!(
                 h,
-                "<p class=\"note\">Residual tests ({:?}, lags up to {}, 99 % bound ±{}): \
+                "<p class=\"note\">Residual tests ({}, lags up to {}, 99 % bound ±{}): \
                  whiteness {} ({} % of lags outside), independence from the input {} ({} % \
                  outside).</p>",
-                r.kind,
+                match r.kind {
+                    crate::validate::ResidualKind::OneStepPrediction => {
+                        "one-step-prediction residual of the Kalman predictor"
+                    }
+                    crate::validate::ResidualKind::OutputError => "output-error residual",
+                },
                 r.max_lag,
                 fmt_num(r.bound),
                 if r.whiteness_ok { "passes" } else { "fails" },

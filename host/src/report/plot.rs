@@ -307,8 +307,10 @@ where
         builder.caption(&p.title, ("sans-serif", 17).into_font());
     }
     let mut chart = builder.build_cartesian_2d(xr, yr).map_err(&e)?;
-    let fx = |v: &f64| tick(*v);
-    let fy = |v: &f64| tick(*v);
+    let (xs, ys) = (p.ranges().0, p.ranges().1);
+    let (xspan, yspan) = ((xs.1 - xs.0).abs(), (ys.1 - ys.0).abs());
+    let fx = move |v: &f64| tick(if v.abs() < 1e-9 * xspan { 0.0 } else { *v });
+    let fy = move |v: &f64| tick(if v.abs() < 1e-9 * yspan { 0.0 } else { *v });
     chart
         .configure_mesh()
         .x_desc(p.x_desc.as_str())
@@ -385,16 +387,25 @@ where
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
         }
     }
-    let inside = |x: f64, y: f64| p.usable(x, y);
+    // Points outside the y range are not drawn and break lines (no clamping: a clamped line
+    // would draw data that is not there).
+    let tol = 1e-9 * (yhi - ylo).abs();
+    let xtol = 1e-9 * (xhi - xlo).abs();
+    let inside = |x: f64, y: f64| {
+        p.usable(x, y)
+            && y >= ylo - tol
+            && y <= yhi + tol
+            && x >= xlo - xtol
+            && x <= xhi + xtol
+    };
     for s in &p.series {
         let col = s.color;
         // Split lines at unusable points.
         let mut pieces: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
         for &(x, y) in &s.points {
             if inside(x, y) {
-                let yc = y.clamp(ylo, yhi);
                 if let Some(last) = pieces.last_mut() {
-                    last.push((x, yc));
+                    last.push((x, y));
                 }
             } else if pieces.last().is_some_and(|l| !l.is_empty()) {
                 pieces.push(Vec::new());
