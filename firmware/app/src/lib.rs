@@ -79,10 +79,14 @@ impl C32 {
         };
         (q.re.is_finite() && q.im.is_finite()).then_some(q)
     }
-    /// `e^{jθ}` for `θ = 2π·num/den` (computed in `f64`, rounded once).
+    /// `e^{jθ}` for `θ = 2π·num/den`: exact rational range reduction and an `f64` series
+    /// ([`ferrosid_firmware::trig::cos_frac`], error below 1e-15), rounded once to `f32`.
     pub fn unit_circle(num: u32, den: u32) -> Self {
-        let th = 2.0 * core::f64::consts::PI * f64::from(num) / f64::from(den.max(1));
-        Self::new(libm::cos(th) as f32, libm::sin(th) as f32)
+        let (n, d) = (u64::from(num), u64::from(den.max(1)));
+        Self::new(
+            ferrosid_firmware::trig::cos_frac(n, d) as f32,
+            ferrosid_firmware::trig::sin_frac(n, d) as f32,
+        )
     }
 }
 

@@ -189,6 +189,17 @@ mod stack {
     }
 }
 
+/// The Welch estimator (24·N bytes) in .bss.
+static mut WELCH: Welch<N> = Welch::unconfigured();
+
+/// Designs the excitation with its 8·N-byte scratch on this function's stack frame, released
+/// on return (it is needed only at start-up).
+#[inline(never)]
+fn design_excitation(spec: &MultisineSpec<'_>) -> Option<Multisine<N>> {
+    let mut scratch = MultisineScratch::<N>::new();
+    Multisine::design(spec, &mut scratch).ok()
+}
+
 #[entry]
 fn main() -> ! {
     let painted = stack::paint(48 * 1024);
@@ -247,22 +258,19 @@ fn main() -> ! {
         phases: Phases::Schroeder,
         crest_iterations: CREST_ITERATIONS,
     };
-    let Some(scratch) = cortex_m::singleton!(: MultisineScratch<N> = MultisineScratch::new())
-    else {
-        exit(EXIT_SETUP)
-    };
-    let Some(ms) = cortex_m::singleton!(: Multisine<N> = match Multisine::design(&spec, scratch) {
-        Ok(m) => m,
-        Err(_) => {
+    let Some(ms) = cortex_m::singleton!(: Multisine<N> = match design_excitation(&spec) {
+        Some(m) => m,
+        None => {
             defmt::println!("ERROR multisine design rejected the line set");
             exit(EXIT_SETUP)
         }
     }) else {
         exit(EXIT_SETUP)
     };
-    let Some(welch) = cortex_m::singleton!(: Welch<N> = Welch::unconfigured()) else {
-        exit(EXIT_SETUP)
-    };
+    // SAFETY: `main` runs once and never returns; this is the only reference ever taken to
+    // WELCH, so it is unique. (A `static mut` initialised by the all-zero `unconfigured()`
+    // lands in .bss and, unlike `singleton!`, is not first built on the stack.)
+    let welch: &'static mut Welch<N> = unsafe { &mut *core::ptr::addr_of_mut!(WELCH) };
     let cfg = WelchConfig {
         fs_hz: flashed::FS_HZ,
         overlap: 0,
