@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 pub mod codegen;
 pub mod fleet;
 pub mod frf;
+pub mod gap;
 pub mod identify;
 pub mod output;
 pub mod reidentify;
@@ -45,6 +46,9 @@ pub struct Cli {
 /// All subcommands. Each variant wraps its module's `Args`.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Sim-to-real gap diagnosis: where a nominal model and the plant disagree, which effect
+    /// explains it, and how far the gap shrinks once it is added.
+    Gap(gap::Args),
     /// Empirical frequency response (Welch H1 or period-synchronous) with coherence gating.
     Frf(frf::Args),
     /// N4SID state-space model with order selection, validation and a model file.
@@ -73,6 +77,7 @@ pub fn exit_code_for(err: &Error) -> i32 {
 /// Runs the parsed command line.
 pub fn run(cli: &Cli) -> Result<ExitCode, Error> {
     match &cli.command {
+        Command::Gap(a) => gap::run(a),
         Command::Frf(a) => frf::run(a),
         Command::Identify(a) => identify::run(a),
         Command::Codegen(a) => codegen::run(a),

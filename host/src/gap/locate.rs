@@ -20,7 +20,7 @@
 //!   `near_zero_output_rate` (the 20 % of samples where |ŷ − median ŷ| resp. |Δŷ| of the
 //!   re-fit's output is smallest: near zero velocity for velocity resp. position outputs),
 //!   `input_extremes` (the 10 % of samples with the largest |u|) and `near_zero_input` (the
-//!   20 % with the smallest |u|). A ratio >= 1.5 is flagged as a concentration.
+//!   20 % with the smallest |u|). A ratio >= 1.3 is flagged as a concentration.
 use super::diagnose::GapOptions;
 use super::report::BandError;
 use crate::error::{Error, Result};
@@ -30,7 +30,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 
 /// Residual RMS ratio at or above which a region is flagged.
-pub const CONCENTRATION_RATIO: f64 = 1.5;
+pub const CONCENTRATION_RATIO: f64 = 1.3;
 
 /// One time-domain region of the residual.
 #[derive(Debug, Clone, Serialize)]

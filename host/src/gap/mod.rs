@@ -5,6 +5,7 @@
 pub mod benchmark;
 pub mod diagnose;
 pub mod effect;
+pub mod figures;
 pub mod fit;
 pub mod locate;
 pub mod modal;
