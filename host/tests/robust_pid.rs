@@ -305,3 +305,35 @@ fn infeasible_and_bad_specs_are_clear_errors() {
         .to_string()
         .contains("SISO"));
 }
+
+#[test]
+fn fast_sampled_double_integrator_with_resonance() {
+    // 10 kHz controller on a two-mass plant: the ZOH double integrator puts two poles within
+    // 1e-10 of z = 1 (computed slightly off), which must not derail the search or the checks.
+    let (jm, zeta, ts) = (2e-3, 0.05, 1e-4);
+    let wr = 2.0 * PI * 60.0;
+    let plant = TransferFunction::new(
+        vec![wr * wr],
+        ferrosid::lti::poly_mul(&[jm, 0.0, 0.0], &[1.0, 2.0 * zeta * wr, wr * wr]),
+        0.0,
+    )
+    .unwrap()
+    .to_state_space()
+    .unwrap();
+    let mut spec = PidTuningSpec::new(25.0);
+    spec.rolloff_ratio = Some((8.0, 0.7));
+    spec.min_crossover_scale = 0.05;
+    spec.controller_ts = Some(ts);
+    let t = tune_pid(&plant, &spec).unwrap();
+    let d = t.discrete.as_ref().unwrap();
+    let gz = plant.c2d_zoh(ts).unwrap().to_transfer_function().unwrap();
+    let mut ms = 0.0f64;
+    for om in logspace(1.0, PI / ts * 0.9999, 100_000) {
+        let z = Complex64::from_polar(1.0, om * ts);
+        let l = horner(&gz.num, z) / horner(&gz.den, z) * horner(&d.num, z) / horner(&d.den, z);
+        ms = ms.max((1.0 / (1.0 + l)).norm());
+    }
+    assert!(ms <= 1.6 + 1e-9, "grid M_s {ms}");
+    assert!((ms - t.ms).abs() < 2e-3 * ms, "grid {ms} vs {}", t.ms);
+    assert!(t.design.crossover_hz <= 25.0 && t.design.crossover_hz > 1.25);
+}

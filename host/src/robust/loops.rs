@@ -179,7 +179,10 @@ pub fn analysis_grid(
     let decades = (hi / lo).log10().max(0.1);
     let n = ((decades * points_per_decade as f64).ceil() as usize).max(10);
     let mut grid = super::norms::logspace(lo, hi, n);
-    for s in mods.iter().filter(|s| s.im > 0.0) {
+    for s in mods
+        .iter()
+        .filter(|s| s.im > 0.0 && s.norm() > 1e-7 * top && s.norm() > 1e-12)
+    {
         let wn = s.norm();
         let zeta = (-s.re / wn).clamp(1e-6, 1.0);
         for k in [-3.0, -2.0, -1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0, 2.0, 3.0] {

@@ -591,17 +591,24 @@ impl Tuner<'_> {
         let ev_s = FreqEvaluator::new(&lp.s);
         let ev_ks = FreqEvaluator::new(&lp.ks);
         let ev_wt = wmt_sys.as_ref().map(FreqEvaluator::new);
+        // A point where an evaluation fails (numerically at a pole) is simply not screened.
+        let peak = |ev: &FreqEvaluator, w: f64| -> f64 {
+            ev.at_rad_s(w)
+                .ok()
+                .and_then(|g| sigma_max(&g).ok())
+                .unwrap_or(0.0)
+        };
         for &w in &grid {
-            if sigma_max(&ev_s.at_rad_s(w)?)? > spec.ms_max {
+            if peak(&ev_s, w) > spec.ms_max {
                 return Ok(None);
             }
             if let Some(e) = &ev_wt {
-                if sigma_max(&e.at_rad_s(w)?)? >= 1.0 {
+                if peak(e, w) >= 1.0 {
                     return Ok(None);
                 }
             }
             if let Some(kmax) = spec.ks_max {
-                if sigma_max(&ev_ks.at_rad_s(w)?)? > kmax {
+                if peak(&ev_ks, w) > kmax {
                     return Ok(None);
                 }
             }

@@ -415,6 +415,24 @@ pub fn fit_uncertainty_weights(
                 }
             }
         }
+        // Peak-informed starts: a lightly damped pole pair at the envelope's largest value
+        // (resonance-shift envelopes are sharp bumps).
+        if order >= 2 {
+            let ipk = (0..m)
+                .max_by(|&a, &b| prob.ln_l[a].total_cmp(&prob.ln_l[b]))
+                .unwrap_or(0);
+            let wpk = nu[ipk];
+            for &gz in &grid {
+                let wz = gz.exp();
+                for zeta in [0.03, 0.1, 0.3] {
+                    if order == 2 {
+                        starts.push(pack(&[(wz, 0.7)], &[], &[(wpk, zeta)], &[]));
+                    } else {
+                        starts.push(pack(&[(wz, 0.7)], &[wz], &[(wpk, zeta)], &[w_hi]));
+                    }
+                }
+            }
+        }
         // Warm starts: previous optimum plus an exactly cancelling pair at c.
         if let Some((zq, zr, pq, pr)) = &prev {
             for &gc in &grid {
