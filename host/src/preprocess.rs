@@ -22,7 +22,7 @@
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{Channel, Log};
+use crate::data::Log;
 use crate::error::{Error, Result};
 
 /// One preprocessing step.
@@ -277,7 +277,7 @@ impl AntiAlias {
             .iter()
             .fold(Complex64::new(1.0, 0.0), |acc, p| acc * -p)
             .re;
-        if n % 2 == 0 {
+        if n.is_multiple_of(2) {
             k /= (1.0 + eps * eps).sqrt();
         }
         // Pre-warped frequency scaling (fs = 2 convention), then the bilinear transform.

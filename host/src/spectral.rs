@@ -644,7 +644,7 @@ impl PeriodicAveraging {
                 y.len()
             )));
         }
-        let start = self.skip_periods.checked_mul(p).unwrap_or(usize::MAX);
+        let start = self.skip_periods.saturating_mul(p);
         let avail = u.len().saturating_sub(start) / p;
         let np = self.max_periods.map_or(avail, |m| m.min(avail));
         if np < 2 {
@@ -868,7 +868,7 @@ fn bin_hz(k: usize, n: usize, fs: f64) -> f64 {
 
 /// One-sided doubling: DC and (for even n) Nyquist are not doubled.
 fn one_sided_factor(k: usize, n: usize) -> f64 {
-    if k == 0 || (n % 2 == 0 && k == n / 2) {
+    if k == 0 || (n.is_multiple_of(2) && k == n / 2) {
         1.0
     } else {
         2.0

@@ -2,6 +2,7 @@
 //! Reference: tests/fixtures/spectral_scipy_welch.json, written by tests/ref/scipy_welch.py
 //! (scipy 1.17.1). Tolerance: 1e-9 relative at every bin whose reference magnitude is above
 //! 1e-7 of the largest (bins at the round-off floor, e.g. DC after detrending, are skipped).
+#![allow(clippy::needless_range_loop)]
 use ferrosid::spectral::{Detrend, Welch, Window};
 use num_complex::Complex64;
 use serde::Deserialize;
