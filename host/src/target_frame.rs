@@ -57,7 +57,9 @@ pub struct ReceiptRow {
     pub rel_error: f64,
     /// |W_m(j2πf)| evaluated on target.
     pub wm: f64,
-    /// PASS, FAIL, SKIP or UNDEFINED.
+    /// Normalised random error σ of the target's estimate (the bin counts when 3σ <= |W_m|).
+    pub sigma: f64,
+    /// PASS, FAIL, SKIP, UNRESOLVED or UNDEFINED.
     pub verdict: String,
 }
 
@@ -153,7 +155,7 @@ impl TargetFrame {
     /// 64..=4096 (the firmware's sizes); a `FRAME` line outside a frame, with a field missing
     /// or not a number, with a non-finite or negative density, coherence outside [0, 1], or a
     /// bin out of order; `FRAME_END` count not matching; a frame without `FRAME_END`
-    /// (truncated log); a `RECEIPT` line with fewer than ten fields.
+    /// (truncated log); a `RECEIPT` line without exactly eleven fields.
     pub fn parse(text: &str, source: &Path) -> Result<Self> {
         let file = source;
         let perr = |line: usize, msg: String| Error::Parse {
@@ -308,10 +310,10 @@ impl TargetFrame {
                     closed = true;
                 }
                 "RECEIPT" => {
-                    if rest.len() < 10 {
+                    if rest.len() != 11 {
                         return Err(perr(
                             ln,
-                            format!("RECEIPT needs 10 fields, got {}", rest.len()),
+                            format!("RECEIPT needs 11 fields, got {}", rest.len()),
                         ));
                     }
                     let g = |j: usize, what: &str| parse_f64(Some(rest[j]), what, file, ln);
@@ -323,7 +325,8 @@ impl TargetFrame {
                         g_meas: Complex64::new(g(5, "Gmeas re")?, g(6, "Gmeas im")?),
                         rel_error: g(7, "relative error")?,
                         wm: g(8, "|W_m|")?,
-                        verdict: rest[9].to_string(),
+                        sigma: g(9, "sigma")?,
+                        verdict: rest[10].to_string(),
                     });
                 }
                 _ => {

@@ -9,8 +9,8 @@ use std::path::Path;
 /// receipt, with log-level prefixes on some lines like a decoder may add.
 fn frame_text(h: impl Fn(usize) -> Complex64) -> String {
     let mut s = String::from("POWERUP sha256=abc states=2 fs=1000.0 n=64\n");
-    s.push_str("RECEIPT 3 46.875 0.99 1.0 -0.5 1.01 -0.49 0.012 0.05 PASS\n");
-    s.push_str("RECEIPT 5 78.125 0.5 0.1 0.0 0.2 0.0 NaN NaN SKIP\n");
+    s.push_str("RECEIPT 3 46.875 0.99 1.0 -0.5 1.01 -0.49 0.012 0.05 0.0036 PASS\n");
+    s.push_str("RECEIPT 5 78.125 0.5 0.1 0.0 0.2 0.0 NaN NaN 0.35 SKIP\n");
     s.push_str(
         "INFO  FRAME_BEGIN fs=1000.0 n=64 averages=4 dropped=0 window=rectangular overlap=0 \
          detrend=mean excited_max_bin=20 gate=0.9\n",
@@ -54,6 +54,7 @@ fn parses_the_frame_and_the_receipt() {
     assert_eq!(f.bins.len(), 33);
     assert_eq!(f.receipt.len(), 2);
     assert_eq!(f.receipt[0].verdict, "PASS");
+    assert_eq!(f.receipt[0].sigma, 0.0036);
     assert!((f.receipt[0].g0 - Complex64::new(1.0, -0.5)).norm() == 0.0);
     assert!(f.receipt[1].rel_error.is_nan());
     assert_eq!(f.verdict.as_deref(), Some("FAIL"));
@@ -150,7 +151,7 @@ fn malformed_lines_are_named() {
     assert_line(
         parse_err(&with_line(2, "RECEIPT 3 46.875 0.99")),
         2,
-        "10 fields",
+        "11 fields",
     );
     // A FRAME line before any FRAME_BEGIN.
     assert_line(parse_err(&with_line(1, "FRAME 0 1 1 0 0 1")), 1, "outside");

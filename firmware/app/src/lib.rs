@@ -7,7 +7,9 @@
 //! * [`weight_magnitude`]: `|W_m(jω)|` of the continuous uncertainty weight from its
 //!   coefficients (Horner in `s = jω`, rad/s).
 //! * [`check_bin`]: one check of the receipt, `|G_meas − G0| / |G0| <= |W_m|` where the
-//!   coherence passes the gate, and [`Overall`] for the verdict over all check frequencies.
+//!   coherence passes the gate and the estimate is precise enough to resolve a deviation of
+//!   size |W_m| ([`RESOLUTION_SIGMAS`]), and [`Overall`] for the verdict over all check
+//!   frequencies.
 //! * [`plant`]: the discrete plant simulations that stand in for hardware under QEMU.
 //!
 //! Nothing here panics on any input: degenerate cases (singular `zI − A`, zero `|G0|`,
@@ -178,6 +180,23 @@ pub fn weight_magnitude(num: &[f32], den: &[f32], w_rad_s: f32) -> Option<f32> {
     m.is_finite().then_some(m)
 }
 
+/// A check frequency counts only when its estimate's normalised random error σ (see
+/// [`h1_random_error`]) satisfies `RESOLUTION_SIGMAS·σ <= |W_m|`: the measurement must be able
+/// to tell a deviation of size |W_m| from noise, else the bin is [`Verdict::Unresolved`].
+pub const RESOLUTION_SIGMAS: f32 = 3.0;
+
+/// Normalised random error of an H1 magnitude estimate from `averages` independent segments
+/// at magnitude-squared coherence `coherence` (Bendat & Piersol, *Random Data*, 4th ed.,
+/// eq. 9.73): `σ = √(1 − γ²) / (|γ|·√(2·n_d))`, also the standard deviation of the phase in
+/// radians. `f32::INFINITY` for γ² <= 0 or no average.
+pub fn h1_random_error(coherence: f32, averages: u32) -> f32 {
+    if !(coherence > 0.0) || averages == 0 {
+        return f32::INFINITY;
+    }
+    let g2 = coherence.min(1.0);
+    libm::sqrtf((1.0 - g2) / (2.0 * averages as f32 * g2))
+}
+
 /// Outcome of one check frequency.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Verdict {
@@ -187,18 +206,28 @@ pub enum Verdict {
     Fail,
     /// Coherence below the gate: no evidence at this frequency (not counted).
     Skipped,
+    /// Coherence passed the gate, but the estimate's random error is too large to resolve a
+    /// deviation of size |W_m| (`RESOLUTION_SIGMAS·σ > |W_m|`): not counted.
+    Unresolved,
     /// G0, W_m or the estimate could not be evaluated (singular model at this frequency, zero
     /// |G0|, non-finite estimate): counts as a failure.
     Undefined,
 }
 
 impl Verdict {
+    /// `true` for verdicts that count as evidence (pass, fail, undefined); `false` for
+    /// skipped and unresolved frequencies.
+    pub fn counts(self) -> bool {
+        !matches!(self, Verdict::Skipped | Verdict::Unresolved)
+    }
+
     /// Upper-case name used in the receipt.
     pub fn as_str(self) -> &'static str {
         match self {
             Verdict::Pass => "PASS",
             Verdict::Fail => "FAIL",
             Verdict::Skipped => "SKIP",
+            Verdict::Unresolved => "UNRESOLVED",
             Verdict::Undefined => "UNDEFINED",
         }
     }
@@ -221,24 +250,30 @@ pub struct CheckResult {
     pub rel_error: f32,
     /// `|W_m(j2πf)|` (NaN when undefined).
     pub wm: f32,
+    /// Normalised random error σ of the estimate ([`h1_random_error`]).
+    pub sigma: f32,
     /// The outcome.
     pub verdict: Verdict,
 }
 
 /// Checks one frequency: bin `bin` of an `n`-point Welch estimate at `fs_hz`, with the
-/// measured `h1` and `coherence` there, against the model response `g0` and the weight
-/// magnitude `wm` (both evaluated by the caller at `z = e^{j2π·bin/n}` resp.
-/// `ω = 2π·bin·fs/n`). The coherence gate applies first: below `gate` the check is
-/// [`Verdict::Skipped`].
+/// measured `h1` and `coherence` there from `averages` segments, against the model response
+/// `g0` and the weight magnitude `wm` (both evaluated by the caller at `z = e^{j2π·bin/n}`
+/// resp. `ω = 2π·bin·fs/n`). Below the coherence `gate` the check is [`Verdict::Skipped`];
+/// when `RESOLUTION_SIGMAS·σ > |W_m|` it is [`Verdict::Unresolved`]; otherwise the deviation
+/// decides.
+#[allow(clippy::too_many_arguments)]
 pub fn check_bin(
     bin: u16,
     hz: f32,
     coherence: f32,
+    averages: u32,
     gate: f32,
     h1: Option<C32>,
     g0: Option<C32>,
     wm: Option<f32>,
 ) -> CheckResult {
+    let sigma = h1_random_error(coherence, averages);
     let mut r = CheckResult {
         bin,
         hz,
@@ -247,6 +282,7 @@ pub fn check_bin(
         g_meas: h1.unwrap_or_default(),
         rel_error: f32::NAN,
         wm: wm.unwrap_or(f32::NAN),
+        sigma,
         verdict: Verdict::Undefined,
     };
     if !(coherence >= gate) {
@@ -264,6 +300,8 @@ pub fn check_bin(
     r.rel_error = rel;
     r.verdict = if !rel.is_finite() {
         Verdict::Undefined
+    } else if !(RESOLUTION_SIGMAS * sigma <= wm) {
+        Verdict::Unresolved
     } else if rel <= wm {
         Verdict::Pass
     } else {
@@ -275,25 +313,22 @@ pub fn check_bin(
 /// The receipt's verdict over all check frequencies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Overall {
-    /// Enough frequencies passed the coherence gate and every one of them passed.
+    /// Enough frequencies counted (gated and resolved) and every one of them passed.
     Pass,
     /// At least one gated frequency failed (or was undefined).
     Fail,
-    /// Fewer than the required number of frequencies passed the coherence gate: the
-    /// measurement cannot vouch for the model either way.
+    /// Fewer than the required number of frequencies counted (passed the coherence gate and
+    /// were resolved): the measurement cannot vouch for the model either way.
     Inconclusive,
 }
 
 impl Overall {
-    /// From the per-frequency verdicts: `min_checked` gated frequencies are needed.
+    /// From the per-frequency verdicts: `min_checked` counted frequencies are needed.
     pub fn from_checks(checks: &[CheckResult], min_checked: usize) -> Self {
         let failed = checks
             .iter()
             .any(|c| matches!(c.verdict, Verdict::Fail | Verdict::Undefined));
-        let checked = checks
-            .iter()
-            .filter(|c| c.verdict != Verdict::Skipped)
-            .count();
+        let checked = checks.iter().filter(|c| c.verdict.counts()).count();
         if failed {
             Overall::Fail
         } else if checked < min_checked {

@@ -9,7 +9,8 @@
 //!    window, no overlap: period-synchronous, no leakage) with online coherence;
 //! 3. at every check bin evaluates the flashed model's response
 //!    `G0(e^{jθ}) = C (e^{jθ}I − A)⁻¹ B + D` and `|W_m(j2πf)|` on target (f32), and checks
-//!    `|G_meas − G0| / |G0| <= |W_m|` where the coherence reaches `COHERENCE_GATE`;
+//!    `|G_meas − G0| / |G0| <= |W_m|` where the coherence reaches `COHERENCE_GATE` and the
+//!    estimate resolves |W_m| (3σ <= |W_m|, σ its normalised random error);
 //! 4. logs the receipt and the spectra frame through defmt, and exits with the verdict.
 //!
 //! Under QEMU there is no hardware: the plant is [`ferrosid_powerup::plant::Axis`], selected
@@ -28,15 +29,16 @@
 //! Log lines (decoded defmt; numbers in Rust's shortest round-trip notation):
 //! * `POWERUP sha256=<inputs digest> states=<n> fs=<Hz> n=<N> averages=<a> settle=<s> samples=<total>`
 //! * `PLANT scenario=<name> J=.. b=.. k=.. gain=.. coulomb=.. delay=.. noise=.. seed=..`
-//! * `RECEIPT <bin> <Hz> <coherence> <G0 re> <G0 im> <Gmeas re> <Gmeas im> <rel err> <|Wm|> <PASS|FAIL|SKIP|UNDEFINED>`
+//! * `RECEIPT <bin> <Hz> <coherence> <G0 re> <G0 im> <Gmeas re> <Gmeas im> <rel err> <|Wm|> <σ> <PASS|FAIL|SKIP|UNRESOLVED|UNDEFINED>`
+//!   (σ: normalised random error of the estimate; a bin counts only when 3σ <= |W_m|)
 //! * `FRAME_BEGIN fs=<Hz> n=<N> averages=<a> dropped=<d> window=rectangular overlap=0 detrend=mean excited_max_bin=<b> gate=<g>`
 //! * `FRAME <bin> <S_uu> <S_yy> <Re S_uy> <Im S_uy> <coherence>` for bins 0..=N/2 (one-sided
 //!   densities, units²/Hz), then `FRAME_END bins=<N/2+1>`
 //! * `STACK <bytes>`, then `VERDICT <PASS|FAIL|INCONCLUSIVE> checked=<c>/<total> failed_hz=[..]`
 //!
-//! Exit status: 0 pass, 1 fail (a gated frequency exceeds W_m), 2 inconclusive (fewer than
-//! `MIN_CHECKED` frequencies passed the coherence gate), 3 bad command line or set-up error,
-//! 101 panic.
+//! Exit status: 0 pass, 1 fail (a counted frequency exceeds W_m), 2 inconclusive (fewer than
+//! `MIN_CHECKED` frequencies passed the coherence gate and were resolved), 3 bad command line
+//! or set-up error, 101 panic.
 #![no_std]
 #![no_main]
 
@@ -301,6 +303,7 @@ fn main() -> ! {
         g_meas: C32::default(),
         rel_error: 0.0,
         wm: 0.0,
+        sigma: 0.0,
         verdict: ferrosid_powerup::Verdict::Undefined,
     }; flashed::CHECK_COUNT];
     for (i, r) in results.iter_mut().enumerate() {
@@ -315,13 +318,14 @@ fn main() -> ! {
             bin,
             flashed::CHECK_HZ[i],
             welch.coherence(k),
+            welch.averages(),
             flashed::COHERENCE_GATE,
             h1,
             g0,
             wm,
         );
         defmt::println!(
-            "RECEIPT {=u16} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=str}",
+            "RECEIPT {=u16} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=str}",
             r.bin,
             r.hz,
             r.coherence,
@@ -331,6 +335,7 @@ fn main() -> ! {
             r.g_meas.im,
             r.rel_error,
             r.wm,
+            r.sigma,
             r.verdict.as_str()
         );
     }
@@ -373,17 +378,14 @@ fn main() -> ! {
             }
         }
     }
-    let checked = results
-        .iter()
-        .filter(|r| r.verdict != ferrosid_powerup::Verdict::Skipped)
-        .count();
+    let checked = results.iter().filter(|r| r.verdict.counts()).count();
     defmt::println!("STACK {=usize}", painted.high_water());
     defmt::println!(
         "VERDICT {=str} checked={=usize}/{=usize} failed_hz={=[?]}",
         overall.as_str(),
         checked,
         flashed::CHECK_COUNT,
-        &failed[..n_failed]
+        failed.get(..n_failed).unwrap_or(&[])
     );
     exit(overall.exit_code())
 }
