@@ -241,7 +241,8 @@ Several logs are pooled into one Welch estimate (same sample rate and channels);
 each log gets its own period-synchronous estimate. Every (input, output) pair is estimated.
 
 Columns: frequency in Hz, |H| in dB (output units per input unit), phase in degrees wrapped to
-(-180, 180], magnitude-squared coherence, and `low` where the coherence is below --gate.
+(-180, 180], magnitude-squared coherence, and `low` where the bin fails the gate (coherence
+below --gate, or no input power at that bin).
 
 Exit codes: 0 success, 1 an estimate has no bin above the coherence gate, 2 usage error,
 3 input data error (file and line named), 4 numerical failure.")]
@@ -343,9 +344,10 @@ pub struct FrfEstimate {
     /// Standard deviation of H (period-synchronous averaging only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub std_h: Option<Vec<f64>>,
-    /// True where coherence >= gate.
+    /// True where the bin passes the gate (coherence >= gate and, for Welch, input power
+    /// present; see [`crate::spectral::Etfe::gate`]).
     pub gated: Vec<bool>,
-    /// Runs of bins below the gate.
+    /// Runs of bins rejected by the gate.
     pub excluded_bands: Vec<ExcludedBand>,
 }
 
@@ -398,7 +400,8 @@ impl FrfEstimate {
         h: &[Complex64],
         coherence: &[f64],
         std_h: Option<Vec<f64>>,
-        gate: f64,
+        gated: Vec<bool>,
+        excluded_bands: Vec<ExcludedBand>,
     ) -> Self {
         Self {
             input: input.into(),
@@ -412,8 +415,8 @@ impl FrfEstimate {
             phase_deg: h.iter().map(|&z| phase_deg(z)).collect(),
             coherence: coherence.to_vec(),
             std_h,
-            gated: crate::spectral::coherence_gate(coherence, gate),
-            excluded_bands: crate::spectral::excluded_bands(freq_hz, coherence, gate),
+            gated,
+            excluded_bands,
         }
     }
 
@@ -427,7 +430,8 @@ impl FrfEstimate {
             &e.h,
             &e.coherence,
             None,
-            gate,
+            e.gate(gate),
+            e.excluded_bands(gate),
         )
     }
 
@@ -441,7 +445,8 @@ impl FrfEstimate {
             &p.h,
             &p.coherence,
             Some(p.var_h.iter().map(|v| v.sqrt()).collect()),
-            gate,
+            p.gate(gate),
+            p.excluded_bands(gate),
         )
     }
 
