@@ -133,6 +133,9 @@ fn recovers_order_frequency_response_and_poles_of_a_known_plant() {
         m, v["n4sid"]["model"],
         "file and report hold the same model"
     );
+    // ... and it is what `ferrosid gap --sim` loads.
+    let sim = ferrosid::gap::simfile::load_sim(&out).expect("gap --sim reads the model file");
+    assert_eq!((sim.n_states(), sim.ts), (3, TS));
 
     // Frequency response against the true discrete plant, evaluated by the test's own solver.
     let g = StateSpaceData::from(&plant());
