@@ -85,14 +85,40 @@ pub fn f64_text(v: f64) -> String {
     format!("{v:?}")
 }
 
+/// ASCII spelling of the non-ASCII symbols that occur in units and receipts.
+fn ascii_symbol(c: char) -> Option<&'static str> {
+    Some(match c {
+        '·' | '⋅' => ".",
+        '°' => "deg",
+        'µ' | 'μ' => "u",
+        'Ω' => "Ohm",
+        '²' => "^2",
+        '³' => "^3",
+        '±' => "+/-",
+        '≤' => "<=",
+        '≥' => ">=",
+        '−' | '–' | '—' => "-",
+        '∞' => "inf",
+        '‖' => "||",
+        _ => return None,
+    })
+}
+
 /// Free text made safe inside a C block comment or a Rust/C line comment on one line:
-/// printable ASCII only (anything else becomes `?`), no `*/` or `/*`, no trigraph `??x`,
-/// no trailing backslash (line splice).
+/// printable ASCII only (common unit symbols spelled out, e.g. `N·m` → `N.m`, `°` → `deg`;
+/// anything else becomes `?`), no `*/` or `/*`, no trigraph `??x`, no trailing backslash
+/// (line splice).
 pub fn comment_text(s: &str) -> String {
-    let mut t: String = s
-        .chars()
-        .map(|c| if (' '..='~').contains(&c) { c } else { '?' })
-        .collect();
+    let mut t = String::with_capacity(s.len());
+    for c in s.chars() {
+        if (' '..='~').contains(&c) {
+            t.push(c);
+        } else if let Some(a) = ascii_symbol(c) {
+            t.push_str(a);
+        } else {
+            t.push('?');
+        }
+    }
     loop {
         let before = t.len();
         t = t
@@ -183,7 +209,12 @@ mod tests {
     #[test]
     fn comment_and_string_escaping() {
         assert_eq!(comment_text("a */ b /* c ??/ d\\"), "a * / b / * c ? ?/ d");
-        assert_eq!(comment_text("x\ny°"), "x?y?");
+        assert_eq!(comment_text("x\ny°"), "x?ydeg");
+        assert_eq!(
+            comment_text("0.3 N·m, 5 µs, ‖W_m T‖∞ ≤ 1"),
+            "0.3 N.m, 5 us, ||W_m T||inf <= 1"
+        );
+        assert_eq!(comment_text("é"), "?");
         assert_eq!(comment_text("???"), "? ??".replace("??", "? ?"));
         assert!(!comment_text("????").contains("??"));
         assert_eq!(c_string("a\"b\\c?d"), r#""a\"b\\c\?d""#);

@@ -97,7 +97,7 @@ fn writes_both_files_reproducibly_with_the_tustin_gains() {
     assert!(h.contains("UNIT_7_WM_NUM[UNIT_7_WM_ORDER + 1] = { 0.5f, 20.0f };"));
     // Check frequencies snapped to the 512-point grid at 1 kHz (1.953125 Hz bins).
     assert!(h.contains("UNIT_7_CHECK_BIN[UNIT_7_CHECK_COUNT] = { 3, 10, 41 };"));
-    assert!(h.contains("receipt PASS sensitivity_peak: 1.42 1 (limit <= 1.6 1)"));
+    assert!(h.contains("receipt PASS sensitivity_peak: 1.42 1 (limit <= 1.6000 1)"));
     let log_sha = ferrosid_codegen::sha256_hex(b"t,u,y\n0,1,0\n0.001,1,0.01\n");
     assert!(
         h.contains(&log_sha),

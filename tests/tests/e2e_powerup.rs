@@ -128,6 +128,72 @@ fn gcc(dir: &Path, src: &str, exe: Option<&str>) {
 
 const STEPS: usize = 2000;
 
+/// The error sequence fed to both PID implementations.
+fn pid_error(k: usize) -> f64 {
+    (if k % 400 < 200 { 0.1 } else { -0.05 }) + 0.02 * (k % 7) as f64
+}
+
+/// Builds and runs a C program that includes `header` (prefix `p`) and runs the documented
+/// PID law on [`pid_error`] in float; returns the commands.
+fn c_pid_outputs(dir: &Path, header: &str, p: &str) -> Vec<f64> {
+    let prog = format!(
+        r#"#include <stdio.h>
+#include "{header}"
+int main(void) {{
+    float e1 = 0, i = 0, d = 0, v1 = 0, v2 = 0, u1 = 0, u2 = 0;
+    int k;
+    for (k = 0; k < {STEPS}; k++) {{
+        float e = (k % 400 < 200 ? 0.1f : -0.05f) + 0.02f * (float)(k % 7);
+        float p, v, u;
+        i = i + {p}_PID_KI_D * (e + e1);
+        d = {p}_PID_A_D * d + {p}_PID_B_D * (e - e1);
+        p = {p}_PID_KP * e;
+        v = p + i + d;
+        u = {p}_PID_HAS_ROLLOFF
+            ? {p}_PID_ROLLOFF_B[0] * v + {p}_PID_ROLLOFF_B[1] * v1 + {p}_PID_ROLLOFF_B[2] * v2
+              - {p}_PID_ROLLOFF_A[1] * u1 - {p}_PID_ROLLOFF_A[2] * u2
+            : v;
+        e1 = e; v2 = v1; v1 = v; u2 = u1; u1 = u;
+        printf("U %.9g\n", (double)u);
+    }}
+    return 0;
+}}
+"#
+    );
+    let exe = format!("pid_{}", p.to_lowercase());
+    gcc(dir, &prog, Some(&exe));
+    let out = Command::new(dir.join(&exe)).output().unwrap();
+    assert!(out.status.success());
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.strip_prefix("U "))
+        .map(|v| v.trim().parse().unwrap())
+        .collect()
+}
+
+/// Compares the C commands with `DiscretePid::update` (f64, linear law) on the same errors.
+/// The integrator accumulates float rounding over 2000 steps: 1e-4 of the peak command.
+fn assert_pid_matches(u_c: &[f64], dp: &ferrosid::robust::pid::DiscretePid, what: &str) {
+    let mut st = DiscretePidState::default();
+    let u_h: Vec<f64> = (0..STEPS)
+        .map(|k| dp.update(&mut st, pid_error(k), None))
+        .collect();
+    let upeak = u_h.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let uworst = u_h
+        .iter()
+        .zip(u_c)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f64, f64::max);
+    println!(
+        "{what}: C float PID vs host DiscretePid::update: worst {uworst:.3e} (peak {upeak:.3e})"
+    );
+    assert_eq!(u_c.len(), STEPS);
+    assert!(
+        uworst <= 1e-4 * upeak,
+        "{what}: C PID deviates {uworst:e} > 1e-4 x {upeak:e}"
+    );
+}
+
 #[test]
 fn generated_c_compiles_and_simulates_like_the_host() {
     let p = pipeline();
@@ -137,14 +203,13 @@ fn generated_c_compiles_and_simulates_like_the_host() {
         "#include \"axis_1.h\"\nint main(void) { return 0; }\n",
         None,
     );
-    // A C program: step response with the emitted float matrices, and the documented PID law
-    // on a fixed error sequence, printed with 9 significant digits.
+    // A C program: step response with the emitted float matrices, printed with 9 significant
+    // digits.
     let prog = format!(
         r#"#include <stdio.h>
 #include "axis_1.h"
 int main(void) {{
     float x[AXIS_1_N_STATES] = {{0}}, xn[AXIS_1_N_STATES];
-    float e1 = 0, i = 0, d = 0, v1 = 0, v2 = 0, u1 = 0, u2 = 0;
     int k, r, c;
     for (k = 0; k < {STEPS}; k++) {{
         float y = AXIS_1_D[0][0];
@@ -156,22 +221,6 @@ int main(void) {{
         for (r = 0; r < AXIS_1_N_STATES; r++) x[r] = xn[r];
         printf("Y %.9g\n", (double)y);
     }}
-#if AXIS_1_HAS_PID
-    for (k = 0; k < {STEPS}; k++) {{
-        float e = (k % 400 < 200 ? 0.1f : -0.05f) + 0.02f * (float)(k % 7);
-        float p, v, u;
-        i = i + AXIS_1_PID_KI_D * (e + e1);
-        d = AXIS_1_PID_A_D * d + AXIS_1_PID_B_D * (e - e1);
-        p = AXIS_1_PID_KP * e;
-        v = p + i + d;
-        u = AXIS_1_PID_HAS_ROLLOFF
-            ? AXIS_1_PID_ROLLOFF_B[0] * v + AXIS_1_PID_ROLLOFF_B[1] * v1 + AXIS_1_PID_ROLLOFF_B[2] * v2
-              - AXIS_1_PID_ROLLOFF_A[1] * u1 - AXIS_1_PID_ROLLOFF_A[2] * u2
-            : v;
-        e1 = e; v2 = v1; v1 = v; u2 = u1; u1 = u;
-        printf("U %.9g\n", (double)u);
-    }}
-#endif
     return 0;
 }}
 "#
@@ -179,15 +228,11 @@ int main(void) {{
     gcc(&dir, &prog, Some("prog"));
     let out = Command::new(dir.join("prog")).output().unwrap();
     assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
-    let series = |tag: &str| -> Vec<f64> {
-        text.lines()
-            .filter_map(|l| l.strip_prefix(tag))
-            .map(|v| v.trim().parse().unwrap())
-            .collect()
-    };
-    let y_c = series("Y ");
-    let u_c = series("U ");
+    let y_c: Vec<f64> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.strip_prefix("Y "))
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
     // Host simulation of the f64 model (lti::simulate): step from rest.
     let y_h = p.model.simulate_siso(&vec![1.0; STEPS], None).unwrap();
     let peak = y_h.iter().fold(0.0f64, |a, v| a.max(v.abs()));
@@ -205,27 +250,107 @@ int main(void) {{
         "C step deviates {worst:e} > 1e-4 x {peak:e}"
     );
 
-    // The PID law in C vs the host's DiscretePid::update (f64), same error sequence.
-    let dp = p.tuned.discrete.as_ref().expect("discrete PID");
-    let mut st = DiscretePidState::default();
-    let u_h: Vec<f64> = (0..STEPS)
-        .map(|k| {
-            let e = if k % 400 < 200 { 0.1 } else { -0.05 } + 0.02 * (k % 7) as f64;
-            dp.update(&mut st, e, None)
-        })
-        .collect();
-    let upeak = u_h.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let uworst = u_h
-        .iter()
-        .zip(&u_c)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f64, f64::max);
-    println!("C float PID vs host DiscretePid::update: worst {uworst:.3e} (peak {upeak:.3e})");
-    assert_eq!(u_c.len(), STEPS);
-    // The integrator accumulates float rounding over 2000 steps: 1e-4 of the peak command.
+    // The tuned controller's law in C vs the host's.
+    let u_c = c_pid_outputs(&dir, "axis_1.h", "AXIS_1");
+    assert_pid_matches(
+        &u_c,
+        p.tuned.discrete.as_ref().expect("discrete PID"),
+        "tuned PID",
+    );
+}
+
+#[test]
+fn generated_pid_with_derivative_and_rolloff_runs_like_the_host() {
+    // The tuned controller of the bench is a PI with roll-off (W_m limits the bandwidth); this
+    // exercises the derivative filter and the prewarped Tustin path too: a continuous PID file
+    // through `ferrosid codegen --pid ... --prewarp-hz 10`.
+    use clap::Parser as _;
+    use ferrosid::robust::pid::{Pid, Rolloff};
+    let p = pipeline();
+    let dir = work_dir().join("generated-pid");
+    std::fs::create_dir_all(&dir).unwrap();
+    let pid = Pid {
+        kp: 0.8,
+        ki: 4.0,
+        kd: 0.01,
+        tau_f: 0.002,
+        rolloff: Some(Rolloff {
+            corner_hz: 60.0,
+            zeta: 0.7,
+        }),
+    };
+    let file = dir.join("pid.json");
+    std::fs::write(&file, serde_json::to_string(&pid).unwrap()).unwrap();
+    let cli = ferrosid::cli::Cli::try_parse_from([
+        "ferrosid".as_ref(),
+        "codegen".as_ref(),
+        "--model".as_ref(),
+        p.json[0].as_os_str(),
+        "--pid".as_ref(),
+        file.as_os_str(),
+        "--prewarp-hz".as_ref(),
+        "10".as_ref(),
+        "--wm-level".as_ref(),
+        "0.1".as_ref(),
+        "--prefix".as_ref(),
+        "pidcheck".as_ref(),
+        "--out-dir".as_ref(),
+        dir.as_os_str(),
+    ])
+    .unwrap();
+    ferrosid::cli::run(&cli).unwrap();
+    let u_c = c_pid_outputs(&dir, "pidcheck.h", "PIDCHECK");
+    let dp = pid.discretize(TS, Some(10.0)).unwrap();
+    assert!(dp.b_d != 0.0 && dp.rolloff.is_some());
+    assert_pid_matches(&u_c, &dp, "PID with derivative and roll-off");
+}
+
+#[test]
+fn bundled_pipeline_outputs_feed_codegen() {
+    // `ferrosid run examples/pipeline.toml` writes model.json, pid.json, wm.json and
+    // receipts.json; `ferrosid codegen` takes them as they are, and the header compiles.
+    use clap::Parser as _;
+    let out = work_dir().join("example-pipeline");
+    let toml = repo_root().join("examples").join("pipeline.toml");
+    let cli = ferrosid::cli::Cli::try_parse_from([
+        "ferrosid".as_ref(),
+        "run".as_ref(),
+        toml.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ])
+    .unwrap();
+    ferrosid::cli::run(&cli).unwrap_or_else(|e| panic!("ferrosid run: {e}"));
+    let gen = out.join("generated");
+    let f = |n: &str| out.join(n).into_os_string();
+    let cli = ferrosid::cli::Cli::try_parse_from([
+        "ferrosid".into(),
+        "codegen".into(),
+        "--model".into(),
+        f("model.json"),
+        "--pid".into(),
+        f("pid.json"),
+        "--wm".into(),
+        f("wm.json"),
+        "--receipts".into(),
+        f("receipts.json"),
+        "--prefix".into(),
+        "two-mass".into(),
+        "--out-dir".into(),
+        gen.clone().into_os_string(),
+    ])
+    .unwrap();
+    ferrosid::cli::run(&cli).unwrap_or_else(|e| panic!("ferrosid codegen: {e}"));
+    let h = std::fs::read_to_string(gen.join("two_mass.h")).unwrap();
+    assert!(h.contains("#define TWO_MASS_HAS_PID 1"));
     assert!(
-        uworst <= 1e-4 * upeak,
-        "C PID deviates {uworst:e} > 1e-4 x {upeak:e}"
+        h.contains("receipt PASS sensitivity_peak"),
+        "receipts summary in the provenance"
+    );
+    gcc(
+        &gen,
+        "#include \"two_mass.h\"\nint main(void) { return 0; }\n",
+        None,
     );
 }
 

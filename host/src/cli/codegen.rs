@@ -321,7 +321,11 @@ pub fn read_receipts(path: &Path) -> Result<Vec<cg::ReceiptLine>> {
             Some("greater_than") => ">",
             _ => "vs",
         };
-        let limit = r.get("limit").map(|v| v.to_string()).unwrap_or_default();
+        let limit = match r.get("limit") {
+            Some(Value::Number(n)) => n.as_f64().map(sig4).unwrap_or_else(|| n.to_string()),
+            Some(v) => v.to_string(),
+            None => String::new(),
+        };
         let unit = s("unit").unwrap_or_default();
         out.push(cg::ReceiptLine {
             name,
@@ -331,6 +335,18 @@ pub fn read_receipts(path: &Path) -> Result<Vec<cg::ReceiptLine>> {
         });
     }
     Ok(out)
+}
+
+/// `v` with 4 decimals, or 4 significant digits in exponent form for very large or small
+/// magnitudes (the receipts' own rendering of values).
+fn sig4(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else if v.abs() >= 1e5 || v.abs() < 1e-3 {
+        format!("{v:.4e}")
+    } else {
+        format!("{v:.4}")
+    }
 }
 
 /// SHA-256 of a file's bytes with its label.
