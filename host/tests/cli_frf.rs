@@ -290,6 +290,8 @@ fn reruns_are_byte_identical() {
         let b = ferrosid(&args);
         assert_eq!(a.stdout_bytes, b.stdout_bytes, "{args:?}");
         assert!(!a.stdout_bytes.is_empty());
+        // stderr is a pipe here: no progress bar or spinner output may appear.
+        assert!(a.stderr.is_empty(), "stderr not empty: {:?}", a.stderr);
     }
 }
 
