@@ -326,7 +326,7 @@ pub struct UncertaintySettings {
     #[serde(default)]
     pub family: Option<Vec<String>>,
     /// Relative uncertainty assumed above the highest frequency where every family member
-    /// passes the coherence gate, up to Nyquist (default 1.0 = 100 %: the data say nothing
+    /// passes the coherence gate, up to 100 × Nyquist (default 1.0 = 100 %: the data say nothing
     /// there). `0` disables it (then W_m is only constrained on measured bins).
     #[serde(default = "one_f")]
     pub beyond_band_level: f64,

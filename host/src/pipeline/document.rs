@@ -142,7 +142,7 @@ pub struct WeightSummary {
     pub measured_bins: usize,
     /// Lowest measured bin, Hz.
     pub measured_band_bottom_hz: f64,
-    /// Assumed points above the measured band (to 10 × Nyquist) at `beyond_band_level`.
+    /// Assumed points above the measured band (to 100 × Nyquist) at `beyond_band_level`.
     pub beyond_band_points: usize,
     /// Highest measured bin, Hz.
     pub measured_band_top_hz: f64,

@@ -19,7 +19,8 @@
 //! * the multiplicative envelope l_m compares the ETFEs of the `[uncertainty].family` logs
 //!   (default: all runs and the validation log) with G0 at the bins where every member passes
 //!   the coherence gate; above the highest such bin the data say nothing, and l_m is set to
-//!   `beyond_band_level` (default 1, i.e. 100 %) up to Nyquist;
+//!   `beyond_band_level` (default 1, i.e. 100 %) up to 100 × Nyquist, and for the decade below
+//!   the lowest such bin it is held at the lowest measured octave's largest value;
 //! * the cross-validation fit is the free-run simulation fit of G0 on the validation log, with
 //!   the initial state estimated; the residual correlation tests use the Kalman predictor.
 //!
@@ -114,7 +115,7 @@ pub struct Mode {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct EnvelopeData {
     /// Frequencies, Hz: the assumed decade below the measured band, the measured bins, then
-    /// the unmeasured bins above (up to 10 × Nyquist).
+    /// the unmeasured bins above (up to 100 × Nyquist).
     pub freq_hz: Vec<f64>,
     /// l_m at each bin (dimensionless).
     pub level: Vec<f64>,
@@ -384,8 +385,11 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     progress("preprocess");
     let steps = c.preprocess.steps();
     let welch = c.etfe.welch();
-    let prep = |name: String, amp: Option<f64>, log: Log| -> Result<LogData> {
-        let (log, record) = preprocess(&log, &steps)?;
+    let prep = |name: String, amp: Option<f64>, log: Log, written: String| -> Result<LogData> {
+        let (log, mut record) = preprocess(&log, &steps)?;
+        // Record the path as written in the pipeline file, not as resolved from the current
+        // directory, so receipts.json does not depend on where `ferrosid run` was started.
+        record.source = written;
         let etfe = welch.etfe_log(&log, 0, 0)?;
         let (amplitude, is_rms) = match amp {
             Some(a) => (a, false),
@@ -402,11 +406,14 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     };
     progress("etfe");
     let mut runs = Vec::new();
-    for (name, amp, log) in raw {
-        runs.push(prep(name, amp, log)?);
+    for (i, (name, amp, log)) in raw.into_iter().enumerate() {
+        runs.push(prep(name, amp, log, inputs[i].path.clone())?);
     }
     let validation = match raw_val {
-        Some((name, amp, log)) => Some(prep(name, amp, log)?),
+        Some((name, amp, log)) => {
+            let written = inputs.last().map(|f| f.path.clone()).unwrap_or_default();
+            Some(prep(name, amp, log, written)?)
+        }
         None => None,
     };
     let fs = runs[0].log.fs();
@@ -899,14 +906,14 @@ fn uncertainty(
     let below_bins = freq.len();
     freq.extend_from_slice(&f);
     level.extend_from_slice(&measured_level);
-    // Above the measured band: the unmeasured bins up to Nyquist and a decade beyond (a
+    // Above the measured band: the unmeasured bins up to Nyquist and two decades beyond (a
     // sampled loop sees the continuous weight up to s = ∞ through the Tustin map).
     if u.beyond_band_level > 0.0 {
         for &fi in grid.iter().filter(|&&fi| fi > f_top && fi < nyq) {
             freq.push(fi);
             level.push(u.beyond_band_level);
         }
-        for fi in log_grid(nyq, 10.0 * nyq, 9) {
+        for fi in log_grid(nyq, 100.0 * nyq, 13) {
             freq.push(fi);
             level.push(u.beyond_band_level);
         }
@@ -947,8 +954,8 @@ pub const OUTPUT_FILES: [&str; 5] = [
 /// `ferrosid gap --sim` and `ferrosid codegen --model`), `pid.json` (the tuning result, for
 /// `codegen --pid`; absent without a controller), `wm.json` (the fitted weight, for
 /// `codegen --wm`; absent without one), `report.html` and `figures/*.svg` into `dir` (created
-/// if missing). Stale `pid.json`/`wm.json` from earlier runs are removed so the directory
-/// always describes this run. Returns the paths written.
+/// if missing). Stale `pid.json`/`wm.json` and figures from earlier runs are removed so the
+/// directory always describes this run. Returns the paths written.
 pub fn write_outputs(run: &PipelineRun, dir: &Path) -> Result<Vec<PathBuf>> {
     let io = |p: &Path| {
         let p = p.to_path_buf();
@@ -980,6 +987,11 @@ pub fn write_outputs(run: &PipelineRun, dir: &Path) -> Result<Vec<PathBuf>> {
     let figures = crate::report::figures(run)?;
     for f in &figures {
         put(&Path::new("figures").join(format!("{}.svg", f.name)), &f.svg)?;
+    }
+    for name in crate::report::FIGURE_NAMES {
+        if !figures.iter().any(|f| f.name == name) {
+            remove_stale(&figdir.join(format!("{name}.svg")))?;
+        }
     }
     put(
         Path::new("report.html"),

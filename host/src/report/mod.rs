@@ -29,6 +29,19 @@ use num_complex::Complex64;
 use plot::{colors, Band, Kind, LegendAt, Panel, RefLine, Series};
 use std::fmt::Write as _;
 
+/// Names of all figures the report can contain (file stems in `figures/`).
+pub const FIGURE_NAMES: [&str; 9] = [
+    "bode",
+    "coherence",
+    "singular_values",
+    "robustness",
+    "uncertainty",
+    "sensitivity",
+    "step",
+    "audit",
+    "validation",
+];
+
 /// Width of every figure, px.
 pub const FIG_WIDTH: u32 = 1000;
 
@@ -1031,7 +1044,7 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
                 e.below,
                 if e.beyond() > 0 {
                     format!(
-                        "; {} points above it, up to 10 × Nyquist, set to {} (no trustworthy data \
+                        "; {} points above it, up to 100 × Nyquist, set to {} (no trustworthy data \
                          there)",
                         e.beyond(),
                         fmt_num(run.config.uncertainty.beyond_band_level)
