@@ -16,6 +16,10 @@
 //! non-finite estimates) become [`Verdict::Undefined`], which fails the receipt.
 #![no_std]
 #![forbid(unsafe_code)]
+// `!(x >= limit)` is deliberate throughout: it rejects NaN, which `x < limit` would let through.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use core::ops::{Add, Mul, Sub};
 
 pub mod plant;
 
@@ -32,21 +36,6 @@ impl C32 {
     /// `re + j·im`.
     pub const fn new(re: f32, im: f32) -> Self {
         Self { re, im }
-    }
-    /// Sum.
-    pub fn add(self, o: Self) -> Self {
-        Self::new(self.re + o.re, self.im + o.im)
-    }
-    /// Difference.
-    pub fn sub(self, o: Self) -> Self {
-        Self::new(self.re - o.re, self.im - o.im)
-    }
-    /// Product.
-    pub fn mul(self, o: Self) -> Self {
-        Self::new(
-            self.re * o.re - self.im * o.im,
-            self.re * o.im + self.im * o.re,
-        )
     }
     /// Product with a real number.
     pub fn scale(self, k: f32) -> Self {
@@ -66,7 +55,7 @@ impl C32 {
         m * libm::sqrtf(r * r + i * i)
     }
     /// Quotient (Smith's algorithm); `None` for a zero or non-finite divisor or result.
-    pub fn div(self, o: Self) -> Option<Self> {
+    pub fn checked_div(self, o: Self) -> Option<Self> {
         let q = if o.re.abs() >= o.im.abs() {
             if o.re == 0.0 {
                 return None;
@@ -88,6 +77,30 @@ impl C32 {
         Self::new(
             ferrosid_firmware::trig::cos_frac(n, d) as f32,
             ferrosid_firmware::trig::sin_frac(n, d) as f32,
+        )
+    }
+}
+
+impl Add for C32 {
+    type Output = C32;
+    fn add(self, o: C32) -> C32 {
+        C32::new(self.re + o.re, self.im + o.im)
+    }
+}
+
+impl Sub for C32 {
+    type Output = C32;
+    fn sub(self, o: C32) -> C32 {
+        C32::new(self.re - o.re, self.im - o.im)
+    }
+}
+
+impl Mul for C32 {
+    type Output = C32;
+    fn mul(self, o: C32) -> C32 {
+        C32::new(
+            self.re * o.re - self.im * o.im,
+            self.re * o.im + self.im * o.re,
         )
     }
 }
@@ -117,7 +130,7 @@ pub fn model_response<const N: usize, const M: usize, const P: usize>(
     for i in 0..N {
         for j in 0..N {
             let diag = if i == j { z } else { C32::default() };
-            m[i][j] = diag.sub(C32::new(a[i][j], 0.0));
+            m[i][j] = diag - C32::new(a[i][j], 0.0);
             scale = scale.max(m[i][j].abs());
         }
         x[i] = C32::new(b[i][input], 0.0);
@@ -140,27 +153,28 @@ pub fn model_response<const N: usize, const M: usize, const P: usize>(
         m.swap(k, p);
         x.swap(k, p);
         let piv = m[k][k];
-        for i in k + 1..N {
-            let f = m[i][k].div(piv)?;
-            for j in k..N {
-                let t = m[k][j];
-                m[i][j] = m[i][j].sub(f.mul(t));
+        let xk = x[k];
+        let (top, bottom) = m.split_at_mut_checked(k + 1)?;
+        let prow = top.last()?;
+        for (row, xi) in bottom.iter_mut().zip(x.iter_mut().skip(k + 1)) {
+            let f = row[k].checked_div(piv)?;
+            for (a, &b) in row.iter_mut().zip(prow.iter()).skip(k) {
+                *a = *a - f * b;
             }
-            let t = x[k];
-            x[i] = x[i].sub(f.mul(t));
+            *xi = *xi - f * xk;
         }
     }
     // Back substitution.
     for k in (0..N).rev() {
         let mut s = x[k];
         for j in k + 1..N {
-            s = s.sub(m[k][j].mul(x[j]));
+            s = s - m[k][j] * x[j];
         }
-        x[k] = s.div(m[k][k])?;
+        x[k] = s.checked_div(m[k][k])?;
     }
     let mut g = C32::new(d[output][input], 0.0);
     for j in 0..N {
-        g = g.add(x[j].scale(c[output][j]));
+        g = g + x[j].scale(c[output][j]);
     }
     (g.re.is_finite() && g.im.is_finite()).then_some(g)
 }
@@ -168,14 +182,14 @@ pub fn model_response<const N: usize, const M: usize, const P: usize>(
 /// Evaluates a polynomial with real coefficients (descending powers) at `s` (Horner).
 fn poly_at(p: &[f32], s: C32) -> C32 {
     p.iter()
-        .fold(C32::default(), |acc, &k| acc.mul(s).add(C32::new(k, 0.0)))
+        .fold(C32::default(), |acc, &k| acc * s + C32::new(k, 0.0))
 }
 
 /// `|W_m(jω)|` for `W_m(s) = num(s)/den(s)` (descending powers of s, s in rad/s) at
 /// `w_rad_s`; `None` when the denominator vanishes there or the result is not finite.
 pub fn weight_magnitude(num: &[f32], den: &[f32], w_rad_s: f32) -> Option<f32> {
     let s = C32::new(0.0, w_rad_s);
-    let q = poly_at(num, s).div(poly_at(den, s))?;
+    let q = poly_at(num, s).checked_div(poly_at(den, s))?;
     let m = q.abs();
     m.is_finite().then_some(m)
 }
@@ -296,7 +310,7 @@ pub fn check_bin(
     if !(g0_abs > 0.0) {
         return r;
     }
-    let rel = h1.sub(g0).abs() / g0_abs;
+    let rel = (h1 - g0).abs() / g0_abs;
     r.rel_error = rel;
     r.verdict = if !rel.is_finite() {
         Verdict::Undefined

@@ -96,7 +96,7 @@ fn parse_f32(key: &'static str, v: &str) -> Result<f32, &'static str> {
 
 /// Parses the semihosting command line (see the crate docs). Errors name the offending key.
 fn parse_args() -> Result<Scenario, &'static str> {
-    let k_nom = 2.467_401_1f32;
+    let k_nom = 2.467_401f32;
     let mut p = AxisParams {
         inertia: 1e-4,
         damping: 3.141_592_7e-3,
