@@ -263,7 +263,7 @@ pub fn fit_discrete_rational(
         let rmin = (0..np)
             .map(|i| rr[(i, i)].abs())
             .fold(f64::INFINITY, f64::min);
-        if !(rmin > 1e-12 * r0) {
+        if rmin.is_nan() || rmin <= 1e-12 * r0 {
             return Err(Error::Numerical(format!(
                 "rational fit: regression is rank deficient (pivot ratio {:.1e}); lower the \
                  orders (na = {na}, nb = {nb}) or add frequency points",

@@ -379,7 +379,8 @@ impl TargetFrame {
             if b.bin == 0
                 || b.bin >= self.n / 2
                 || !excited
-                || !(b.coherence >= gate)
+                || b.coherence.is_nan()
+                || b.coherence < gate
                 || !(b.suu > min_rel_suu * max_suu && b.suu > 0.0)
             {
                 continue;
