@@ -6,6 +6,8 @@
 //
 // Use it inside a module of your own (the file holds items only, no inner attributes):
 //     mod flashed { include!(concat!(env!("OUT_DIR"), "/{{ c.rs_file }}")); }
+// Plain arrays keep it dependency-free; for nalgebra:
+//     SMatrix::<f32, N_STATES, N_STATES>::from_fn(|i, j| A[i][j])
 //
 // Provenance
 //   inputs SHA-256 (canonical JSON of every number and setting below, and of the source
