@@ -36,10 +36,13 @@ const UNITS: usize = 6;
 const BAD_UNIT: usize = 4;
 
 fn main() {
-    let out = std::env::args().nth(1).map(PathBuf::from).unwrap_or_else(|| {
-        let host = Path::new(env!("CARGO_MANIFEST_DIR"));
-        host.parent().unwrap_or(host).join("examples/fleet")
-    });
+    let out = std::env::args()
+        .nth(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            let host = Path::new(env!("CARGO_MANIFEST_DIR"));
+            host.parent().unwrap_or(host).join("examples/fleet")
+        });
     if let Err(e) = run(&out) {
         eprintln!("error: {e}");
         std::process::exit(1);
@@ -66,7 +69,10 @@ fn run(out: &Path) -> Result<(), Box<dyn std::error::Error>> {
         let effect = (coulomb > 0.0).then_some(Effect::CoulombFriction { level: coulomb });
         let dir = out.join(&serial);
         std::fs::create_dir_all(&dir)?;
-        for (name, rms, seed) in [("low", 0.08, 2 * unit as u64), ("high", 0.20, 2 * unit as u64 + 1)] {
+        for (name, rms, seed) in [
+            ("low", 0.08, 2 * unit as u64),
+            ("high", 0.20, 2 * unit as u64 + 1),
+        ] {
             // Commanded torque, quantised to the 1 mN·m DAC step; the plant sees the quantised
             // value.
             let period = multisine(PERIOD, 2.0, 200.0, rms, &mut rng)?;
@@ -91,7 +97,12 @@ fn run(out: &Path) -> Result<(), Box<dyn std::error::Error>> {
             text.push_str("u,y\n");
             // The first period is the transient before logging starts.
             for (uk, yk) in u.iter().zip(&y).skip(PERIOD) {
-                writeln!(text, "{},{}", (uk * 1e3).round() as i64, (yk * 1e3).round() as i64)?;
+                writeln!(
+                    text,
+                    "{},{}",
+                    (uk * 1e3).round() as i64,
+                    (yk * 1e3).round() as i64
+                )?;
             }
             std::fs::write(dir.join(format!("{name}.csv")), text)?;
         }
@@ -141,7 +152,7 @@ fn multisine(
         }
     }
     let r = (v.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
-    if !(r > 0.0) {
+    if r.is_nan() || r <= 0.0 {
         return Err("multisine has no line in the requested band".into());
     }
     v.iter_mut().for_each(|x| *x *= rms / r);

@@ -62,7 +62,10 @@ fn fleet_resonance_spread_matches_the_generated_fleet() {
     let s1 = run_fleet(
         &dir,
         &template,
-        &FleetOptions { jobs: Some(2), out_dir: Some(out.clone()) },
+        &FleetOptions {
+            jobs: Some(2),
+            out_dir: Some(out.clone()),
+        },
         &|_| {},
     )
     .expect("fleet");
@@ -78,7 +81,11 @@ fn fleet_resonance_spread_matches_the_generated_fleet() {
         assert_eq!(osc.len(), 1, "{}: {:?}", u.serial, u.modes);
         let f = osc[0].natural_hz;
         // Each unit's resonance within 1.5 % of its generating parameters.
-        assert!((f - f_true).abs() < 0.015 * f_true, "{}: {f} Hz vs {f_true} Hz", u.serial);
+        assert!(
+            (f - f_true).abs() < 0.015 * f_true,
+            "{}: {f} Hz vs {f_true} Hz",
+            u.serial
+        );
         est.push(f);
         tru.push(f_true);
         assert!(out.join(&u.serial).join("receipts.json").is_file());
@@ -103,15 +110,27 @@ fn fleet_resonance_spread_matches_the_generated_fleet() {
     for (u, t) in s1.units.iter().zip(units) {
         let friction = t["coulomb"].as_f64().expect("coulomb") > 0.0;
         let audit_failed = u.failed.iter().any(|n| n.starts_with("audit_"));
-        assert_eq!(audit_failed, friction, "{}: failed {:?}", u.serial, u.failed);
+        assert_eq!(
+            audit_failed, friction,
+            "{}: failed {:?}",
+            u.serial, u.failed
+        );
     }
     assert!(!s1.all_pass());
     let fleet_json = std::fs::read_to_string(out.join("fleet.json")).expect("fleet.json");
     assert!(fleet_json.contains("\"schema\": \"ferrosid.fleet/1\""));
 
     // One thread gives the same summary (order and numbers) as two.
-    let s2 = run_fleet(&dir, &template, &FleetOptions { jobs: Some(1), out_dir: None }, &|_| {})
-        .expect("fleet, one job");
+    let s2 = run_fleet(
+        &dir,
+        &template,
+        &FleetOptions {
+            jobs: Some(1),
+            out_dir: None,
+        },
+        &|_| {},
+    )
+    .expect("fleet, one job");
     let j1 = serde_json::to_value(&s1.parameters).expect("json");
     let j2 = serde_json::to_value(&s2.parameters).expect("json");
     assert_eq!(j1, j2);

@@ -33,7 +33,13 @@ fn ss_eval(m: &Value, z: C) -> C {
         m[k].as_array()
             .expect("matrix")
             .iter()
-            .map(|r| r.as_array().expect("row").iter().map(|v| v.as_f64().expect("num")).collect())
+            .map(|r| {
+                r.as_array()
+                    .expect("row")
+                    .iter()
+                    .map(|v| v.as_f64().expect("num"))
+                    .collect()
+            })
             .collect()
     };
     let (a, b, c, d) = (rows("a"), rows("b"), rows("c"), rows("d"));
@@ -61,8 +67,9 @@ fn ss_eval(m: &Value, z: C) -> C {
         mat.swap(col, piv);
         for r in col + 1..n {
             let f = cdiv(mat[r][col], mat[col][col]);
-            for k in col..=n {
-                let t = cmul(f, mat[col][k]);
+            let pivot_row = mat[col].clone();
+            for (k, p) in pivot_row.iter().enumerate().skip(col) {
+                let t = cmul(f, *p);
                 mat[r][k] = (mat[r][k].0 - t.0, mat[r][k].1 - t.1);
             }
         }
@@ -115,9 +122,20 @@ fn known_plant_end_to_end_receipts_cross_checked() {
         .output()
         .expect("run ferrosid");
     let stdout = String::from_utf8_lossy(&st.stdout);
-    assert_eq!(st.status.code(), Some(0), "{stdout}\n{}", String::from_utf8_lossy(&st.stderr));
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     assert!(stdout.contains("PASS: all"), "{stdout}");
-    for f in ["receipts.json", "model.json", "pid.json", "wm.json", "report.html"] {
+    for f in [
+        "receipts.json",
+        "model.json",
+        "pid.json",
+        "wm.json",
+        "report.html",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     let doc = read_json(&out.join("receipts.json"));
@@ -149,7 +167,10 @@ fn known_plant_end_to_end_receipts_cross_checked() {
     let den = sup::plant_tf().den;
     let truth = sup::oscillatory_modes(&den);
     assert_eq!(truth.len(), 1);
-    assert!((truth[0].0 - sup::F_RES).abs() < 1e-9 * sup::F_RES, "{truth:?}");
+    assert!(
+        (truth[0].0 - sup::F_RES).abs() < 1e-9 * sup::F_RES,
+        "{truth:?}"
+    );
     let modes: Vec<&Value> = doc["model"]["modes"]
         .as_array()
         .expect("modes")
@@ -159,10 +180,19 @@ fn known_plant_end_to_end_receipts_cross_checked() {
     assert_eq!(modes.len(), 1, "{modes:?}");
     let f = modes[0]["natural_hz"].as_f64().expect("f");
     let z = modes[0]["damping"].as_f64().expect("zeta");
-    assert!((f - sup::F_RES).abs() < 0.01 * sup::F_RES, "resonance {f} Hz");
-    assert!((z - sup::ZETA_RES).abs() < 0.2 * sup::ZETA_RES, "damping {z}");
+    assert!(
+        (f - sup::F_RES).abs() < 0.01 * sup::F_RES,
+        "resonance {f} Hz"
+    );
+    assert!(
+        (z - sup::ZETA_RES).abs() < 0.2 * sup::ZETA_RES,
+        "damping {z}"
+    );
     let dc = doc["model"]["dc_gain"].as_f64().expect("dc");
-    assert!((dc - sup::DC_GAIN).abs() < 0.02 * sup::DC_GAIN, "dc gain {dc}");
+    assert!(
+        (dc - sup::DC_GAIN).abs() < 0.02 * sup::DC_GAIN,
+        "dc gain {dc}"
+    );
     assert_eq!(doc["model"]["order"], 3);
 
     // M_s recomputed from model.json and the firmware controller in pid.json on a dense grid of
@@ -171,8 +201,18 @@ fn known_plant_end_to_end_receipts_cross_checked() {
     let model = read_json(&out.join("model.json"));
     let pid = read_json(&out.join("pid.json"));
     let disc = &pid["discrete"];
-    let num: Vec<f64> = disc["num"].as_array().expect("num").iter().map(|v| v.as_f64().expect("n")).collect();
-    let den: Vec<f64> = disc["den"].as_array().expect("den").iter().map(|v| v.as_f64().expect("d")).collect();
+    let num: Vec<f64> = disc["num"]
+        .as_array()
+        .expect("num")
+        .iter()
+        .map(|v| v.as_f64().expect("n"))
+        .collect();
+    let den: Vec<f64> = disc["den"]
+        .as_array()
+        .expect("den")
+        .iter()
+        .map(|v| v.as_f64().expect("d"))
+        .collect();
     let ts = model["ts"].as_f64().expect("ts");
     let s_mag = |f: f64| -> f64 {
         let w = 2.0 * PI * f * ts;
@@ -196,13 +236,23 @@ fn known_plant_end_to_end_receipts_cross_checked() {
         let f = at * (0.98 + 0.04 * i as f64 / 4000.0);
         best = best.max(s_mag(f));
     }
-    let ms = receipt(&doc, "sensitivity_peak")["value"].as_f64().expect("ms");
-    assert!(best <= ms * (1.0 + 1e-9), "grid {best} above the H∞ value {ms}");
-    assert!((ms - best) / ms < 1e-4, "receipt M_s {ms} vs dense grid {best} at {at} Hz");
+    let ms = receipt(&doc, "sensitivity_peak")["value"]
+        .as_f64()
+        .expect("ms");
+    assert!(
+        best <= ms * (1.0 + 1e-9),
+        "grid {best} above the H∞ value {ms}"
+    );
+    assert!(
+        (ms - best) / ms < 1e-4,
+        "receipt M_s {ms} vs dense grid {best} at {at} Hz"
+    );
     assert!(ms <= 1.6 + 1e-12);
 
     // Validation fit: noise of 0.4 rad/s on a signal of tens of rad/s leaves a fit above 90 %.
-    let fit = receipt(&doc, "cross_validation_fit")["value"].as_f64().expect("fit");
+    let fit = receipt(&doc, "cross_validation_fit")["value"]
+        .as_f64()
+        .expect("fit");
     assert!(fit > 90.0, "fit {fit}");
 
     // model.json is the {"a","b","c","d","ts"} form other commands read.
@@ -225,7 +275,12 @@ fn reruns_are_byte_identical_from_any_directory() {
         .args(["run", "pipeline.toml", "--out", "c"])
         .output()
         .expect("run");
-    assert_eq!(st.status.code(), Some(0), "{}", String::from_utf8_lossy(&st.stderr));
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     assert!(written_a.len() >= 10, "{written_a:?}");
     for p in &written_a {
         let rel = p.strip_prefix(dir.join("a")).expect("relative");
@@ -236,19 +291,35 @@ fn reruns_are_byte_identical_from_any_directory() {
         }
     }
     let text = std::fs::read_to_string(dir.join("a/receipts.json")).expect("receipts");
-    assert!(!text.contains(&*dir.to_string_lossy()), "absolute path leaked into receipts.json");
+    assert!(
+        !text.contains(&*dir.to_string_lossy()),
+        "absolute path leaked into receipts.json"
+    );
 }
 
 #[test]
 fn failing_receipts_exit_one() {
     // A receipt limit nobody can meet: the files are still written, the exit status is 1 and
     // the table names the failing receipt.
-    let toml = sup::setup("pipeline-fail-cv", "", "[receipts]\ncross_validation_fit_min = 99.99\n");
+    let toml = sup::setup(
+        "pipeline-fail-cv",
+        "",
+        "[receipts]\ncross_validation_fit_min = 99.99\n",
+    );
     let out = toml.parent().expect("dir").join("out");
-    let st = ferrosid().arg("run").arg(&toml).arg("--out").arg(&out).output().expect("run");
+    let st = ferrosid()
+        .arg("run")
+        .arg(&toml)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("run");
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(st.status.code(), Some(1), "{stdout}");
-    assert!(stdout.contains("FAIL: 1 of") && stdout.contains("cross_validation_fit"), "{stdout}");
+    assert!(
+        stdout.contains("FAIL: 1 of") && stdout.contains("cross_validation_fit"),
+        "{stdout}"
+    );
     let doc = read_json(&out.join("receipts.json"));
     assert_eq!(doc["verdict"], "fail");
     assert_eq!(receipt(&doc, "cross_validation_fit")["pass"], false);
@@ -257,14 +328,26 @@ fn failing_receipts_exit_one() {
     // An impossible M_s limit: no controller can be tuned; controller_design fails and says why.
     let toml = sup::setup("pipeline-fail-ms", "ms_max = 1.01", "");
     let out = toml.parent().expect("dir").join("out");
-    let st = ferrosid().arg("run").arg(&toml).arg("--out").arg(&out).output().expect("run");
+    let st = ferrosid()
+        .arg("run")
+        .arg(&toml)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("run");
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(st.status.code(), Some(1), "{stdout}");
     let doc = read_json(&out.join("receipts.json"));
     let cd = receipt(&doc, "controller_design");
     assert_eq!(cd["pass"], false);
     assert!(cd["value"].is_null());
-    assert!(cd["detail"].as_str().expect("detail").contains("infeasible"), "{cd}");
+    assert!(
+        cd["detail"]
+            .as_str()
+            .expect("detail")
+            .contains("infeasible"),
+        "{cd}"
+    );
     assert!(doc["controller"].is_null() && doc["controller_error"].is_string());
     assert!(!out.join("pid.json").exists());
     // Model receipts are still issued.
@@ -283,9 +366,15 @@ fn a_single_run_and_no_validation_fail_their_receipts() {
     std::fs::write(&toml, text).expect("write");
     let cfg = LoadedConfig::load(&toml).expect("load");
     let run = run_pipeline(&cfg, &|_| {}).expect("run");
-    let a = run.receipts.get("nonlinearity_audit").expect("audit receipt");
+    let a = run
+        .receipts
+        .get("nonlinearity_audit")
+        .expect("audit receipt");
     assert!(!a.pass && a.detail.contains("fewer than two"));
-    let cv = run.receipts.get("cross_validation_fit").expect("cv receipt");
+    let cv = run
+        .receipts
+        .get("cross_validation_fit")
+        .expect("cv receipt");
     assert!(!cv.pass && cv.value.is_nan() && cv.detail.contains("no `[validation]`"));
     assert!(!run.receipts.all_pass);
 }
@@ -295,15 +384,27 @@ fn run_err(name: &str, toml_text: &str) -> (Option<i32>, String) {
     sup::write_dataset(&d);
     let p = d.join("pipeline.toml");
     std::fs::write(&p, toml_text).expect("write");
-    let st = ferrosid().arg("run").arg(&p).arg("--out").arg(d.join("out")).output().expect("run");
-    (st.status.code(), String::from_utf8_lossy(&st.stderr).into_owned())
+    let st = ferrosid()
+        .arg("run")
+        .arg(&p)
+        .arg("--out")
+        .arg(d.join("out"))
+        .output()
+        .expect("run");
+    (
+        st.status.code(),
+        String::from_utf8_lossy(&st.stderr).into_owned(),
+    )
 }
 
 #[test]
 fn bad_pipeline_files_name_file_line_and_key() {
     let base = sup::pipeline_toml("", "");
     let line_of = |text: &str, needle: &str| -> usize {
-        text.lines().position(|l| l.contains(needle)).expect("needle") + 1
+        text.lines()
+            .position(|l| l.contains(needle))
+            .expect("needle")
+            + 1
     };
     // Unknown key (typo).
     let t = base.replace("actuator_limit = 2.0", "actuator_limt = 2.0");
@@ -337,17 +438,29 @@ fn bad_pipeline_files_name_file_line_and_key() {
     let t = base.replace("crossover_hz = 6.0", "crossover_hz = 600.0");
     let (code, err) = run_err("pipeline-bad-nyquist", &t);
     assert_eq!(code, Some(3), "{err}");
-    assert!(err.contains("control.crossover_hz") && err.contains("Nyquist"), "{err}");
+    assert!(
+        err.contains("control.crossover_hz") && err.contains("Nyquist"),
+        "{err}"
+    );
     // Missing required key.
     let t = base.replace("actuator_limit = 2.0\n", "");
     let (code, err) = run_err("pipeline-bad-missing", &t);
     assert_eq!(code, Some(3), "{err}");
-    assert!(err.contains("pipeline.toml") && err.contains("actuator_limit"), "{err}");
+    assert!(
+        err.contains("pipeline.toml") && err.contains("actuator_limit"),
+        "{err}"
+    );
     // Syntax error.
     let t = base.replace("file = \"low.csv\"", "file = \"low.csv");
     let (code, err) = run_err("pipeline-bad-syntax", &t);
     assert_eq!(code, Some(3), "{err}");
-    assert!(err.contains(&format!("pipeline.toml:{}:", line_of(&t, "file = \"low.csv"))), "{err}");
+    assert!(
+        err.contains(&format!(
+            "pipeline.toml:{}:",
+            line_of(&t, "file = \"low.csv")
+        )),
+        "{err}"
+    );
     // A log that does not exist: the error names the log file.
     let t = base.replace("file = \"val.csv\"", "file = \"missing.csv\"");
     let (code, err) = run_err("pipeline-bad-log", &t);
@@ -362,10 +475,16 @@ fn bad_pipeline_files_name_file_line_and_key() {
     let t = format!("{base}\n[identification]\nrun = \"medium\"\n");
     let (code, err) = run_err("pipeline-bad-run", &t);
     assert_eq!(code, Some(3), "{err}");
-    assert!(err.contains("identification.run") && err.contains("medium"), "{err}");
+    assert!(
+        err.contains("identification.run") && err.contains("medium"),
+        "{err}"
+    );
     // Mismatched sample rates between logs.
     let t = base.replace("file = \"val.csv\"", "file = \"val.csv\"\nfs = 2000.0");
     let (code, err) = run_err("pipeline-bad-fs", &t);
     assert_eq!(code, Some(3), "{err}");
-    assert!(err.contains("val.csv") && err.contains("sample rate"), "{err}");
+    assert!(
+        err.contains("val.csv") && err.contains("sample rate"),
+        "{err}"
+    );
 }

@@ -35,7 +35,8 @@ const FIGURES: [&str; 9] = [
 
 /// Number of drawn data points in an SVG: polyline vertices and circles.
 fn svg_points(svg: &str) -> (usize, usize) {
-    let doc = roxmltree::Document::parse(svg).unwrap_or_else(|e| panic!("SVG not well-formed: {e}"));
+    let doc =
+        roxmltree::Document::parse(svg).unwrap_or_else(|e| panic!("SVG not well-formed: {e}"));
     let root = doc.root_element();
     assert_eq!(root.tag_name().name(), "svg");
     let mut lines = 0;
@@ -79,10 +80,15 @@ fn report_has_every_section_and_well_formed_figures() {
     }
     // Verdict banner and one table row per receipt.
     assert!(html.contains("class=\"banner pass\"") && html.contains("PASS — all"));
-    let rows = html.matches("<tr class=\"pass\">").count() + html.matches("<tr class=\"fail\">").count();
+    let rows =
+        html.matches("<tr class=\"pass\">").count() + html.matches("<tr class=\"fail\">").count();
     assert_eq!(rows, run.receipts.receipts.len());
     for r in &run.receipts.receipts {
-        assert!(html.contains(&format!("<b>{}</b>", r.name)), "receipt {} not in the table", r.name);
+        assert!(
+            html.contains(&format!("<b>{}</b>", r.name)),
+            "receipt {} not in the table",
+            r.name
+        );
     }
     // Self-contained: no scripts, no external resources.
     let lower = html.to_ascii_lowercase();
@@ -107,7 +113,11 @@ fn report_has_every_section_and_well_formed_figures() {
         let s0 = body.find("<svg").expect("svg start");
         let s1 = body.find("</svg>").expect("svg end") + "</svg>".len();
         let inline = &body[s0..s1];
-        assert_eq!(inline.trim(), file.trim(), "inline {name} differs from the file");
+        assert_eq!(
+            inline.trim(),
+            file.trim(),
+            "inline {name} differs from the file"
+        );
         let (lines, circles) = svg_points(&file);
         assert!(lines >= 1, "{name}: no data line drawn");
         if name == "bode" {
@@ -140,9 +150,19 @@ fn failing_run_report_says_fail_and_explains_missing_sections() {
     assert!(html.contains("<b>No controller.</b>"));
     // Loop figures are absent, the data figures are there and well-formed.
     for name in ["step", "sensitivity", "robustness"] {
-        assert!(!dir.join("figures").join(format!("{name}.svg")).exists(), "{name}");
+        assert!(
+            !dir.join("figures").join(format!("{name}.svg")).exists(),
+            "{name}"
+        );
     }
-    for name in ["bode", "coherence", "singular_values", "uncertainty", "audit", "validation"] {
+    for name in [
+        "bode",
+        "coherence",
+        "singular_values",
+        "uncertainty",
+        "audit",
+        "validation",
+    ] {
         let svg = std::fs::read_to_string(dir.join("figures").join(format!("{name}.svg")))
             .expect("figure");
         assert!(svg_points(&svg).0 >= 1, "{name}");

@@ -69,9 +69,9 @@ fn table(rows: &[Vec<String>], right: &[bool]) -> String {
     let mut s = String::new();
     for r in rows {
         let mut line = String::from(" ");
-        for j in 0..ncol {
+        for (j, wj) in w.iter().enumerate() {
             let c = r.get(j).map_or("", |c| c.as_str());
-            let pad = " ".repeat(w[j] - c.chars().count());
+            let pad = " ".repeat(wj - c.chars().count());
             line.push(' ');
             if right.get(j).copied().unwrap_or(false) {
                 line.push_str(&pad);
@@ -145,9 +145,18 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
     let mut right = vec![false, false, true, true, true];
     right.extend(std::iter::repeat_n(true, 2 * nmodes + 5));
     out.push_str(&table(&rows, &right));
-    let mut rows = vec![["parameter", "unit", "n", "min", "median", "max", "mean", "std"]
-        .map(String::from)
-        .to_vec()];
+    let mut rows = vec![[
+        "parameter",
+        "unit",
+        "n",
+        "min",
+        "median",
+        "max",
+        "mean",
+        "std",
+    ]
+    .map(String::from)
+    .to_vec()];
     for d in &s.parameters {
         rows.push(vec![
             d.parameter.clone(),
@@ -172,7 +181,11 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
             if let Some(e) = &u.error {
                 Some(format!("  {}: error: {e}", u.serial))
             } else if !u.failed.is_empty() {
-                Some(format!("  {}: failing receipts: {}", u.serial, u.failed.join(", ")))
+                Some(format!(
+                    "  {}: failing receipts: {}",
+                    u.serial,
+                    u.failed.join(", ")
+                ))
             } else {
                 None
             }
@@ -207,12 +220,18 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     } else {
         ProgressBar::hidden()
     };
-    if let Ok(style) = ProgressStyle::with_template("fleet [{bar:30}] {pos}/{len} units {msg} {elapsed}") {
+    if let Ok(style) =
+        ProgressStyle::with_template("fleet [{bar:30}] {pos}/{len} units {msg} {elapsed}")
+    {
         pb.set_style(style.progress_chars("=> "));
     }
     let opts = FleetOptions {
         jobs: args.jobs,
-        out_dir: Some(args.out.clone().unwrap_or_else(|| PathBuf::from("out/fleet"))),
+        out_dir: Some(
+            args.out
+                .clone()
+                .unwrap_or_else(|| PathBuf::from("out/fleet")),
+        ),
     };
     let summary = run_fleet(&args.dir, &template, &opts, &|serial| {
         pb.set_message(serial.to_string());

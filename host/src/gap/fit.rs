@@ -12,9 +12,8 @@
 //!    the poles and the effect parameters together ([`joint_fit`]).
 //!
 //! Friction acts against the velocity of the driven mass, which a black-box model does not
-//! expose: the fit tries both the model output (velocity-output plants) and its backward
-//! difference divided by `ts` (position-output plants) and keeps the better
-//! ([`VelocitySource`]). Quantization is estimated from the lattice of the measured outputs.
+//! expose: the fit tries both the model output (velocity-output plants) and its time
+//! derivative (position-output plants) and keeps the better ([`VelocitySource`]). Quantization is estimated from the lattice of the measured outputs.
 use super::effect::{
     deadzone, delay_signal, quantize, resonance_filter, saturation, Effect, EffectKind, Play,
     StickSlip,
@@ -31,16 +30,19 @@ pub const FRICTION_SUBSTEPS: usize = 4;
 pub enum VelocitySource {
     /// The model output itself (velocity-output plants).
     Output,
-    /// The backward difference of the model output over `ts` (position-output plants).
-    OutputRate,
+    /// The time derivative of the model output (position-output plants), from the
+    /// continuous-time equivalent of the linear part: v = C·(A_c·x + B_c·w). (A model with a
+    /// real pole <= 0 has no such equivalent; it falls back to the backward difference of
+    /// the output over `ts`.)
+    OutputDerivative,
 }
 
 impl VelocitySource {
-    /// Report name (`output`, `output_rate`).
+    /// Report name (`output`, `output_derivative`).
     pub fn name(self) -> &'static str {
         match self {
             VelocitySource::Output => "output",
-            VelocitySource::OutputRate => "output_rate",
+            VelocitySource::OutputDerivative => "output_derivative",
         }
     }
 }
@@ -130,11 +132,10 @@ impl AugmentedModel {
             Some(s) => (s, m.max(1)),
             None => return self.friction_loop_sample_rate(u, level, breakaway),
         };
-        let h = lin.ts / m as f64;
         let mut fr = StickSlip::new(level, breakaway);
         let cb = sub.cb();
-        let rate = self.velocity == VelocitySource::OutputRate;
-        let g = if rate { cb / h } else { cb };
+        let rate = self.velocity == VelocitySource::OutputDerivative;
+        let g = if rate { sub.rate_gain() } else { cb };
         let mut x = lin.zero_state();
         let mut y = Vec::with_capacity(u.len());
         let mut w = Vec::with_capacity(u.len());
@@ -146,7 +147,7 @@ impl AugmentedModel {
             let mut w_first = uk;
             for j in 0..m {
                 let next = sub.free_next_output(&x);
-                let v_free = if rate { (next - yo) / h } else { next };
+                let v_free = if rate { sub.free_next_rate(&x) } else { next };
                 let f = fr.force(v_free + g * uk, g);
                 let wj = uk - f;
                 if j == 0 {
@@ -175,7 +176,7 @@ impl AugmentedModel {
         let cb = lin.cb();
         let g = match self.velocity {
             VelocitySource::Output => cb,
-            VelocitySource::OutputRate => cb / ts,
+            VelocitySource::OutputDerivative => cb / ts,
         };
         let st = lin.stepper();
         let mut x = lin.zero_state();
@@ -186,7 +187,7 @@ impl AugmentedModel {
             let next = st.free_next_output(&x);
             let v_free = match self.velocity {
                 VelocitySource::Output => next,
-                VelocitySource::OutputRate => (next - yo) / ts,
+                VelocitySource::OutputDerivative => (next - yo) / ts,
             };
             let f = fr.force(v_free + g * uk, g);
             let wk = uk - f;
@@ -679,7 +680,7 @@ fn initial_search(kind: EffectKind, td: &TrainData, lin: &ModalModel) -> Option<
             // Both velocity proxies, sample-rate friction (only the basin matters here).
             let grid = log_grid(0.01 * s, 1.5 * s, 12);
             let mut best = None;
-            for vel in [VelocitySource::Output, VelocitySource::OutputRate] {
+            for vel in [VelocitySource::Output, VelocitySource::OutputDerivative] {
                 keep_best(
                     &mut best,
                     grid_best(&grid, &|p| {
@@ -796,7 +797,7 @@ mod tests {
             VelocitySource::Output,
         );
         let e2 = check_friction(Plant::two_mass(), 0.05, 0.015, 0.03, VelocitySource::Output);
-        let e3 = check_friction(Plant::flexure(), 1.0, 0.3, 0.3, VelocitySource::OutputRate);
+        let e3 = check_friction(Plant::flexure(), 1.0, 0.3, 0.3, VelocitySource::OutputDerivative);
         let e4 = check_friction(Plant::dc_motor(), 1.0, 0.3, 0.3, VelocitySource::Output);
         eprintln!("two_mass coulomb {e:.4} stiction {e2:.4} flexure {e3:.4} dc {e4:.4}");
         assert!(e < 0.05 && e2 < 0.05);

@@ -3,12 +3,13 @@
 //! * **Multiplicative error** e(f) = |(G_meas(f) − G_sim(f)) / G_sim(f)| at every frequency bin,
 //!   with G_meas the Welch H1 estimate pooled over all training logs (cross- and auto-spectra
 //!   summed over logs) and G_sim the nominal model's response at the same frequencies. Only bins
-//!   whose pooled magnitude-squared coherence is at least `coherence_min` are used.
+//!   that pass the project's gate ([`Etfe::gate`]: magnitude-squared coherence at least
+//!   `coherence_min` and an excited input) are used.
 //! * **Bands** (`bands_hz`): runs of consecutive used bins with e > `threshold`.
 //! * **Worst** (`worst_hz`, `worst_error`): the used bin with the largest e; the **worst band**
 //!   is the run of used bins around it where e stays above half that peak.
-//! * **Coherence drops** (`coherence_drops_hz`): runs of bins (DC excluded) with coherence
-//!   below `coherence_min`; runs separated by at most two bins are merged.
+//! * **Coherence drops** (`coherence_drops_hz`): runs of bins (DC excluded) rejected by that
+//!   gate (low coherence or no input power); runs separated by at most two bins are merged.
 //! * **Amplitude dependence**: with two or more training logs, the H1 estimates of the logs
 //!   with the smallest and largest input RMS are compared over the bins used in both;
 //!   `amplitude_change` is the median of |G_low − G_high| / |G_high| and the gap is
@@ -25,7 +26,7 @@ use super::diagnose::GapOptions;
 use super::report::BandError;
 use crate::error::{Error, Result};
 use crate::lti::StateSpace;
-use crate::spectral::{excluded_bands, Etfe, Welch};
+use crate::spectral::{Etfe, Welch};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -159,11 +160,12 @@ pub fn locate(
     let freq = pooled.freq_hz.clone();
     let g_meas = &pooled.h;
     let coh = pooled.coherence.clone();
+    let gate = pooled.gate(opts.coherence_min);
     let g_sim = sim.freq_responses_siso_hz(&freq[1..])?;
     let mut mult = vec![f64::NAN; freq.len()];
     for k in 1..freq.len() {
         let gs = g_sim[k - 1];
-        if coh[k] >= opts.coherence_min && gs.norm() > 0.0 && g_meas[k].re.is_finite() {
+        if gate[k] && gs.norm() > 0.0 && g_meas[k].re.is_finite() {
             mult[k] = ((g_meas[k] - gs) / gs).norm();
         }
     }
@@ -193,9 +195,13 @@ pub fn locate(
         }
         None => (f64::NAN, f64::NAN, [freq[1], freq[freq.len() - 1]]),
     };
-    // Coherence drops above DC; runs separated by at most two bins merged.
+    // Coherence drops (and unexcited bins) above DC; runs separated by at most two bins merged.
     let mut coherence_drops_hz: Vec<[f64; 2]> = Vec::new();
-    for b in excluded_bands(&freq[1..], &coh[1..], opts.coherence_min) {
+    for b in pooled
+        .excluded_bands(opts.coherence_min)
+        .into_iter()
+        .filter(|b| b.f_hi_hz > 0.0)
+    {
         match coherence_drops_hz.last_mut() {
             Some(last) if b.f_lo_hz - last[1] <= 3.0 * (freq[1] - freq[0]) * (1.0 + 1e-9) => {
                 last[1] = b.f_hi_hz
@@ -216,9 +222,9 @@ pub fn locate(
         let sl = pooled_etfe(&recs[lo..=lo], nperseg, ts)?;
         let sh = pooled_etfe(&recs[hi..=hi], nperseg, ts)?;
         let (gl, gh) = (&sl.h, &sh.h);
-        let (cl, ch) = (&sl.coherence, &sh.coherence);
+        let (cl, ch) = (sl.gate(opts.coherence_min), sh.gate(opts.coherence_min));
         let mut d: Vec<f64> = (1..freq.len())
-            .filter(|&k| cl[k] >= opts.coherence_min && ch[k] >= opts.coherence_min)
+            .filter(|&k| cl[k] && ch[k])
             .map(|k| ((gl[k] - gh[k]) / gh[k]).norm())
             .filter(|v| v.is_finite())
             .collect();

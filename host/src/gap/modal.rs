@@ -189,6 +189,10 @@ pub struct SubStepper {
     rot_b: Vec<(f64, f64)>,
     /// Residues (copied).
     c: Vec<f64>,
+    /// C·A_c: the output's time derivative per state (continuous-time equivalent, 1/s).
+    dc: Vec<f64>,
+    /// C·B_c: the output derivative's direct dependence on the held input.
+    dcb: f64,
 }
 
 impl SubStepper {
@@ -223,6 +227,43 @@ impl SubStepper {
         acc
     }
 
+    /// Time derivative of the state output, C·(A_c·x + B_c·w), for the held input `w`
+    /// (output units per second).
+    #[inline]
+    pub fn rate(&self, x: &[f64], w: f64) -> f64 {
+        x.iter().zip(&self.dc).map(|(a, b)| a * b).sum::<f64>() + self.dcb * w
+    }
+
+    /// C·A_c·A_h·x: the output derivative after one sub-step with zero input.
+    #[inline]
+    pub fn free_next_rate(&self, x: &[f64]) -> f64 {
+        let nr = self.real.len();
+        let mut acc = 0.0;
+        for i in 0..nr {
+            acc += self.dc[i] * self.real[i] * x[i];
+        }
+        for (j, &(rc, rs)) in self.rot.iter().enumerate() {
+            let i = nr + 2 * j;
+            let (x1, x2) = (x[i], x[i + 1]);
+            acc += self.dc[i] * (rc * x1 - rs * x2) + self.dc[i + 1] * (rs * x1 + rc * x2);
+        }
+        acc
+    }
+
+    /// Change of the output derivative after one sub-step per unit of held input:
+    /// C·A_c·B_h + C·B_c.
+    pub fn rate_gain(&self) -> f64 {
+        let nr = self.real.len();
+        let mut acc = self.dcb;
+        for i in 0..nr {
+            acc += self.dc[i] * self.real_b[i];
+        }
+        for (j, &(br, bi)) in self.rot_b.iter().enumerate() {
+            acc += self.dc[nr + 2 * j] * br + self.dc[nr + 2 * j + 1] * bi;
+        }
+        acc
+    }
+
     /// C·B_h: one-sub-step response of the state output to the input.
     pub fn cb(&self) -> f64 {
         let nr = self.real.len();
@@ -252,6 +293,27 @@ impl ModalModel {
             .zip(&real)
             .map(|(&p, &ph)| if m == 1 { 1.0 } else { (ph - 1.0) / (p - 1.0) })
             .collect();
+        let ts = self.ts;
+        // Continuous-time equivalent of each mode (the model is taken as a ZOH
+        // discretisation): real p = e^{s·ts}; pair r·e^{±jφ} = e^{(σ ± jω)·ts}. With the
+        // discrete input gain normalised to 1, the continuous one is b = s/(λ − 1).
+        let nr = self.real.len();
+        let mut dc = vec![0.0; self.n_states()];
+        let mut dcb = 0.0;
+        for (i, &p) in self.real.iter().enumerate() {
+            let sp = p.ln() / ts;
+            dc[i] = self.residues[i] * sp;
+            dcb += self.residues[i] * sp / (p - 1.0);
+        }
+        for (j, &(r, phi)) in self.pairs.iter().enumerate() {
+            let (sig, om) = (r.ln() / ts, phi / ts);
+            let i = nr + 2 * j;
+            let (c1, c2) = (self.residues[i], self.residues[i + 1]);
+            dc[i] = c1 * sig + c2 * om;
+            dc[i + 1] = -c1 * om + c2 * sig;
+            let bc = Complex64::new(sig, om) / (Complex64::from_polar(r, phi) - 1.0);
+            dcb += c1 * bc.re + c2 * bc.im;
+        }
         let mut rot = Vec::new();
         let mut rot_b = Vec::new();
         for &(r, phi) in &self.pairs {
@@ -271,6 +333,8 @@ impl ModalModel {
             rot,
             rot_b,
             c: self.residues.clone(),
+            dc,
+            dcb,
         })
     }
 
@@ -677,6 +741,49 @@ mod tests {
         m.set_pole_params(&th);
         for (a, b) in m.poles().iter().zip(before.poles()) {
             assert!((a - b).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn output_derivative_matches_the_continuous_model() {
+        // Mass-spring-damper x'' = (u − 40x − 0.8x')/0.5, output position: the derivative
+        // of the output is the velocity state, checked against the continuous simulation.
+        let (m, k, c) = (0.5, 40.0, 0.8);
+        let a = faer::Mat::from_fn(2, 2, |i, j| match (i, j) {
+            (0, 1) => 1.0,
+            (1, 0) => -k / m,
+            (1, 1) => -c / m,
+            _ => 0.0,
+        });
+        let b = faer::Mat::from_fn(2, 1, |i, _| if i == 1 { 1.0 / m } else { 0.0 });
+        let cm = faer::Mat::from_fn(1, 2, |_, j| if j == 0 { 1.0 } else { 0.0 });
+        let cont = StateSpace::new(a, b, cm, faer::Mat::zeros(1, 1), 0.0).unwrap();
+        let ts = 1e-3;
+        let disc = cont.c2d_zoh(ts).unwrap();
+        let vel = StateSpace::new(
+            cont.a.clone(),
+            cont.b.clone(),
+            faer::Mat::from_fn(1, 2, |_, j| if j == 1 { 1.0 } else { 0.0 }),
+            faer::Mat::zeros(1, 1),
+            0.0,
+        )
+        .unwrap()
+        .c2d_zoh(ts)
+        .unwrap();
+        let u = lcg_noise(2000, 3);
+        let y = disc.simulate_siso(&u, None).unwrap();
+        let v = vel.simulate_siso(&u, None).unwrap();
+        let mut mm = ModalModel::from_poles(ts, &disc.poles().unwrap(), false).unwrap();
+        let set = FitSet::new(vec![u.clone()], vec![y], 0).unwrap();
+        mm.fit_linear_params(&set).unwrap();
+        let sub = mm.substepper(1).unwrap();
+        let mut x = mm.zero_state();
+        for (k, &uk) in u.iter().enumerate() {
+            // Velocity at the sample instant (before the new input acts): w = previous input.
+            let w_prev = if k == 0 { 0.0 } else { u[k - 1] };
+            let r = sub.rate(&x, w_prev);
+            assert!((r - v[k]).abs() < 1e-6 * (1.0 + v[k].abs()), "k {k}: {r} vs {}", v[k]);
+            sub.step(&mut x, uk);
         }
     }
 

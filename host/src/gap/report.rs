@@ -20,7 +20,7 @@ pub struct EffectReport {
     pub improvement: f64,
     /// RMS over the training logs of their NRMSE.
     pub train_nrmse: f64,
-    /// For friction: which model signal stood for the velocity (`output`, `output_rate`).
+    /// For friction: which model signal stood for the velocity (`output`, `output_derivative`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub velocity_from: Option<String>,
 }
@@ -200,8 +200,8 @@ impl GapReport {
         );
         let _ = writeln!(
             s,
-            "  {:<4} {:<17} {:>10} {:>10}  parameters",
-            "rank", "effect", "val NRMSE", "vs linear"
+            "  {:<4} {:<17} {:>10} {:>10} {:>11}  parameters",
+            "rank", "effect", "val NRMSE", "vs linear", "train NRMSE"
         );
         for (i, e) in self.effects.iter().enumerate() {
             let p: Vec<String> = e
@@ -212,11 +212,12 @@ impl GapReport {
                 .collect();
             let _ = writeln!(
                 s,
-                "  {:<4} {:<17} {:>10.4} {:>10}  {}",
+                "  {:<4} {:<17} {:>10.4} {:>10} {:>11.5}  {}",
                 i + 1,
                 e.effect,
                 e.gap_after,
                 pct(e.improvement),
+                e.train_nrmse,
                 p.join(", ")
             );
         }

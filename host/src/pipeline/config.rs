@@ -816,7 +816,10 @@ impl LoadedConfig {
             ),
             ("receipts.overshoot_pct_max", r.overshoot_pct_max),
             ("receipts.settling_time_s_max", r.settling_time_s_max),
-            ("receipts.etfe_phase_error_deg_max", r.etfe_phase_error_deg_max),
+            (
+                "receipts.etfe_phase_error_deg_max",
+                r.etfe_phase_error_deg_max,
+            ),
             ("receipts.etfe_max_freq_factor", r.etfe_max_freq_factor),
         ] {
             if let Some(v) = v {

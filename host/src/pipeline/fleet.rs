@@ -194,7 +194,10 @@ impl UnitResult {
             dc_gain: Some(run.dc_gain),
             modes: run.modes.clone(),
             wm_low_gain: run.weight.as_ref().map(|w| weight_low_gain(&w.num, &w.den)),
-            wm_high_gain: run.weight.as_ref().map(|w| weight_high_gain(&w.num, &w.den)),
+            wm_high_gain: run
+                .weight
+                .as_ref()
+                .map(|w| weight_high_gain(&w.num, &w.den)),
             crossover_hz: run.tuned.as_ref().map(|t| t.design.crossover_hz),
             ms: rs.get("sensitivity_peak").map(|r| r.value),
             validation_fit_percent: run.validation_fit.as_ref().map(|f| f.fit_percent[0]),
@@ -224,7 +227,11 @@ impl UnitResult {
 
     /// Oscillatory modes (complex pairs), increasing frequency.
     pub fn oscillatory(&self) -> Vec<Mode> {
-        self.modes.iter().filter(|m| m.oscillatory).copied().collect()
+        self.modes
+            .iter()
+            .filter(|m| m.oscillatory)
+            .copied()
+            .collect()
     }
 }
 
@@ -303,14 +310,23 @@ pub struct FleetSummary {
 
 impl FleetSummary {
     /// Summarises unit results.
-    pub fn new(layout: Layout, units: Vec<UnitResult>, output_unit: &str, input_unit: &str) -> Self {
+    pub fn new(
+        layout: Layout,
+        units: Vec<UnitResult>,
+        output_unit: &str,
+        input_unit: &str,
+    ) -> Self {
         let mut parameters = Vec::new();
         let ok: Vec<&UnitResult> = units.iter().filter(|u| u.status != "error").collect();
         let col = |f: &dyn Fn(&UnitResult) -> Option<f64>| -> Vec<f64> {
             ok.iter().filter_map(|u| f(u)).collect()
         };
         let gain_unit = format!("{output_unit}/{input_unit}");
-        parameters.extend(Distribution::of("dc_gain", &gain_unit, &col(&|u| u.dc_gain)));
+        parameters.extend(Distribution::of(
+            "dc_gain",
+            &gain_unit,
+            &col(&|u| u.dc_gain),
+        ));
         let max_modes = ok.iter().map(|u| u.oscillatory().len()).max().unwrap_or(0);
         for k in 0..max_modes {
             let f = col(&|u| u.oscillatory().get(k).map(|m| m.natural_hz));
@@ -322,13 +338,21 @@ impl FleetSummary {
             ));
             parameters.extend(Distribution::of(&format!("mode{}_damping", k + 1), "1", &z));
         }
-        parameters.extend(Distribution::of("wm_low_frequency_gain", "1", &col(&|u| u.wm_low_gain)));
+        parameters.extend(Distribution::of(
+            "wm_low_frequency_gain",
+            "1",
+            &col(&|u| u.wm_low_gain),
+        ));
         parameters.extend(Distribution::of(
             "wm_high_frequency_gain",
             "1",
             &col(&|u| u.wm_high_gain),
         ));
-        parameters.extend(Distribution::of("crossover", "Hz", &col(&|u| u.crossover_hz)));
+        parameters.extend(Distribution::of(
+            "crossover",
+            "Hz",
+            &col(&|u| u.crossover_hz),
+        ));
         parameters.extend(Distribution::of("sensitivity_peak", "1", &col(&|u| u.ms)));
         parameters.extend(Distribution::of(
             "validation_fit",
@@ -384,9 +408,9 @@ pub fn run_fleet(
         }
         builder = builder.num_threads(j);
     }
-    let pool = builder
-        .build()
-        .map_err(|e| Error::InvalidArgument(format!("cannot start {:?} worker threads: {e}", opts.jobs)))?;
+    let pool = builder.build().map_err(|e| {
+        Error::InvalidArgument(format!("cannot start {:?} worker threads: {e}", opts.jobs))
+    })?;
     let units: Vec<UnitResult> = pool.install(|| {
         serials
             .par_iter()
@@ -434,7 +458,10 @@ mod tests {
     #[test]
     fn distribution_statistics() {
         let d = Distribution::of("x", "Hz", &[3.0, 1.0, 2.0, f64::NAN, 4.0]).unwrap();
-        assert_eq!((d.count, d.min, d.max, d.median, d.mean), (4, 1.0, 4.0, 2.5, 2.5));
+        assert_eq!(
+            (d.count, d.min, d.max, d.median, d.mean),
+            (4, 1.0, 4.0, 2.5, 2.5)
+        );
         assert!((d.std - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
         assert!(Distribution::of("x", "", &[f64::NAN]).is_none());
     }

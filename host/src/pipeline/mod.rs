@@ -46,7 +46,9 @@ use crate::robust::uncertainty::{
     fit_uncertainty_weight, multiplicative_envelope, UncertaintyWeight, WeightFitOptions,
 };
 use crate::spectral::Etfe;
-use crate::validate::{residual_test, simulation_fit_log, InitialState, ResidualTest, SimulationFit};
+use crate::validate::{
+    residual_test, simulation_fit_log, InitialState, ResidualTest, SimulationFit,
+};
 use num_complex::Complex64;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
@@ -545,9 +547,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         "controller_design",
         "achieved design crossover of the robust PID (highest crossover meeting M_s, ‖W_m T‖∞ \
          < 1 and the actuator limit)",
-        tuned
-            .as_ref()
-            .map_or(f64::NAN, |t| t.design.crossover_hz),
+        tuned.as_ref().map_or(f64::NAN, |t| t.design.crossover_hz),
         Comparison::AtLeast,
         min_fc,
         "Hz",
@@ -569,9 +569,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     // 9. Receipts.
     progress("receipts");
     let r = &c.receipts;
-    let fc = tuned
-        .as_ref()
-        .map_or(fc_target, |t| t.design.crossover_hz);
+    let fc = tuned.as_ref().map_or(fc_target, |t| t.design.crossover_hz);
     let mut limits = ReceiptLimits::for_crossover(fc);
     limits.ms_max = k.ms_max;
     if let Some(v) = r.gain_margin_db_min {
@@ -598,7 +596,9 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     if let Some(v) = r.etfe_max_freq_factor {
         limits.etfe_max_freq_factor = v;
     }
-    let cv_min = r.cross_validation_fit_min.unwrap_or(config::DEFAULT_CV_FIT_MIN);
+    let cv_min = r
+        .cross_validation_fit_min
+        .unwrap_or(config::DEFAULT_CV_FIT_MIN);
     let cross_validation = validation_fit.as_ref().map(|f| CrossValidation {
         fit_percent: f.fit_percent[0],
         limit_percent: cv_min,
@@ -806,7 +806,11 @@ fn push_audit_receipts(
     rs.push(Receipt::new(
         "audit_coherence",
         "lowest coherence of any run near crossover",
-        if worst.0.is_finite() { worst.0 } else { f64::NAN },
+        if worst.0.is_finite() {
+            worst.0
+        } else {
+            f64::NAN
+        },
         Comparison::AtLeast,
         a.min_coherence,
         "1",
@@ -819,12 +823,20 @@ fn push_audit_receipts(
                 au.coherence_drops.len()
             )
         } else {
-            format!("no bin in the coherence window {}–{} Hz", fmt_num(lo), fmt_num(hi))
+            format!(
+                "no bin in the coherence window {}–{} Hz",
+                fmt_num(lo),
+                fmt_num(hi)
+            )
         },
     ));
 }
 
-type UncertaintyOut = (Option<EnvelopeData>, Option<UncertaintyWeight>, Option<String>);
+type UncertaintyOut = (
+    Option<EnvelopeData>,
+    Option<UncertaintyWeight>,
+    Option<String>,
+);
 
 fn uncertainty(
     cfg: &LoadedConfig,
@@ -851,9 +863,7 @@ fn uncertainty(
     let nyq = 0.5 * runs[0].log.fs();
     let ok: Vec<bool> = (0..grid.len())
         .map(|i| {
-            grid[i] > 0.0
-                && grid[i] < nyq
-                && family.iter().all(|m| m.etfe.coherence[i] >= gate)
+            grid[i] > 0.0 && grid[i] < nyq && family.iter().all(|m| m.etfe.coherence[i] >= gate)
         })
         .collect();
     let idx: Vec<usize> = (0..grid.len()).filter(|&i| ok[i]).collect();
@@ -986,7 +996,10 @@ pub fn write_outputs(run: &PipelineRun, dir: &Path) -> Result<Vec<PathBuf>> {
     }
     let figures = crate::report::figures(run)?;
     for f in &figures {
-        put(&Path::new("figures").join(format!("{}.svg", f.name)), &f.svg)?;
+        put(
+            &Path::new("figures").join(format!("{}.svg", f.name)),
+            &f.svg,
+        )?;
     }
     for name in crate::report::FIGURE_NAMES {
         if !figures.iter().any(|f| f.name == name) {

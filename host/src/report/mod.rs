@@ -204,12 +204,11 @@ fn fig_bode(run: &PipelineRun) -> Result<Figure> {
         // Only bins passing the gate; a rejected bin breaks the line (NaN).
         let g = l.etfe.gate(gate_thr);
         let (mut pm_pts, mut pp_pts) = (Vec::new(), Vec::new());
-        for i in 0..l.etfe.freq_hz.len() {
-            let f = l.etfe.freq_hz[i];
+        for (i, (&f, &gated)) in l.etfe.freq_hz.iter().zip(&g).enumerate() {
             if f <= 0.0 {
                 continue;
             }
-            if !g[i] {
+            if !gated {
                 pm_pts.push((f, f64::NAN));
                 pp_pts.push((f, f64::NAN));
                 continue;
@@ -228,8 +227,7 @@ fn fig_bode(run: &PipelineRun) -> Result<Figure> {
         ph.series.push(Series::new("", pp_pts, col, Kind::Line(1)));
     }
     let (mut in_m, mut out_m, mut in_p, mut out_p) = (vec![], vec![], vec![], vec![]);
-    for i in 0..nom.etfe.freq_hz.len() {
-        let f = nom.etfe.freq_hz[i];
+    for (i, &f) in nom.etfe.freq_hz.iter().enumerate() {
         if f <= 0.0 {
             continue;
         }
@@ -262,7 +260,10 @@ fn fig_bode(run: &PipelineRun) -> Result<Figure> {
         .push(Series::new("", out_p, colors::LIGHT_GREY, Kind::Hollow(3)));
     mag.series.push(Series::new(
         &format!("model, order {}", run.ident.order),
-        mc.f.iter().zip(&mc.mag).map(|(&f, &m)| (f, db(m))).collect(),
+        mc.f.iter()
+            .zip(&mc.mag)
+            .map(|(&f, &m)| (f, db(m)))
+            .collect(),
         colors::RED,
         Kind::Line(2),
     ));
@@ -307,7 +308,10 @@ fn fig_coherence(run: &PipelineRun) -> Result<Figure> {
     let mut p = Panel::new("", "frequency (Hz)", "coherence γ²", true, false);
     p.y_range = Some((0.0, 1.05));
     p.bands = excluded(run);
-    p.band_label = Some(format!("excluded (`{}` below gate)", run.nominal_run().name));
+    p.band_label = Some(format!(
+        "excluded (`{}` below gate)",
+        run.nominal_run().name
+    ));
     p.hlines.push(RefLine {
         at: gate,
         color: colors::RED,
@@ -331,7 +335,11 @@ fn fig_coherence(run: &PipelineRun) -> Result<Figure> {
             &format!("`{}`", l.name),
             pts,
             col,
-            Kind::Line(if l.name == run.nominal_run().name { 2 } else { 1 }),
+            Kind::Line(if l.name == run.nominal_run().name {
+                2
+            } else {
+                1
+            }),
         ));
     }
     p.legend = LegendAt::LowerLeft;
@@ -355,7 +363,8 @@ fn fig_order(run: &PipelineRun) -> Result<Figure> {
         .map(|(i, &s)| ((i + 1) as f64, s))
         .collect();
     p.x_range = Some((0.5, sv.len() as f64 + 0.5));
-    p.series.push(Series::new("", pts.clone(), colors::BLUE, Kind::Line(1)));
+    p.series
+        .push(Series::new("", pts.clone(), colors::BLUE, Kind::Line(1)));
     p.series.push(Series::new(
         "kept (model states)",
         pts.iter().take(n).copied().collect(),
@@ -393,7 +402,11 @@ fn fig_robustness(run: &PipelineRun) -> Result<Option<Figure>> {
     let mut p = Panel::new("", "frequency (Hz)", "magnitude", true, true);
     p.series.push(Series::new(
         "|T| (complementary sensitivity)",
-        c.freq_hz.iter().zip(&c.t_mag).map(|(&f, &t)| (f, t)).collect(),
+        c.freq_hz
+            .iter()
+            .zip(&c.t_mag)
+            .map(|(&f, &t)| (f, t))
+            .collect(),
         colors::BLUE,
         Kind::Line(2),
     ));
@@ -557,10 +570,26 @@ fn fig_step(run: &PipelineRun) -> Result<Option<Figure>> {
         Some(ts) => (3.0 * ts).max(6.0 / run.receipts_crossover_hz).min(t_end),
         None => t_end,
     };
-    let k_show = s.t.iter().take_while(|&&t| t <= t_show).count().max(2).min(s.t.len());
-    let (tt, yy, uu, ud) = (&s.t[..k_show], &s.y[..k_show], &s.u[..k_show], &s.u_demand[..k_show]);
+    let k_show =
+        s.t.iter()
+            .take_while(|&&t| t <= t_show)
+            .count()
+            .max(2)
+            .min(s.t.len());
+    let (tt, yy, uu, ud) = (
+        &s.t[..k_show],
+        &s.y[..k_show],
+        &s.u[..k_show],
+        &s.u_demand[..k_show],
+    );
     let sig = &run.config.signals;
-    let mut py = Panel::new("", "", &format!("output ({})", sig.output_unit), false, false);
+    let mut py = Panel::new(
+        "",
+        "",
+        &format!("output ({})", sig.output_unit),
+        false,
+        false,
+    );
     py.series.push(Series::new(
         "y (plant output)",
         thin(tt, yy, 3000),
@@ -596,7 +625,10 @@ fn fig_step(run: &PipelineRun) -> Result<Option<Figure>> {
         Kind::Dashed(1),
     ));
     let lim = s.actuator_limit;
-    for (at, label) in [(lim, Some(format!("rails ±{}", fmt_num(lim)))), (-lim, None)] {
+    for (at, label) in [
+        (lim, Some(format!("rails ±{}", fmt_num(lim)))),
+        (-lim, None),
+    ] {
         pu.hlines.push(RefLine {
             at,
             color: colors::RED,
@@ -666,7 +698,10 @@ fn fig_audit(run: &PipelineRun) -> Result<Option<Figure>> {
         colors::BLUE,
         Kind::Line(2),
     ));
-    for (p, thr) in [(&mut pg, o.max_gain_shift_db), (&mut pp, o.max_phase_shift_deg)] {
+    for (p, thr) in [
+        (&mut pg, o.max_gain_shift_db),
+        (&mut pp, o.max_phase_shift_deg),
+    ] {
         p.hlines.push(RefLine {
             at: thr,
             color: colors::RED,
@@ -738,18 +773,27 @@ fn fig_validation(run: &PipelineRun) -> Result<Option<Figure>> {
     );
     p.series.push(Series::new(
         "measured",
-        t.iter().copied().zip(v.log.y()[k0..k0 + w].iter().copied()).collect(),
+        t.iter()
+            .copied()
+            .zip(v.log.y()[k0..k0 + w].iter().copied())
+            .collect(),
         colors::GREY,
         Kind::Line(3),
     ));
     p.series.push(Series::new(
         &format!("model (free run), fit {} %", fmt_num(fit.fit_percent[0])),
-        t.iter().copied().zip(fit.y_sim[0][k0..k0 + w].iter().copied()).collect(),
+        t.iter()
+            .copied()
+            .zip(fit.y_sim[0][k0..k0 + w].iter().copied())
+            .collect(),
         colors::RED,
         Kind::Line(1),
     ));
     p.legend = LegendAt::UpperRight;
-    let m = v.log.y()[k0..k0 + w].iter().map(|x| x.abs()).fold(0.0, f64::max);
+    let m = v.log.y()[k0..k0 + w]
+        .iter()
+        .map(|x| x.abs())
+        .fold(0.0, f64::max);
     p.y_range = Some((-1.15 * m, 1.6 * m));
     p.x_range = Some((t[0], *t.last().unwrap_or(&1.0)));
     Ok(Some(Figure {
@@ -906,7 +950,10 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
         facts.push(format!("M_s {}", receipt_value(run, "sensitivity_peak")));
     }
     if rs.get("robust_stability").is_some() {
-        facts.push(format!("‖W_m T‖∞ {}", receipt_value(run, "robust_stability")));
+        facts.push(format!(
+            "‖W_m T‖∞ {}",
+            receipt_value(run, "robust_stability")
+        ));
     }
     if let Some(f) = &run.validation_fit {
         facts.push(format!("validation fit {} %", fmt_num(f.fit_percent[0])));
@@ -953,7 +1000,9 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
     h.push_str("</table>\n</section>\n");
 
     // Frequency response.
-    h.push_str("<section id=\"frequency-response\">\n<h2>Frequency response: data and model</h2>\n");
+    h.push_str(
+        "<section id=\"frequency-response\">\n<h2>Frequency response: data and model</h2>\n",
+    );
     figure_html(&mut h, figs, "bode");
     let nom = run.nominal_run();
     let bands = nom.etfe.excluded_bands(run.config.etfe.coherence_gate);
@@ -1321,7 +1370,11 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
             },
             fmt_num(l.amplitude),
             esc(&sig.input_unit),
-            if l.amplitude_is_rms { " (input RMS)" } else { "" }
+            if l.amplitude_is_rms {
+                " (input RMS)"
+            } else {
+                ""
+            }
         );
     }
     h.push_str("</ul>\n<h3>Settings (all defaults filled in)</h3>\n<pre>");

@@ -332,7 +332,7 @@ where
     let mut first_band = true;
     for b in &p.bands {
         let (a, c) = (b.x0.max(xlo), b.x1.min(xhi));
-        if !(a <= c) {
+        if a.is_nan() || c.is_nan() || a > c {
             continue;
         }
         let anno = chart
@@ -392,11 +392,7 @@ where
     let tol = 1e-9 * (yhi - ylo).abs();
     let xtol = 1e-9 * (xhi - xlo).abs();
     let inside = |x: f64, y: f64| {
-        p.usable(x, y)
-            && y >= ylo - tol
-            && y <= yhi + tol
-            && x >= xlo - xtol
-            && x <= xhi + xtol
+        p.usable(x, y) && y >= ylo - tol && y <= yhi + tol && x >= xlo - xtol && x <= xhi + xtol
     };
     for s in &p.series {
         let col = s.color;

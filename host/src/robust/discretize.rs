@@ -8,7 +8,8 @@
 //! preserved, so a parallel-form controller discretised term by term equals the discretised
 //! whole.
 use crate::error::{Error, Result};
-use crate::lti::{poly_add, poly_mul, TransferFunction};
+use crate::lti::{poly_add, poly_mul, solve_square, StateSpace, TransferFunction};
+use faer::Mat;
 
 /// The bilinear constant c (1/s) for sample time `ts` (s) and an optional prewarp frequency
 /// `prewarp_rad_s` (rad/s, must lie in (0, π/ts)).
@@ -88,4 +89,39 @@ pub fn tustin(
         den.iter().map(|v| v / lead).collect(),
         ts,
     )
+}
+
+/// Tustin discretisation of a continuous state-space model without forming polynomials in z:
+/// with M = (cI − A)⁻¹, A_d = M(cI + A), B_d = √(2c)·M·B, C_d = √(2c)·C·M, D_d = D + C·M·B
+/// (same transfer function as [`tustin`] of the model's transfer function, but the state
+/// matrices stay as well conditioned as the continuous ones; polynomial coefficients of
+/// fast-sampled models, with every pole clustered near z = 1, are not).
+///
+/// Errors: a discrete input, an eigenvalue of A at s = c (it maps to z = ∞), or invalid
+/// `ts`/prewarp.
+pub fn tustin_state_space(
+    sys: &StateSpace,
+    ts: f64,
+    prewarp_rad_s: Option<f64>,
+) -> Result<StateSpace> {
+    if sys.is_discrete() {
+        return Err(Error::InvalidArgument(
+            "Tustin: the model is already discrete".into(),
+        ));
+    }
+    let c = tustin_constant(ts, prewarp_rad_s)?;
+    let n = sys.n_states();
+    let ci = Mat::<f64>::identity(n, n) * faer::Scale(c);
+    let m = solve_square(
+        (&ci - &sys.a).as_ref(),
+        Mat::<f64>::identity(n, n).as_ref(),
+        "Tustin: cI − A (a pole at s = c maps to z = ∞)",
+    )?;
+    let k = (2.0 * c).sqrt();
+    let ad = &m * (&ci + &sys.a);
+    let mb = &m * &sys.b;
+    let bd = &mb * faer::Scale(k);
+    let cd = (&sys.c * &m) * faer::Scale(k);
+    let dd = &sys.d + &sys.c * &mb;
+    StateSpace::new(ad, bd, cd, dd, ts)
 }

@@ -17,6 +17,7 @@
 //! |L(jω)| = 1; phase crossovers solve Im L(jω) = 0 with Re L(jω) < 0 (no phase unwrapping
 //! needed). For discrete loops the Nyquist frequency π/ts, where L is real, is tested
 //! explicitly.
+use super::norms::balance;
 use crate::error::{Error, Result};
 use crate::lti::{FreqEvaluator, StateSpace};
 use num_complex::Complex64;
@@ -56,12 +57,14 @@ impl FeedbackLoop {
                 controller.n_inputs()
             )));
         }
-        let l = controller.series(plant)?;
+        // Every transfer is balanced (diagonal state scaling, exact in floating point) so that
+        // pole and norm computations see well-scaled matrices.
+        let l = balance(&controller.series(plant)?)?;
         let one = StateSpace::identity(1, plant.ts)?;
-        let s = one.feedback(&l)?;
-        let t = l.feedback(&one)?;
-        let ks = controller.feedback(plant)?;
-        let gs = plant.feedback(controller)?;
+        let s = balance(&one.feedback(&l)?)?;
+        let t = balance(&l.feedback(&one)?)?;
+        let ks = balance(&controller.feedback(plant)?)?;
+        let gs = balance(&plant.feedback(controller)?)?;
         Ok(Self {
             plant: plant.clone(),
             controller: controller.clone(),

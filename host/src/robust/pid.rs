@@ -42,9 +42,9 @@
 //! d[k] = a_d·d[k−1] + b_d·(e[k] − e[k−1])
 //! v[k] = p[k] + i[k] + d[k];   u[k] = roll-off biquad of v (or v)
 //! ```
-use super::discretize::{tustin, tustin_constant};
+use super::discretize::{tustin, tustin_constant, tustin_state_space};
 use super::loops::{analysis_grid, FeedbackLoop};
-use super::norms::{hinf_norm, sigma_max};
+use super::norms::{balance, hinf_norm, sigma_max};
 use super::uncertainty::UncertaintyWeight;
 use crate::error::{Error, Result};
 use crate::lti::{poly_mul, FreqEvaluator, StateSpace, TransferFunction};
@@ -427,7 +427,13 @@ pub fn implemented_loop(
                 plant.c2d_zoh(ts)?
             };
             let dp = pid.discretize(ts, prewarp_hz)?;
-            let k = dp.to_state_space()?;
+            // Same transfer function as `dp`, realised by a state-space Tustin map of the
+            // balanced continuous controller (better conditioned than the z-polynomials).
+            let k = tustin_state_space(
+                &balance(&pid.to_state_space()?)?,
+                ts,
+                prewarp_hz.map(|f| 2.0 * PI * f),
+            )?;
             Ok((FeedbackLoop::new(&g, &k)?, Some(dp)))
         }
     }
@@ -464,12 +470,11 @@ pub fn weight_in_domain(
 ) -> Result<StateSpace> {
     match ts {
         None => w.to_state_space(),
-        Some(ts) => tustin(
-            &w.to_transfer_function()?,
+        Some(ts) => tustin_state_space(
+            &balance(&w.to_state_space()?)?,
             ts,
             prewarp_hz.map(|f| 2.0 * PI * f),
-        )?
-        .to_state_space(),
+        ),
     }
 }
 
@@ -613,13 +618,19 @@ impl Tuner<'_> {
                 }
             }
         }
-        let ms = hinf_norm(&lp.s)?.gamma;
+        // A norm that cannot be evaluated (e.g. an ill-conditioned candidate) makes the
+        // candidate infeasible rather than aborting the search.
+        let Ok(ms) = hinf_norm(&lp.s).map(|h| h.gamma) else {
+            return Ok(None);
+        };
         if ms > spec.ms_max {
             return Ok(None);
         }
         let wm_t = match &wmt_sys {
             Some(sys) => {
-                let v = hinf_norm(sys)?.gamma;
+                let Ok(v) = hinf_norm(sys).map(|h| h.gamma) else {
+                    return Ok(None);
+                };
                 if v >= 1.0 {
                     return Ok(None);
                 }
@@ -627,13 +638,17 @@ impl Tuner<'_> {
             }
             None => None,
         };
-        let ks = hinf_norm(&lp.ks)?.gamma;
+        let Ok(ks) = hinf_norm(&lp.ks).map(|h| h.gamma) else {
+            return Ok(None);
+        };
         if let Some(kmax) = spec.ks_max {
             if ks > kmax {
                 return Ok(None);
             }
         }
-        let mt = hinf_norm(&lp.t)?.gamma;
+        let Ok(mt) = hinf_norm(&lp.t).map(|h| h.gamma) else {
+            return Ok(None);
+        };
         Ok(Some(Eval {
             pid,
             point,

@@ -123,11 +123,11 @@ pub fn discrete_response(
             .max_by(|&p, &q| m[p][col].norm().total_cmp(&m[q][col].norm()))
             .expect("pivot");
         m.swap(col, piv);
-        for r in col + 1..n {
-            let f = m[r][col] / m[col][col];
-            for k in col..=n {
-                let v = m[col][k];
-                m[r][k] -= f * v;
+        let pivot_row = m[col].clone();
+        for row in m.iter_mut().skip(col + 1) {
+            let f = row[col] / pivot_row[col];
+            for (x, &p) in row.iter_mut().zip(&pivot_row).skip(col) {
+                *x -= f * p;
             }
         }
     }

@@ -27,11 +27,7 @@ pub const ZETA_RES: f64 = 0.05;
 /// two-mass actuator (torque → motor speed) with viscous friction. Continuous, s in rad/s.
 pub fn plant_tf() -> TransferFunction {
     let (wp, wa, wr) = (2.0 * PI * F_POLE, 2.0 * PI * F_ANTI, 2.0 * PI * F_RES);
-    let num = vec![
-        DC_GAIN / (wa * wa),
-        DC_GAIN * 2.0 * ZETA_ANTI / wa,
-        DC_GAIN,
-    ];
+    let num = vec![DC_GAIN / (wa * wa), DC_GAIN * 2.0 * ZETA_ANTI / wa, DC_GAIN];
     // (s/wp + 1)(s²/wr² + 2ζ s/wr + 1)
     let a = [1.0 / wp, 1.0];
     let b = [1.0 / (wr * wr), 2.0 * ZETA_RES / wr, 1.0];
@@ -86,7 +82,11 @@ pub fn multisine(periods: usize, rms: f64, rng: &mut Rng) -> Vec<f64> {
         }
     }
     let r = (v.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
-    v.iter().map(|x| x * rms / r).cycle().take(periods * n).collect()
+    v.iter()
+        .map(|x| x * rms / r)
+        .cycle()
+        .take(periods * n)
+        .collect()
 }
 
 /// Simulates the plant for `u` (one period of warm-up is simulated and dropped, so the log is
@@ -96,7 +96,10 @@ pub fn simulate(u: &[f64], noise: f64, rng: &mut Rng) -> Vec<f64> {
     let mut uu = u[u.len() - PERIOD..].to_vec();
     uu.extend_from_slice(u);
     let y = g.simulate_siso(&uu, None).expect("simulation");
-    y[PERIOD..].iter().map(|v| v + noise * rng.normal()).collect()
+    y[PERIOD..]
+        .iter()
+        .map(|v| v + noise * rng.normal())
+        .collect()
 }
 
 /// Writes a headerless-time CSV `u,y` with full precision.
