@@ -297,11 +297,14 @@ fn reruns_are_byte_identical() {
 
 #[test]
 fn help_has_examples_and_exit_codes() {
-    for cmd in ["frf", "identify"] {
+    for cmd in ["frf", "identify", "codegen", "reidentify", "run", "fleet", "gap"] {
         let r = ferrosid(&[cmd, "--help"]);
         assert_eq!(r.code, 0);
         assert!(r.stdout.contains("Examples:"), "{cmd}: {}", r.stdout);
-        assert!(r.stdout.contains("Exit codes"), "{cmd}");
+        assert!(
+            r.stdout.contains("Exit codes") || r.stdout.contains("Exit status"),
+            "{cmd}"
+        );
         assert!(r.stdout.contains(&format!("ferrosid {cmd} ")), "{cmd}");
     }
     let r = ferrosid(&["--help"]);

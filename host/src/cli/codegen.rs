@@ -44,7 +44,9 @@ use std::path::{Path, PathBuf};
     after_help = "Examples:\n  ferrosid codegen --model model.json --pid tuned.json --wm wm.json \
     --receipts receipts.json --source logs/unit_a.csv --prefix axis1 --out-dir gen\n  \
     ferrosid codegen --model model.json --wm-level 0.2 --check-hz 5,10,20,40 --prefix axis1 --out-dir gen\n  \
-    ferrosid codegen --write-templates my_templates"
+    ferrosid codegen --write-templates my_templates\n\n\
+    Exit codes: 0 files written, 2 usage error, 3 unreadable or malformed input file (named), \
+    4 the model cannot be discretised or checked."
 )]
 pub struct Args {
     /// Model JSON ({"ts","a","b","c","d"}, row-major; ts = 0 for continuous).

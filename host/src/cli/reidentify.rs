@@ -25,7 +25,9 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, clap::Args)]
 #[command(
     after_help = "Examples:\n  ferrosid reidentify target.log --out drifted.json\n  \
-    ferrosid reidentify target.log --na 2 --nb 1 --max-delay 8 --json"
+    ferrosid reidentify target.log --na 2 --nb 1 --max-delay 8 --json\n\n\
+    Exit codes: 0 fit done, 2 usage error, 3 unreadable or malformed frame (file and line named), \
+    4 the fit failed (rank deficient, unstable, or too few gated bins)."
 )]
 pub struct Args {
     /// Decoded target log holding FRAME_BEGIN / FRAME / FRAME_END lines.
