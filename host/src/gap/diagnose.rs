@@ -22,9 +22,79 @@ pub const DEFAULT_MARGIN: f64 = 0.10;
 /// 1-parameter effect it contains (stiction over Coulomb friction) to rank above it.
 pub const DEFAULT_NESTED_MARGIN: f64 = 0.03;
 
-/// Relative training-cost reduction stiction must achieve over Coulomb friction when the
-/// validation log cannot separate them (see [`diagnose`]).
-pub const NESTED_TRAIN_GAIN: f64 = 0.10;
+/// Likelihood-ratio threshold for the nested pair (stiction over Coulomb friction) when the
+/// validation log cannot separate them: the χ² quantile with one degree of freedom (the extra
+/// breakaway parameter) at p = 0.001. See [`nested_likelihood_ratio`].
+pub const NESTED_LR_THRESHOLD: f64 = 10.83;
+
+/// Longest lag of the residual autocorrelation used by [`effective_samples`], samples.
+pub const MAX_CORRELATION_LAG: usize = 2000;
+
+/// Effective number of independent samples of a residual sequence: N/τ with the integrated
+/// autocorrelation time τ = 1 + 2·Σ ρ_k, summed over Geyer's initial positive sequence (pairs
+/// ρ_{2m+1} + ρ_{2m+2} while positive, at most [`MAX_CORRELATION_LAG`] lags). White residuals
+/// give about N; residuals dominated by slow model error give far fewer. At least 1.
+pub fn effective_samples(r: &[f64]) -> f64 {
+    let n = r.len();
+    if n < 4 {
+        return n.max(1) as f64;
+    }
+    let mean = r.iter().sum::<f64>() / n as f64;
+    let d: Vec<f64> = r.iter().map(|v| v - mean).collect();
+    let c0: f64 = d.iter().map(|v| v * v).sum();
+    if !(c0 > 0.0) {
+        return 1.0;
+    }
+    let rho = |k: usize| d.iter().zip(&d[k..]).map(|(a, b)| a * b).sum::<f64>() / c0;
+    let mut tau = 1.0;
+    let mut k = 1;
+    while k + 1 < n.min(MAX_CORRELATION_LAG) {
+        let pair = rho(k) + rho(k + 1);
+        if !(pair > 0.0) {
+            break;
+        }
+        tau += 2.0 * pair;
+        k += 2;
+    }
+    (n as f64 / tau).max(1.0)
+}
+
+/// Likelihood-ratio statistic of the nested model `rich` over `simple` on the training logs,
+/// Λ = Σ_logs N_eff · ln(SSE_simple / SSE_rich), with N_eff the [`effective_samples`] of the
+/// simple model's residual on that log (Gaussian residuals, variance unknown; the effective
+/// count keeps correlated model error from passing as evidence). Under the simple model Λ is
+/// about χ² with one degree of freedom per extra parameter.
+pub fn nested_likelihood_ratio(
+    simple: &AugmentedModel,
+    rich: &AugmentedModel,
+    u: &[Vec<f64>],
+    y: &[Vec<f64>],
+    warmup: usize,
+) -> Result<f64> {
+    let mut lr = 0.0;
+    for (ul, yl) in u.iter().zip(y) {
+        let rs: Vec<f64> = yl
+            .iter()
+            .zip(&simple.simulate(ul)?)
+            .skip(warmup)
+            .map(|(a, b)| a - b)
+            .collect();
+        let rr: Vec<f64> = yl
+            .iter()
+            .zip(&rich.simulate(ul)?)
+            .skip(warmup)
+            .map(|(a, b)| a - b)
+            .collect();
+        let (ss, sr) = (
+            rs.iter().map(|v| v * v).sum::<f64>(),
+            rr.iter().map(|v| v * v).sum::<f64>(),
+        );
+        if ss > 0.0 && sr > 0.0 {
+            lr += effective_samples(&rs) * (ss / sr).ln();
+        }
+    }
+    Ok(if lr.is_finite() { lr } else { 0.0 })
+}
 
 /// Settings of [`diagnose`]. `Default` gives the documented defaults.
 #[derive(Debug, Clone, PartialEq)]
@@ -342,7 +412,8 @@ pub fn diagnose(
     // Nested pair: stiction contains Coulomb friction (breakaway = level). Stiction is
     // preferred only if it lowers the validation NRMSE by the nested margin, or — when the
     // validation log cannot tell them apart (within that margin; a stuck mass needs
-    // low-amplitude excitation) — the training cost by NESTED_TRAIN_GAIN.
+    // low-amplitude excitation) — if its training-log likelihood ratio over Coulomb friction
+    // exceeds NESTED_LR_THRESHOLD.
     let pos = |k: EffectKind, s: &[(Fitted, f64)]| {
         s.iter()
             .position(|(f, _)| f.model.effect.map(|e| e.kind()) == Some(k))
@@ -352,9 +423,14 @@ pub fn diagnose(
         pos(EffectKind::CoulombFriction, &scored),
     ) {
         let (gs, gc) = (scored[is].1, scored[ic].1);
-        let (ts_, tc) = (scored[is].0.train_cost, scored[ic].0.train_cost);
+        let lr =
+            nested_likelihood_ratio(&scored[ic].0.model, &scored[is].0.model, &tu, &ty, warmup)?;
+        notes.push(format!(
+            "stiction vs coulomb_friction: training likelihood ratio {lr:.1} (threshold \
+             {NESTED_LR_THRESHOLD}), validation NRMSE {gs:.4} vs {gc:.4}"
+        ));
         let stiction_wins = gs < gc * (1.0 - opts.nested_margin)
-            || (gs <= gc * (1.0 + opts.nested_margin) && ts_ < tc * (1.0 - NESTED_TRAIN_GAIN));
+            || (gs <= gc * (1.0 + opts.nested_margin) && lr > NESTED_LR_THRESHOLD);
         if stiction_wins != (is < ic) {
             scored.swap(is, ic);
         }

@@ -143,14 +143,22 @@ impl GapReport {
             self.settings.coherence_min,
             bands(&w.coherence_drops_hz)
         );
-        let _ = writeln!(
-            s,
-            "  amplitude dependent: {} (low vs high response differ by {:.1}% median, tolerance \
-             {:.0}%)",
-            if w.amplitude_dependent { "yes" } else { "no" },
-            100.0 * w.amplitude_change,
-            100.0 * self.settings.amplitude_tol
-        );
+        if w.amplitude_change.is_finite() {
+            let _ = writeln!(
+                s,
+                "  amplitude dependent: {} (low vs high response differ by {:.1}% median, \
+                 tolerance {:.0}%)",
+                if w.amplitude_dependent { "yes" } else { "no" },
+                100.0 * w.amplitude_change,
+                100.0 * self.settings.amplitude_tol
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "  amplitude dependent: not assessed (needs two training logs of different \
+                 amplitude with coherent bins in common)"
+            );
+        }
         for r in &w.residual_regions {
             let _ = writeln!(
                 s,
