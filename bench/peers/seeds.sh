@@ -6,6 +6,7 @@
 #
 # Usage: bench/peers/seeds.sh [N_SEEDS]      (default 10, at least 2)
 #
+# The reference log of results.md is run too and shown beside the seeds (not in the statistics).
 # Writes bench/peers/seeds.md and prints it. Work files (logs, JSON) go to bench/peers/work/seeds/
 # (ignored by git); logs are generated once per seed and reused. Timing is not measured (one run
 # per tool and seed). SIPPY is not run (11 s per log). Needs octave + octave-control and python3
@@ -50,9 +51,17 @@ for k in $(seq 1 "$nseeds"); do
   "$bench" "$log" "$work/ferrosid_seed$k.json" 1
 done
 
-say "SLICOT (one Octave process for all seeds)"
+# The reference log of results.md (default seed), reported beside the seeds, not in the statistics.
+ref="$work/plant3_ref.csv"
+if [ ! -s "$ref" ]; then
+  (cd "$here" && "$PY" gen_data.py "$ref.tmp") && mv "$ref.tmp" "$ref"
+fi
+say "reference log: ferrosid"
+"$bench" "$ref" "$work/ferrosid_ref.json" 1
+
+say "SLICOT (one Octave process for all logs)"
 (cd "$here" && octave --no-gui --quiet --no-window-system --eval \
-   "for k = 1:$nseeds, octave_n4sid(sprintf('%s/plant3_seed%d.csv', '$work', k), sprintf('%s/octave_seed%d.json', '$work', k), 1); end")
+   "for k = 1:$nseeds, octave_n4sid(sprintf('%s/plant3_seed%d.csv', '$work', k), sprintf('%s/octave_seed%d.json', '$work', k), 1); end; octave_n4sid('$ref', '$work/octave_ref.json', 1);")
 
 say "statistics"
 (cd "$here" && "$PY" seeds.py "$work" "$nseeds" "$here/seeds.md")
