@@ -429,7 +429,9 @@ pub const JOINT_MAX_ITER: usize = 12;
 /// Stage 1 searches the effect parameters on a grid over a coarse copy of the training data
 /// (the first [`COARSE_SAMPLES`] scored samples of each log) from every start, with the poles
 /// fixed; stage 2 refines the best point jointly by Levenberg–Marquardt on all the data (see
-/// [`joint_fit`]).
+/// [`joint_fit`]). Coulomb friction screens the [`FRICTION_STARTS`] best grid points of
+/// distinct levels by a joint refinement on the coarse data before stage 2, because its
+/// fixed-pole cost misleads when the linear start's poles are off.
 pub fn fit_candidate(
     kind: EffectKind,
     td: &TrainData,
@@ -448,6 +450,46 @@ pub fn fit_candidate(
                 VelocitySource::Output,
             );
         }
+        EffectKind::CoulombFriction => {
+            // The friction cost with the poles fixed is a poor guide when the linear start's
+            // poles are off (a stuck mass shifts the re-fit's resonance): refine the best
+            // grid points of FRICTION_STARTS distinct levels jointly and keep the best.
+            let coarse = td.coarse(COARSE_SAMPLES);
+            let mut grid: Vec<Fitted> = Vec::new();
+            for lin in starts {
+                grid.extend(friction_grid(&coarse, lin));
+            }
+            grid.sort_by(|a, b| a.train_cost.total_cmp(&b.train_cost));
+            let level = |f: &Fitted| match f.model.effect {
+                Some(Effect::CoulombFriction { level }) => level,
+                _ => f64::NAN,
+            };
+            let mut picked: Vec<Fitted> = Vec::new();
+            for g in grid {
+                if picked.len() >= FRICTION_STARTS {
+                    break;
+                }
+                let l = level(&g);
+                if picked
+                    .iter()
+                    .all(|p| (level(p) / l).ln().abs() > DISTINCT_LEVEL_LN)
+                {
+                    picked.push(g);
+                }
+            }
+            // Screen the starts by a joint refinement on the coarse data, then refine the
+            // winner on all the data.
+            let mut best: Option<Fitted> = None;
+            for p in picked {
+                let refined = match joint_fit(&coarse, &p, JOINT_MAX_ITER) {
+                    Some(j) if j.train_cost < p.train_cost => j,
+                    _ => p,
+                };
+                keep_best(&mut best, Some(refined));
+            }
+            let b = best?;
+            eval_fixed_poles(td, &b.model.linear, b.model.effect?, b.model.velocity)?
+        }
         _ => {
             let coarse = td.coarse(COARSE_SAMPLES);
             let mut best: Option<Fitted> = None;
@@ -463,6 +505,31 @@ pub fn fit_candidate(
         Some(j) if j.train_cost < start.train_cost => Some(j),
         _ => Some(start),
     }
+}
+
+/// Coulomb-friction grid points refined jointly by [`fit_candidate`] (the best of distinct
+/// levels).
+pub const FRICTION_STARTS: usize = 3;
+
+/// Levels closer than this in ln (a factor 1.5) count as the same start.
+const DISTINCT_LEVEL_LN: f64 = 0.405;
+
+/// Every Coulomb-friction grid point (both velocity proxies, sample-rate friction) with the
+/// poles of `lin` fixed; see [`initial_search`].
+fn friction_grid(td: &TrainData, lin: &ModalModel) -> Vec<Fitted> {
+    let s = td.u_rms.max(1e-300);
+    let grid = log_grid(0.01 * s, 1.5 * s, 12);
+    let mut out = Vec::new();
+    for vel in [VelocitySource::Output, VelocitySource::OutputDerivative] {
+        for &p in &grid {
+            if let Some(f) =
+                eval_fixed_poles_m(td, lin, Effect::CoulombFriction { level: p }, vel, 1)
+            {
+                out.push(f);
+            }
+        }
+    }
+    out
 }
 
 /// The stiction start: the fitted Coulomb model with the breakaway ratio giving the lowest
@@ -797,7 +864,13 @@ mod tests {
             VelocitySource::Output,
         );
         let e2 = check_friction(Plant::two_mass(), 0.05, 0.015, 0.03, VelocitySource::Output);
-        let e3 = check_friction(Plant::flexure(), 1.0, 0.3, 0.3, VelocitySource::OutputDerivative);
+        let e3 = check_friction(
+            Plant::flexure(),
+            1.0,
+            0.3,
+            0.3,
+            VelocitySource::OutputDerivative,
+        );
         let e4 = check_friction(Plant::dc_motor(), 1.0, 0.3, 0.3, VelocitySource::Output);
         eprintln!("two_mass coulomb {e:.4} stiction {e2:.4} flexure {e3:.4} dc {e4:.4}");
         assert!(e < 0.05 && e2 < 0.05);
