@@ -1,84 +1,156 @@
-//! A representative subset of the labelled gap benchmark (see `ferrosid::gap::benchmark`; the
-//! full 54-case benchmark runs with `cargo run --release -p ferrosid --example gap_benchmark`).
+//! The labelled gap benchmark on a fixed subset of its cases (see `ferrosid::gap::benchmark`;
+//! all 54 cases run with `cargo run --release -p ferrosid --example gap_benchmark`).
 //!
 //! Each case's logs come from the plant simulator with a withheld effect; the diagnosis sees
-//! only the logs and the mismatched nominal model. The label is the independent reference: the
-//! verdict must name it, and the fitted parameters of that effect must be within 20 % of the
-//! truth. Only cases that the full benchmark diagnoses correctly and robustly are asserted here
-//! (Coulomb friction vs stiction on the voltage-driven DC motor, for instance, is not: see the
-//! benchmark table). 8192 samples per log keep the test to about a minute in the dev profile.
-use ferrosid::gap::benchmark::{cases, run_case};
+//! only the logs and the mismatched nominal model. The label is the independent reference.
+//!
+//! The subset is chosen by rule, not by outcome: every effect (and `none`) on every plant, in
+//! the parameter variant (plant index + effect index) mod 2 — 27 cases, half the benchmark —
+//! at the README's 16,384 samples per log (about 15 s on two cores in the dev profile). It
+//! asserts the targets on that subset: at least 85 % correct verdicts, the median
+//! parameter error of each effect within 20 %, and the gap ordering of every case (the linear
+//! re-fit no worse than the nominal sim, the reported model no worse than the linear re-fit).
+use ferrosid::gap::benchmark::{cases, run_case, Case, Outcome};
 use ferrosid::gap::GapOptions;
 
-const N: usize = 8192;
+const N: usize = 16_384;
 
-fn check(id: &str) {
-    let case = cases()
+/// The rule-based subset: case index i in [`cases`] is plant p = i / 18, variant v = (i / 9) % 2,
+/// effect e = i % 9; keep v == (p + e) % 2.
+fn subset() -> Vec<Case> {
+    cases()
         .into_iter()
-        .find(|c| c.id == id)
-        .unwrap_or_else(|| panic!("no case {id}"));
-    let (o, report) = run_case(&case, N, &GapOptions::default()).unwrap();
-    eprintln!(
-        "{id}: verdict {} gaps {:?} params {:?}",
-        o.verdict, o.gaps, o.param_errors
-    );
-    assert_eq!(o.verdict, o.truth, "{id}\n{}", report.to_text());
-    for (name, err) in &o.param_errors {
-        assert!(
-            *err < 0.2,
-            "{id}: parameter {name} off by {:.1} %",
-            100.0 * err
+        .enumerate()
+        .filter(|(i, _)| (i / 9) % 2 == (i / 18 + i % 9) % 2)
+        .map(|(_, c)| c)
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+fn run_all(cs: &[Case]) -> Vec<Outcome> {
+    let workers = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .min(4);
+    let opts = GapOptions::default();
+    let mut out: Vec<Outcome> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..workers)
+            .map(|w| {
+                let opts = &opts;
+                s.spawn(move || {
+                    cs.iter()
+                        .skip(w)
+                        .step_by(workers)
+                        .map(|c| run_case(c, N, opts).map(|r| r.0))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("benchmark worker"))
+            .map(|r| r.expect("diagnosis runs on every benchmark case"))
+            .collect()
+    });
+    out.sort_by(|a, b| a.id.cmp(&b.id));
+    out
+}
+
+#[test]
+fn subset_of_the_labelled_benchmark_meets_the_targets() {
+    let cs = subset();
+    assert_eq!(cs.len(), 27);
+    // Every label on every plant.
+    for plant in ["two_mass", "flexure", "dc_motor"] {
+        assert_eq!(
+            cs.iter()
+                .filter(|c| c.id.starts_with(&format!("{plant}/")))
+                .count(),
+            9
         );
     }
-    if o.truth != "none" {
-        // The effect closes most of what the linear re-fit leaves.
-        assert!(o.gaps[2] < 0.5 * o.gaps[1], "{id}: gaps {:?}", o.gaps);
+    let outcomes = run_all(&cs);
+    let mut failures = Vec::new();
+    for o in &outcomes {
+        eprintln!(
+            "{:<28} verdict {:<17} {} gaps {:.3} {:.3} {:.3} params {:?}",
+            o.id,
+            o.verdict,
+            if o.correct() { "ok " } else { "BAD" },
+            o.gaps[0],
+            o.gaps[1],
+            o.gaps[2],
+            o.param_errors
+        );
+        // Gap ordering (1 % slack for the noise in NRMSE of nearly equal models).
+        if o.gaps[1] > o.gaps[0] * 1.01 {
+            failures.push(format!(
+                "{}: linear re-fit worse than nominal {:?}",
+                o.id, o.gaps
+            ));
+        }
+        if o.gaps[2] > o.gaps[1] * (1.0 + 1e-12) {
+            failures.push(format!(
+                "{}: reported model worse than linear {:?}",
+                o.id, o.gaps
+            ));
+        }
     }
-    // The linear re-fit never does worse than the mismatched nominal sim.
-    assert!(o.gaps[1] <= o.gaps[0] * 1.01, "{id}: gaps {:?}", o.gaps);
-}
-
-#[test]
-fn linear_mismatch_only() {
-    check("flexure/none/0");
-}
-
-#[test]
-fn coulomb_friction_on_the_two_mass_actuator() {
-    check("two_mass/coulomb_friction/0");
-}
-
-#[test]
-fn backlash_on_the_dc_motor() {
-    check("dc_motor/backlash/1");
-}
-
-#[test]
-fn deadzone_on_the_flexure_stage() {
-    check("flexure/deadzone/0");
-}
-
-#[test]
-fn saturation_on_the_two_mass_actuator() {
-    check("two_mass/saturation/1");
-}
-
-#[test]
-fn time_delay_on_the_two_mass_actuator() {
-    check("two_mass/time_delay/1");
-}
-
-#[test]
-fn resonance_on_the_dc_motor() {
-    check("dc_motor/resonance/1");
-}
-
-#[test]
-fn quantization_on_the_flexure_stage() {
-    check("flexure/quantization/1");
-}
-
-#[test]
-fn stiction_on_the_two_mass_actuator() {
-    check("two_mass/stiction/1");
+    let correct = outcomes.iter().filter(|o| o.correct()).count();
+    let rate = correct as f64 / outcomes.len() as f64;
+    eprintln!(
+        "correct verdicts {correct}/{} ({:.1} %)",
+        outcomes.len(),
+        100.0 * rate
+    );
+    if rate < 0.85 {
+        failures.push(format!(
+            "only {correct}/{} correct verdicts",
+            outcomes.len()
+        ));
+    }
+    // Median parameter error per effect and parameter (taken from the true effect's candidate
+    // whatever the verdict, as in the README table).
+    let mut keys: Vec<(String, String)> = Vec::new();
+    for o in &outcomes {
+        for (k, _) in &o.param_errors {
+            let key = (o.truth.clone(), k.clone());
+            if !keys.contains(&key) {
+                keys.push(key);
+            }
+        }
+    }
+    for (effect, param) in &keys {
+        let errs: Vec<f64> = outcomes
+            .iter()
+            .filter(|o| &o.truth == effect)
+            .flat_map(|o| {
+                o.param_errors
+                    .iter()
+                    .filter(|(k, _)| k == param)
+                    .map(|p| p.1)
+            })
+            .collect();
+        let m = median(errs);
+        eprintln!("{effect} {param}: median error {:.1} %", 100.0 * m);
+        if !(m < 0.2) {
+            failures.push(format!("{effect} {param}: median error {:.1} %", 100.0 * m));
+        }
+    }
+    // Every effect case must have a fitted candidate of its true effect.
+    for o in outcomes.iter().filter(|o| o.truth != "none") {
+        if o.param_errors.is_empty() {
+            failures.push(format!("{}: no candidate of the true effect", o.id));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }
