@@ -377,12 +377,12 @@ pub fn diagnose(
         let hint = if kind == EffectKind::Stiction {
             coulomb
                 .clone()
-                .or_else(|| fit_candidate(EffectKind::CoulombFriction, &td, &starts, None))
+                .or_else(|| fit_candidate(EffectKind::CoulombFriction, &td, &starts, None, &poles))
         } else {
             None
         };
         let t0 = std::time::Instant::now();
-        let fc = fit_candidate(kind, &td, &starts, hint.as_ref());
+        let fc = fit_candidate(kind, &td, &starts, hint.as_ref(), &poles);
         if std::env::var_os("GAP_PROFILE").is_some() {
             eprintln!("profile: {kind} {:.3} s", t0.elapsed().as_secs_f64());
         }

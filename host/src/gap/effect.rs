@@ -353,21 +353,36 @@ pub fn resonance_mode(freq_hz: f64, damping: f64) -> Result<StateSpace> {
     StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0)
 }
 
-/// Filters `u` through the ZOH discretisation (sample time `ts` s) of [`resonance_mode`].
+/// Filters `u` (held over each sample period of `ts` seconds, as a DAC holds it) through
+/// [`resonance_mode`] and returns, per sample period, the mean of the mode's continuous output
+/// over that period — the held input that best represents it to a linear part discretised by
+/// ZOH. (Taking the output at the sample instants instead would add about half a sample of
+/// delay to the cascade.) Exact: the period integral is the ZOH discretisation of the mode
+/// augmented with an integrator of its output.
 pub fn resonance_filter(u: &[f64], ts: f64, freq_hz: f64, damping: f64) -> Result<Vec<f64>> {
-    let sys = resonance_mode(freq_hz, damping)?.c2d_zoh(ts)?;
+    let m = resonance_mode(freq_hz, damping)?;
+    // Augmented state (x0, x1, z) with z' = x0.
+    let a = Mat::from_fn(3, 3, |i, j| match (i, j) {
+        (0, _) | (1, _) if j < 2 => m.a[(i, j)],
+        (2, 0) => 1.0,
+        _ => 0.0,
+    });
+    let b = Mat::from_fn(3, 1, |i, _| if i < 2 { m.b[(i, 0)] } else { 0.0 });
+    let c = Mat::from_fn(1, 3, |_, j| if j == 2 { 1.0 } else { 0.0 });
+    let sys = StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0)?.c2d_zoh(ts)?;
     let (a, b) = (&sys.a, &sys.b);
     let (a00, a01, a10, a11) = (a[(0, 0)], a[(0, 1)], a[(1, 0)], a[(1, 1)]);
-    let (b0, b1) = (b[(0, 0)], b[(1, 0)]);
+    let (a20, a21) = (a[(2, 0)], a[(2, 1)]);
+    let (b0, b1, b2) = (b[(0, 0)], b[(1, 0)], b[(2, 0)]);
     let (mut x0, mut x1) = (0.0f64, 0.0f64);
     Ok(u.iter()
         .map(|&uk| {
-            let y = x0;
+            let mean = (a20 * x0 + a21 * x1 + b2 * uk) / ts;
             let n0 = a00 * x0 + a01 * x1 + b0 * uk;
             let n1 = a10 * x0 + a11 * x1 + b1 * uk;
             x0 = n0;
             x1 = n1;
-            y
+            mean
         })
         .collect())
 }
@@ -420,6 +435,40 @@ mod tests {
         let u = [1.0, 2.0, 3.0, 4.0];
         let d = delay_signal(&u, 1.5);
         assert_eq!(d, vec![0.0, 0.5, 1.5, 2.5]);
+    }
+
+    /// Independent reference: Euler-free fine simulation (exact ZOH of the mode at 1/256 of
+    /// the sample time) averaged over each sample period by the trapezoid rule.
+    #[test]
+    fn resonance_filter_is_the_sample_period_mean_of_the_mode() {
+        let ts = 1e-3;
+        let sub = 256;
+        let fine = resonance_mode(90.0, 0.03)
+            .unwrap()
+            .c2d_zoh(ts / sub as f64)
+            .unwrap();
+        let u: Vec<f64> = (0..3000)
+            .map(|k| (0.37 * k as f64).sin() + 0.5 * (0.011 * k as f64).cos())
+            .collect();
+        let (mut x0, mut x1) = (0.0f64, 0.0f64);
+        let mut reference = Vec::new();
+        for &uk in &u {
+            let mut acc = 0.5 * x0;
+            for j in 0..sub {
+                let n0 = fine.a[(0, 0)] * x0 + fine.a[(0, 1)] * x1 + fine.b[(0, 0)] * uk;
+                let n1 = fine.a[(1, 0)] * x0 + fine.a[(1, 1)] * x1 + fine.b[(1, 0)] * uk;
+                x0 = n0;
+                x1 = n1;
+                acc += if j + 1 == sub { 0.5 * x0 } else { x0 };
+            }
+            reference.push(acc / sub as f64);
+        }
+        let y = resonance_filter(&u, ts, 90.0, 0.03).unwrap();
+        let scale = reference.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (k, (a, b)) in y.iter().zip(&reference).enumerate() {
+            // Trapezoid error O((ts/256)^2) relative to the output scale.
+            assert!((a - b).abs() < 1e-4 * scale, "sample {k}: {a} vs {b}");
+        }
     }
 
     #[test]

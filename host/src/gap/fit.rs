@@ -21,6 +21,7 @@ use super::effect::{
 use super::modal::{FitSet, ModalModel};
 use super::optim::levenberg_marquardt_steps;
 use crate::error::Result;
+use num_complex::Complex64;
 
 /// Sub-steps per sample of the friction loop (friction switches within a sample period).
 pub const FRICTION_SUBSTEPS: usize = 4;
@@ -429,14 +430,15 @@ pub const JOINT_MAX_ITER: usize = 12;
 /// Stage 1 searches the effect parameters on a grid over a coarse copy of the training data
 /// (the first [`COARSE_SAMPLES`] scored samples of each log) from every start, with the poles
 /// fixed; stage 2 refines the best point jointly by Levenberg–Marquardt on all the data (see
-/// [`joint_fit`]). Coulomb friction screens the [`FRICTION_STARTS`] best grid points of
-/// distinct levels by a joint refinement on the coarse data before stage 2, because its
-/// fixed-pole cost misleads when the linear start's poles are off.
+/// [`joint_fit`]). Between the two, the [`GRID_STARTS`] best grid points of distinct parameter
+/// values are screened by a joint refinement on the coarse data, because the fixed-pole cost
+/// misleads when the linear start's poles are off.
 pub fn fit_candidate(
     kind: EffectKind,
     td: &TrainData,
     starts: &[ModalModel],
     coulomb: Option<&Fitted>,
+    sim_poles: &[Complex64],
 ) -> Option<Fitted> {
     let start = match kind {
         EffectKind::Stiction => stiction_start(td, coulomb?)?,
@@ -450,35 +452,38 @@ pub fn fit_candidate(
                 VelocitySource::Output,
             );
         }
-        EffectKind::CoulombFriction => {
-            // The friction cost with the poles fixed is a poor guide when the linear start's
-            // poles are off (a stuck mass shifts the re-fit's resonance): refine the best
-            // grid points of FRICTION_STARTS distinct levels jointly and keep the best.
+        _ => {
+            // The cost with the poles fixed is a poor guide when the linear start's poles are
+            // off (a stuck mass or an added mode shifts the re-fit's resonance; the re-fit may
+            // even take over the added mode): screen the best grid points of GRID_STARTS
+            // distinct parameter values by a joint refinement on the coarse data, then refine
+            // the winner on all the data.
             let coarse = td.coarse(COARSE_SAMPLES);
             let mut grid: Vec<Fitted> = Vec::new();
             for lin in starts {
-                grid.extend(friction_grid(&coarse, lin));
+                grid.extend(initial_search(kind, &coarse, lin));
             }
             grid.sort_by(|a, b| a.train_cost.total_cmp(&b.train_cost));
-            let level = |f: &Fitted| match f.model.effect {
-                Some(Effect::CoulombFriction { level }) => level,
-                _ => f64::NAN,
+            let key = |f: &Fitted| {
+                f.model
+                    .effect
+                    .map_or(f64::NAN, |e| effect_to_coords(&e, td.ts)[0])
+            };
+            let min_sep = if kind == EffectKind::TimeDelay {
+                DISTINCT_DELAY_SAMPLES
+            } else {
+                DISTINCT_LN
             };
             let mut picked: Vec<Fitted> = Vec::new();
             for g in grid {
-                if picked.len() >= FRICTION_STARTS {
+                if picked.len() >= GRID_STARTS {
                     break;
                 }
-                let l = level(&g);
-                if picked
-                    .iter()
-                    .all(|p| (level(p) / l).ln().abs() > DISTINCT_LEVEL_LN)
-                {
+                let k = key(&g);
+                if picked.iter().all(|p| (key(p) - k).abs() > min_sep) {
                     picked.push(g);
                 }
             }
-            // Screen the starts by a joint refinement on the coarse data, then refine the
-            // winner on all the data.
             let mut best: Option<Fitted> = None;
             for p in picked {
                 let refined = match joint_fit(&coarse, &p, JOINT_MAX_ITER) {
@@ -490,47 +495,116 @@ pub fn fit_candidate(
             let b = best?;
             eval_fixed_poles(td, &b.model.linear, b.model.effect?, b.model.velocity)?
         }
-        _ => {
-            let coarse = td.coarse(COARSE_SAMPLES);
-            let mut best: Option<Fitted> = None;
-            for lin in starts {
-                keep_best(&mut best, initial_search(kind, &coarse, lin));
-            }
-            // Re-evaluate on all the data (residues refitted).
-            let b = best?;
-            eval_fixed_poles(td, &b.model.linear, b.model.effect?, b.model.velocity)?
-        }
     };
-    match joint_fit(td, &start, JOINT_MAX_ITER) {
-        Some(j) if j.train_cost < start.train_cost => Some(j),
-        _ => Some(start),
-    }
+    let fitted = match joint_fit(td, &start, JOINT_MAX_ITER) {
+        Some(j) if j.train_cost < start.train_cost => j,
+        _ => start,
+    };
+    Some(if kind == EffectKind::Resonance {
+        relabel_resonance(td, fitted, sim_poles)
+    } else {
+        fitted
+    })
 }
 
-/// Coulomb-friction grid points refined jointly by [`fit_candidate`] (the best of distinct
-/// levels).
-pub const FRICTION_STARTS: usize = 3;
+/// Largest relative training-cost increase at which a relabelled resonance model counts as
+/// fitting the data equally well (see [`relabel_resonance`]).
+pub const RELABEL_COST_TOL: f64 = 0.10;
 
-/// Levels closer than this in ln (a factor 1.5) count as the same start.
-const DISTINCT_LEVEL_LN: f64 = 0.405;
+/// Continuous-equivalent (rad/s) of the discrete pole r·e^{jφ} at sample time `ts`.
+fn pair_to_s(r: f64, phi: f64, ts: f64) -> Complex64 {
+    Complex64::new(r.ln(), phi) / ts
+}
 
-/// Every Coulomb-friction grid point (both velocity proxies, sample-rate friction) with the
-/// poles of `lin` fixed; see [`initial_search`].
-fn friction_grid(td: &TrainData, lin: &ModalModel) -> Vec<Fitted> {
-    let s = td.u_rms.max(1e-300);
-    let grid = log_grid(0.01 * s, 1.5 * s, 12);
-    let mut out = Vec::new();
-    for vel in [VelocitySource::Output, VelocitySource::OutputDerivative] {
-        for &p in &grid {
-            if let Some(f) =
-                eval_fixed_poles_m(td, lin, Effect::CoulombFriction { level: p }, vel, 1)
-            {
-                out.push(f);
-            }
+/// Natural frequency (Hz) and damping ratio of a continuous pole.
+fn freq_damping(s: Complex64) -> (f64, f64) {
+    let wn = s.norm();
+    (
+        wn / (2.0 * std::f64::consts::PI),
+        if wn > 0.0 { -s.re / wn } else { 1.0 },
+    )
+}
+
+/// Σ over the linear part's poles of the relative distance |s − s_sim|/|s_sim| to the nearest
+/// pole of the nominal sim (continuous equivalents).
+fn distance_to_sim(lin: &ModalModel, sim_s: &[Complex64]) -> f64 {
+    lin.poles()
+        .iter()
+        .map(|&z| {
+            let s = z.ln() / lin.ts;
+            sim_s
+                .iter()
+                .map(|&q| (s - q).norm() / q.norm().max(1e-300))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .sum()
+}
+
+/// An added mode in series and a mode of the linear part can swap roles with the same
+/// input-output behaviour (the residues absorb the difference), so the data alone cannot say
+/// which mode is the unmodelled one. Among the labellings that fit the training data within
+/// [`RELABEL_COST_TOL`] of the fitted one, this keeps the one whose linear part is closest to
+/// the nominal sim's poles (`sim_poles`, discrete at the logs' sample time): the added mode is
+/// the one the sim does not have.
+fn relabel_resonance(td: &TrainData, fitted: Fitted, sim_poles: &[Complex64]) -> Fitted {
+    let Some(Effect::Resonance { freq_hz, damping }) = fitted.model.effect else {
+        return fitted;
+    };
+    let sim_s: Vec<Complex64> = sim_poles
+        .iter()
+        .filter(|z| z.norm() > 0.0)
+        .map(|&z| z.ln() / td.ts)
+        .collect();
+    if sim_s.is_empty() {
+        return fitted;
+    }
+    let lin = &fitted.model.linear;
+    let (flo, fhi) = resonance_range_hz(td.ts);
+    let w = 2.0 * std::f64::consts::PI * freq_hz;
+    let s_eff = Complex64::new(-damping * w, w * (1.0 - damping * damping).max(0.0).sqrt());
+    let z_eff = (s_eff * td.ts).exp();
+    let mut best_d = distance_to_sim(lin, &sim_s);
+    let mut best = fitted.clone();
+    for (i, &(r, phi)) in lin.pairs.iter().enumerate() {
+        let (f, z) = freq_damping(pair_to_s(r, phi, td.ts));
+        if !(flo..=fhi).contains(&f) || !(z > 0.0 && z <= MAX_RESONANCE_DAMPING) {
+            continue;
+        }
+        let mut swapped = lin.clone();
+        swapped.pairs[i] = (z_eff.norm(), z_eff.im.atan2(z_eff.re));
+        let effect = Effect::Resonance {
+            freq_hz: f,
+            damping: z,
+        };
+        let Some(start) = eval_fixed_poles(td, &swapped, effect, VelocitySource::Output) else {
+            continue;
+        };
+        let cand = match joint_fit(td, &start, JOINT_MAX_ITER) {
+            Some(j) if j.train_cost < start.train_cost => j,
+            _ => start,
+        };
+        if cand.train_cost > fitted.train_cost * (1.0 + RELABEL_COST_TOL) {
+            continue;
+        }
+        let d = distance_to_sim(&cand.model.linear, &sim_s);
+        if d < best_d {
+            best_d = d;
+            best = cand;
         }
     }
-    out
+    best
 }
+
+/// Grid points screened by a coarse joint refinement in [`fit_candidate`] (the best of
+/// distinct parameter values).
+pub const GRID_STARTS: usize = 3;
+
+/// Grid points whose first parameter (level, gap, width, limit, frequency) differs by less than
+/// this in ln (a factor 1.5) count as the same start.
+const DISTINCT_LN: f64 = 0.405;
+
+/// Delays closer than this (samples) count as the same start.
+const DISTINCT_DELAY_SAMPLES: f64 = 1.0;
 
 /// The stiction start: the fitted Coulomb model with the breakaway ratio giving the lowest
 /// training cost among 1.1 … 3.4.
@@ -729,43 +803,36 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         .then_some(Fitted { model, train_cost })
 }
 
-/// Stage 1 of [`fit_candidate`]: grid search of the effect parameters with the poles of `lin`
-/// fixed (the residues re-fitted at every point), on the (coarse) data `td`.
-fn initial_search(kind: EffectKind, td: &TrainData, lin: &ModalModel) -> Option<Fitted> {
+/// Stage 1 of [`fit_candidate`]: every point of the grid of effect parameters with the poles
+/// of `lin` fixed (the residues re-fitted at every point), on the (coarse) data `td`.
+fn initial_search(kind: EffectKind, td: &TrainData, lin: &ModalModel) -> Vec<Fitted> {
     let s = td.u_rms.max(1e-300);
     let ts = td.ts;
     let out = VelocitySource::Output;
-    let grid_best = |grid: &[f64], make: &dyn Fn(f64) -> Option<Fitted>| -> Option<Fitted> {
-        let mut best = None;
-        for &p in grid {
-            keep_best(&mut best, make(p));
-        }
-        best
+    let on_grid = |grid: &[f64], make: &dyn Fn(f64) -> Option<Fitted>| -> Vec<Fitted> {
+        grid.iter().filter_map(|&p| make(p)).collect()
     };
     match kind {
         EffectKind::CoulombFriction => {
             // Both velocity proxies, sample-rate friction (only the basin matters here).
             let grid = log_grid(0.01 * s, 1.5 * s, 12);
-            let mut best = None;
+            let mut all = Vec::new();
             for vel in [VelocitySource::Output, VelocitySource::OutputDerivative] {
-                keep_best(
-                    &mut best,
-                    grid_best(&grid, &|p| {
-                        eval_fixed_poles_m(td, lin, Effect::CoulombFriction { level: p }, vel, 1)
-                    }),
-                );
+                all.extend(on_grid(&grid, &|p| {
+                    eval_fixed_poles_m(td, lin, Effect::CoulombFriction { level: p }, vel, 1)
+                }));
             }
-            best
+            all
         }
-        EffectKind::Backlash => grid_best(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
+        EffectKind::Backlash => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
             eval_fixed_poles(td, lin, Effect::Backlash { gap: p }, out)
         }),
-        EffectKind::Deadzone => grid_best(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
+        EffectKind::Deadzone => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
             eval_fixed_poles(td, lin, Effect::Deadzone { width: p }, out)
         }),
         EffectKind::Saturation => {
             let hi = td.u_peak.max(0.25 * s);
-            grid_best(&log_grid(0.2 * s, hi, 16), &|p| {
+            on_grid(&log_grid(0.2 * s, hi, 16), &|p| {
                 eval_fixed_poles(td, lin, Effect::Saturation { limit: p }, out)
             })
         }
@@ -773,32 +840,29 @@ fn initial_search(kind: EffectKind, td: &TrainData, lin: &ModalModel) -> Option<
             let grid: Vec<f64> = (0..=(2.0 * MAX_DELAY_SAMPLES) as usize)
                 .map(|i| 0.5 * i as f64 * ts)
                 .collect();
-            grid_best(&grid, &|p| {
+            on_grid(&grid, &|p| {
                 eval_fixed_poles(td, lin, Effect::TimeDelay { seconds: p }, out)
             })
         }
         EffectKind::Resonance => {
             let (flo, fhi) = resonance_range_hz(ts);
-            let mut best = None;
+            let mut all = Vec::new();
             for &f in &log_grid(flo, fhi, 40) {
                 for &z in &[0.02, 0.05, 0.12, 0.3] {
-                    keep_best(
-                        &mut best,
-                        eval_fixed_poles(
-                            td,
-                            lin,
-                            Effect::Resonance {
-                                freq_hz: f,
-                                damping: z,
-                            },
-                            out,
-                        ),
-                    );
+                    all.extend(eval_fixed_poles(
+                        td,
+                        lin,
+                        Effect::Resonance {
+                            freq_hz: f,
+                            damping: z,
+                        },
+                        out,
+                    ));
                 }
             }
-            best
+            all
         }
-        EffectKind::Stiction | EffectKind::Quantization => None,
+        EffectKind::Stiction | EffectKind::Quantization => Vec::new(),
     }
 }
 
