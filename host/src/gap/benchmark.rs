@@ -359,7 +359,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Markdown summary: overall accuracy, confusion matrix (rows truth, columns verdict),
-/// per-effect accuracy, median parameter errors and median gaps.
+/// per-effect accuracy, median and worst parameter errors and median gaps.
 pub fn markdown(outcomes: &[Outcome]) -> Result<String> {
     if outcomes.is_empty() {
         return Err(Error::InvalidArgument("no benchmark outcomes".into()));
@@ -419,7 +419,7 @@ pub fn markdown(outcomes: &[Outcome]) -> Result<String> {
     let _ = writeln!(s);
     let _ = writeln!(
         s,
-        "| effect | cases | correct | median parameter error | median gap before → linear → after |"
+        "| effect | cases | correct | median (worst) parameter error | median gap before → linear → after |"
     );
     let _ = writeln!(s, "|---|---:|---:|---|---|");
     for t in &labels {
@@ -443,7 +443,12 @@ pub fn markdown(outcomes: &[Outcome]) -> Result<String> {
                     .iter()
                     .flat_map(|o| o.param_errors.iter().filter(|(n, _)| n == k).map(|p| p.1))
                     .collect();
-                format!("{k} {:.1} %", 100.0 * median(v))
+                let worst = v.iter().copied().fold(f64::NAN, f64::max);
+                format!(
+                    "{k} {:.1} % (worst {:.1} %)",
+                    100.0 * median(v),
+                    100.0 * worst
+                )
             })
             .collect();
         let g = |i: usize| median(os.iter().map(|o| o.gaps[i]).collect());
