@@ -88,12 +88,40 @@ fn json_report_figures_and_expect() {
     assert!(effects.len() >= 7);
     assert_eq!(effects[0]["effect"], "deadzone");
     assert_eq!(effects[0]["gap_after"].as_f64().unwrap(), ga);
-    // Ranked best first.
-    let g: Vec<f64> = effects
+    // Ranked best first, except inside the nested pair: within the nested margin (3 %,
+    // docs/gap.md) the training logs decide between stiction and Coulomb friction.
+    let g = |name: &str| -> Option<f64> {
+        effects
+            .iter()
+            .find(|e| e["effect"] == name)
+            .map(|e| e["gap_after"].as_f64().unwrap())
+    };
+    let others: Vec<f64> = effects
         .iter()
+        .filter(|e| e["effect"] != "stiction" && e["effect"] != "coulomb_friction")
         .map(|e| e["gap_after"].as_f64().unwrap())
         .collect();
-    assert!(g.windows(2).all(|p| p[0] <= p[1] * (1.0 + 1e-12)), "{g:?}");
+    assert!(
+        others.windows(2).all(|p| p[0] <= p[1] * (1.0 + 1e-12)),
+        "{others:?}"
+    );
+    let pos = |name: &str| effects.iter().position(|e| e["effect"] == name);
+    if let (Some(is), Some(ic), Some(gs), Some(gc)) = (
+        pos("stiction"),
+        pos("coulomb_friction"),
+        g("stiction"),
+        g("coulomb_friction"),
+    ) {
+        if is < ic {
+            assert!(gs <= gc * 1.03, "stiction {gs} ranked above Coulomb {gc}");
+        } else {
+            // Coulomb friction first: stiction did not lower the validation NRMSE by 3 %.
+            assert!(
+                gs >= gc * (1.0 - 0.03),
+                "Coulomb {gc} ranked above a clearly better stiction {gs}"
+            );
+        }
+    }
     let width = effects[0]["params"]["width"].as_f64().unwrap();
     let Some(ferrosid::gap::Effect::Deadzone { width: truth }) = f.data.truth else {
         panic!("case label")

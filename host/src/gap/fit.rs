@@ -29,7 +29,7 @@ pub const FRICTION_SUBSTEPS: usize = 4;
 /// Which signal of the linear model stands for the velocity that friction opposes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum VelocitySource {
-    /// The model output itself (velocity-output plants).
+    /// The model output itself, output offset included (velocity-output plants).
     Output,
     /// The time derivative of the model output (position-output plants), from the
     /// continuous-time equivalent of the linear part: v = C·(A_c·x + B_c·w). (A model with a
@@ -148,7 +148,14 @@ impl AugmentedModel {
             let mut w_first = uk;
             for j in 0..m {
                 let next = sub.free_next_output(&x);
-                let v_free = if rate { sub.free_next_rate(&x) } else { next };
+                // The velocity is the modelled output itself, offset included: an offset that
+                // only shifted the friction's velocity would let a fit bias the mass into
+                // never crossing zero speed (friction reduced to a constant force).
+                let v_free = if rate {
+                    sub.free_next_rate(&x)
+                } else {
+                    next + lin.offset
+                };
                 let f = fr.force(v_free + g * uk, g);
                 let wj = uk - f;
                 if j == 0 {
@@ -187,7 +194,7 @@ impl AugmentedModel {
             let yo = lin.state_output(&x);
             let next = st.free_next_output(&x);
             let v_free = match self.velocity {
-                VelocitySource::Output => next,
+                VelocitySource::Output => next + lin.offset,
                 VelocitySource::OutputDerivative => (next - yo) / ts,
             };
             let f = fr.force(v_free + g * uk, g);
