@@ -42,7 +42,7 @@ pub fn effective_samples(r: &[f64]) -> f64 {
     let mean = r.iter().sum::<f64>() / n as f64;
     let d: Vec<f64> = r.iter().map(|v| v - mean).collect();
     let c0: f64 = d.iter().map(|v| v * v).sum();
-    if !(c0 > 0.0) {
+    if c0.is_nan() || c0 <= 0.0 {
         return 1.0;
     }
     let rho = |k: usize| d.iter().zip(&d[k..]).map(|(a, b)| a * b).sum::<f64>() / c0;
@@ -50,7 +50,7 @@ pub fn effective_samples(r: &[f64]) -> f64 {
     let mut k = 1;
     while k + 1 < n.min(MAX_CORRELATION_LAG) {
         let pair = rho(k) + rho(k + 1);
-        if !(pair > 0.0) {
+        if pair.is_nan() || pair <= 0.0 {
             break;
         }
         tau += 2.0 * pair;

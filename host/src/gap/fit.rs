@@ -574,7 +574,7 @@ fn relabel_resonance(td: &TrainData, fitted: Fitted, sim_poles: &[Complex64]) ->
     let mut best = fitted.clone();
     for (i, &(r, phi)) in lin.pairs.iter().enumerate() {
         let (f, z) = freq_damping(pair_to_s(r, phi, td.ts));
-        if !(flo..=fhi).contains(&f) || !(z > 0.0 && z <= MAX_RESONANCE_DAMPING) {
+        if !(flo..=fhi).contains(&f) || z <= 0.0 || z > MAX_RESONANCE_DAMPING || z.is_nan() {
             continue;
         }
         let mut swapped = lin.clone();

@@ -95,7 +95,7 @@ pub fn nrmse_weights(y: &[Vec<f64>], warmup: usize) -> Result<Vec<f64>> {
             let n = s.len() as f64;
             let mean = s.iter().sum::<f64>() / n;
             let var = s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-            if !(var > 0.0) {
+            if var.is_nan() || var <= 0.0 {
                 return Err(Error::InvalidArgument(
                     "output is constant over the scored samples".into(),
                 ));
@@ -161,8 +161,8 @@ impl Stepper<'_> {
         let m = self.model;
         let nr = m.real.len();
         let mut acc = 0.0;
-        for i in 0..nr {
-            acc += m.residues[i] * m.real[i] * x[i];
+        for ((c, p), xi) in m.residues.iter().zip(&m.real).zip(&x[..nr]) {
+            acc += c * p * xi;
         }
         for (j, &(rc, rs)) in self.rot.iter().enumerate() {
             let i = nr + 2 * j;
@@ -200,8 +200,8 @@ impl SubStepper {
     #[inline]
     pub fn step(&self, x: &mut [f64], w: f64) {
         let nr = self.real.len();
-        for i in 0..nr {
-            x[i] = self.real[i] * x[i] + self.real_b[i] * w;
+        for ((xi, p), b) in x[..nr].iter_mut().zip(&self.real).zip(&self.real_b) {
+            *xi = p * *xi + b * w;
         }
         for (j, (&(rc, rs), &(br, bi))) in self.rot.iter().zip(&self.rot_b).enumerate() {
             let i = nr + 2 * j;
@@ -216,8 +216,8 @@ impl SubStepper {
     pub fn free_next_output(&self, x: &[f64]) -> f64 {
         let nr = self.real.len();
         let mut acc = 0.0;
-        for i in 0..nr {
-            acc += self.c[i] * self.real[i] * x[i];
+        for ((c, p), xi) in self.c.iter().zip(&self.real).zip(&x[..nr]) {
+            acc += c * p * xi;
         }
         for (j, &(rc, rs)) in self.rot.iter().enumerate() {
             let i = nr + 2 * j;
@@ -239,8 +239,8 @@ impl SubStepper {
     pub fn free_next_rate(&self, x: &[f64]) -> f64 {
         let nr = self.real.len();
         let mut acc = 0.0;
-        for i in 0..nr {
-            acc += self.dc[i] * self.real[i] * x[i];
+        for ((c, p), xi) in self.dc.iter().zip(&self.real).zip(&x[..nr]) {
+            acc += c * p * xi;
         }
         for (j, &(rc, rs)) in self.rot.iter().enumerate() {
             let i = nr + 2 * j;
@@ -353,7 +353,7 @@ impl ModalModel {
         let mut pairs: Vec<(f64, f64)> = Vec::new();
         for &p in poles {
             let r = p.norm();
-            if !(r < 1.0) {
+            if r.is_nan() || r >= 1.0 {
                 return Err(Error::Numerical(format!(
                     "unstable or marginally stable pole z = {p:.6} (|z| = {r:.6} >= 1)"
                 )));
@@ -782,7 +782,11 @@ mod tests {
             // Velocity at the sample instant (before the new input acts): w = previous input.
             let w_prev = if k == 0 { 0.0 } else { u[k - 1] };
             let r = sub.rate(&x, w_prev);
-            assert!((r - v[k]).abs() < 1e-6 * (1.0 + v[k].abs()), "k {k}: {r} vs {}", v[k]);
+            assert!(
+                (r - v[k]).abs() < 1e-6 * (1.0 + v[k].abs()),
+                "k {k}: {r} vs {}",
+                v[k]
+            );
             sub.step(&mut x, uk);
         }
     }

@@ -126,11 +126,12 @@ pub fn nelder_mead(
                 fx[n] = fc;
             } else {
                 // Shrink towards the best vertex.
-                for i in 1..=n {
-                    for j in 0..n {
-                        simplex[i][j] = simplex[0][j] + 0.5 * (simplex[i][j] - simplex[0][j]);
+                let (best, rest) = simplex.split_at_mut(1);
+                for (i, v) in rest.iter_mut().enumerate().take(n) {
+                    for (vj, bj) in v.iter_mut().zip(&best[0]) {
+                        *vj = bj + 0.5 * (*vj - bj);
                     }
-                    fx[i] = sane(f(&simplex[i]));
+                    fx[i + 1] = sane(f(v));
                     evals += 1;
                 }
             }
