@@ -119,7 +119,7 @@ fn weight_etfe_and_cross_validation_receipts() {
     let fw: Vec<f64> = (1..=20).map(|k| k as f64).collect();
     let wm = fit_uncertainty_weight(
         &fw,
-        &vec![0.3; 20],
+        &[0.3; 20],
         &WeightFitOptions {
             order: 1,
             ..Default::default()

@@ -258,7 +258,9 @@ fn check_runs(runs: &[FrfRun]) -> Result<()> {
         }
         for i in 0..n {
             let f = r.freq_hz[i];
-            if !f.is_finite() || (i > 0 && !(f > r.freq_hz[i - 1])) {
+            if !f.is_finite()
+                || (i > 0 && f.partial_cmp(&r.freq_hz[i - 1]) != Some(std::cmp::Ordering::Greater))
+            {
                 return Err(Error::InvalidArgument(format!(
                     "run `{}`: frequency bin {i} = {f} Hz is not finite or not increasing",
                     r.label

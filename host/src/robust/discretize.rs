@@ -79,7 +79,7 @@ pub fn tustin(
     let den = map(&tf.den);
     let lead = den[0];
     let scale = den.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    if !(lead.abs() > 1e-12 * scale) {
+    if lead.abs().partial_cmp(&(1e-12 * scale)) != Some(std::cmp::Ordering::Greater) {
         return Err(Error::Numerical(format!(
             "Tustin: a pole at s = −{c:.6e} rad/s maps to z = ∞ (choose another ts or prewarp)"
         )));

@@ -263,7 +263,7 @@ fn hinf_continuous(sys: &StateSpace, rel_tol: f64) -> Result<HinfNorm> {
             consider(p.norm(), &mut lb, &mut w_lb)?;
         }
     }
-    if !(lb > 0.0) {
+    if lb.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         // σ̄ vanished at every point tried so far: scan a grid spanning the pole moduli before
         // concluding that G is identically zero.
         let mags: Vec<f64> = sys
@@ -277,7 +277,7 @@ fn hinf_continuous(sys: &StateSpace, rel_tol: f64) -> Result<HinfNorm> {
         for w in logspace(lo, hi, 200) {
             consider(w, &mut lb, &mut w_lb)?;
         }
-        if !(lb > 0.0) {
+        if lb.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return Ok(HinfNorm {
                 gamma: 0.0,
                 gamma_lower: 0.0,

@@ -513,7 +513,7 @@ impl Tuner<'_> {
             None => Complex64::new(1.0, 0.0),
         };
         let gr = g * r;
-        if !(gr.norm() > 0.0) {
+        if gr.norm().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return Ok(None);
         }
         let wi = if spec.integral { w / alpha } else { 0.0 };

@@ -337,7 +337,7 @@ pub fn fit_uncertainty_weights(
                 "uncertainty weight: frequency bin {i} = {f} Hz must be finite and > 0"
             )));
         }
-        if i > 0 && !(f > freq_hz[i - 1]) {
+        if i > 0 && f.partial_cmp(&freq_hz[i - 1]) != Some(std::cmp::Ordering::Greater) {
             return Err(Error::InvalidArgument(format!(
                 "uncertainty weight: frequencies must increase strictly (bin {i}: {f} Hz after \
                  {} Hz)",
@@ -548,7 +548,11 @@ fn build_weight(
     };
     let zeros = roots(&num)?;
     let poles = roots(&den)?;
-    if let Some(z) = zeros.iter().chain(&poles).find(|z| !(z[0] < 0.0)) {
+    if let Some(z) = zeros
+        .iter()
+        .chain(&poles)
+        .find(|z| z[0].partial_cmp(&0.0) != Some(std::cmp::Ordering::Less))
+    {
         return Err(Error::Numerical(format!(
             "uncertainty weight: root {:.6e}{:+.6e}j is not in the open left half plane",
             z[0], z[1]
