@@ -106,6 +106,13 @@ pub struct N4sidOptions {
     pub factorization: Factorization,
     /// Estimate the feedthrough D (false: D = 0).
     pub estimate_d: bool,
+    /// With `estimate_d`, a significance test on the estimate: `Some(k)` fixes D = 0 (and re-fits
+    /// B and x0) when every entry of D lies within k standard errors of zero. The standard errors
+    /// come from the output-error least squares, σ²·diag((ΦᵀΦ)⁻¹) with σ² the pooled residual
+    /// variance (exact for white output noise on a SISO log). A strictly proper plant sampled
+    /// with a zero-order hold has D = 0; an insignificant D estimate only adds noise where the
+    /// plant's gain is small. `None` (default): D is kept as estimated.
+    pub d_significance: Option<f64>,
     /// Estimate the initial state x0 together with B and D (false: x0 = 0).
     pub estimate_x0: bool,
     /// If set, enforce every discrete pole to satisfy |z| <= 1 − margin (0 < margin < 1).
@@ -122,6 +129,7 @@ impl Default for N4sidOptions {
             weighting: Weighting::Moesp,
             factorization: Factorization::Auto,
             estimate_d: true,
+            d_significance: None,
             estimate_x0: true,
             stability_margin: None,
             estimate_kalman_gain: true,
@@ -158,6 +166,9 @@ pub struct N4sidResult {
     pub innovation_cov: Option<Mat<f64>>,
     /// True when stability was enforced and at least one pole moved.
     pub stability_enforced: bool,
+    /// True when D was estimated, found insignificant by the test of
+    /// [`N4sidOptions::d_significance`], and fixed to zero.
+    pub d_fixed_by_test: bool,
     /// Non-fatal findings: stability changes, unstable poles, conditioning, order-rule
     /// disagreement, fallbacks taken.
     pub warnings: Vec<String>,
@@ -196,6 +207,8 @@ pub struct N4sidSummary {
     pub poles: Vec<(f64, f64)>,
     /// True when stability was enforced.
     pub stability_enforced: bool,
+    /// D was estimated, found insignificant and fixed to zero.
+    pub d_fixed_by_test: bool,
     /// Warnings.
     pub warnings: Vec<String>,
     /// Block rows used.
@@ -230,6 +243,7 @@ impl N4sidResult {
                 .map(|z| (z.re, z.im))
                 .collect(),
             stability_enforced: self.stability_enforced,
+            d_fixed_by_test: self.d_fixed_by_test,
             warnings: self.warnings.clone(),
             block_rows: self.block_rows,
             factorization_used: self.factorization_used,
@@ -969,6 +983,7 @@ fn identify(
     }
     warnings.extend(fit.notes.iter().cloned());
     let stability_enforced = fit.stability_enforced;
+    let d_fixed_by_test = fit.d_fixed_by_test;
     let OrderFit {
         a: a_s,
         b: b_s,
@@ -1023,6 +1038,7 @@ fn identify(
         kalman_gain,
         innovation_cov,
         stability_enforced,
+        d_fixed_by_test,
         warnings,
         input_scale: su,
         output_scale: sy,
@@ -1085,6 +1101,8 @@ struct OrderFit {
     /// ln det of the output-error residual covariance (scaled units).
     resid_logdet: f64,
     notes: Vec<String>,
+    /// D was dropped by the significance test.
+    d_fixed_by_test: bool,
     stability_enforced: bool,
 }
 
@@ -1151,18 +1169,37 @@ fn fit_order(
     }
 
     // 7. B, D, x0 by output-error least squares.
-    let (buf, rows, cols) = oe_regressors(&a_s, &c_s, us, len, opts.estimate_x0, opts.estimate_d);
-    let phi = MatRef::from_column_major_slice(&buf, rows, cols);
     let ybig = Mat::from_fn(len * p, 1, |r, _| ys[r / len][r % len]);
-    let theta = lstsq(phi.as_ref(), ybig.as_ref(), "B/D least squares").map_err(|e| {
-        if rho >= 1.0 && opts.stability_margin.is_none() {
-            Error::Numerical(format!(
-                "unstable fit (spectral radius {rho:.6}): {e}; set a stability margin"
-            ))
-        } else {
-            e
+    let solve = |with_d: bool| -> Result<(Vec<f64>, usize, usize, Mat<f64>)> {
+        let (buf, rows, cols) = oe_regressors(&a_s, &c_s, us, len, opts.estimate_x0, with_d);
+        let phi = MatRef::from_column_major_slice(&buf, rows, cols);
+        let theta = lstsq(phi, ybig.as_ref(), "B/D least squares").map_err(|e| {
+            if rho >= 1.0 && opts.stability_margin.is_none() {
+                Error::Numerical(format!(
+                    "unstable fit (spectral radius {rho:.6}): {e}; set a stability margin"
+                ))
+            } else {
+                e
+            }
+        })?;
+        Ok((buf, rows, cols, theta))
+    };
+    let (mut buf, mut rows, mut cols, mut theta) = solve(opts.estimate_d)?;
+    let mut with_d = opts.estimate_d;
+    if let (true, Some(k)) = (opts.estimate_d, opts.d_significance) {
+        let phi = MatRef::from_column_major_slice(&buf, rows, cols);
+        if let Some(worst) = d_t_ratio(phi, ybig.as_ref(), theta.as_ref(), p * m)? {
+            if worst <= k {
+                (buf, rows, cols, theta) = solve(false)?;
+                with_d = false;
+                notes.push(format!(
+                    "feedthrough D fixed to zero: every entry lies within {k} standard errors \
+                     of zero (largest |D|/SE = {worst:.2})"
+                ));
+            }
         }
-    })?;
+    }
+    let phi = MatRef::from_column_major_slice(&buf, rows, cols);
     let mut idx = 0;
     let x0: Vec<f64> = if opts.estimate_x0 {
         idx = n;
@@ -1178,7 +1215,7 @@ fn fit_order(
     }
     idx += n * m;
     let mut d_s = Mat::<f64>::zeros(p, m);
-    if opts.estimate_d {
+    if with_d {
         for j in 0..m {
             for i in 0..p {
                 d_s[(i, j)] = theta[(idx + j * p + i, 0)];
@@ -1214,7 +1251,41 @@ fn fit_order(
         resid_logdet,
         notes,
         stability_enforced,
+        d_fixed_by_test: opts.estimate_d && !with_d,
     })
+}
+
+/// Largest |θ_k|/SE(θ_k) over the last `n_d` parameters (the D entries) of the least-squares fit
+/// `phi · theta ≈ y`, with SE² = σ²·[(ΦᵀΦ)⁻¹]_kk and σ² the residual variance (rows − cols degrees
+/// of freedom). `None` when there are no D entries or no residual degrees of freedom.
+fn d_t_ratio(
+    phi: MatRef<'_, f64>,
+    y: MatRef<'_, f64>,
+    theta: MatRef<'_, f64>,
+    n_d: usize,
+) -> Result<Option<f64>> {
+    let (rows, cols) = (phi.nrows(), phi.ncols());
+    if n_d == 0 || n_d > cols || rows <= cols {
+        return Ok(None);
+    }
+    let resid = y - phi * theta;
+    let s2 = resid.col(0).iter().map(|r| r * r).sum::<f64>() / (rows - cols) as f64;
+    let gram = phi.transpose() * phi;
+    let inv = crate::lti::solve_square(
+        gram.as_ref(),
+        Mat::<f64>::identity(cols, cols).as_ref(),
+        "B/D least squares: normal matrix for the D significance test",
+    )?;
+    let mut worst = 0.0f64;
+    for k in cols - n_d..cols {
+        let se = (s2 * inv[(k, k)]).sqrt();
+        let t = theta[(k, 0)].abs() / se;
+        if !t.is_finite() {
+            return Ok(None);
+        }
+        worst = worst.max(t);
+    }
+    Ok(Some(worst))
 }
 
 /// Outcome of the singular-value rules.

@@ -237,6 +237,17 @@ fn order_options_no_d_and_stability_margin() {
     assert_eq!(v["n4sid"]["model"]["d"][0][0], 0.0);
     assert_eq!(v["options"]["estimate_d"], false);
 
+    // --d-auto: the plant is strictly proper, so D is dropped unless the noise makes the
+    // estimate look significant (5 % chance); either way the flag and the model agree.
+    let r = ferrosid(&["identify", s(&est), "--d-auto", "--json"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v = json(&r.stdout);
+    assert_eq!(v["options"]["d_significance"], 2.0);
+    let dropped = v["n4sid"]["d_fixed_by_test"].as_bool().expect("d_fixed_by_test");
+    assert_eq!(dropped, v["n4sid"]["model"]["d"][0][0] == 0.0);
+    let r = ferrosid(&["identify", s(&est), "--d-auto", "--no-d"]);
+    assert_eq!(r.code, 2, "conflicting D options must be a usage error");
+
     // The plant's resonance sits at |z| ≈ 0.9875; a margin of 0.05 forces |z| <= 0.95.
     let r = ferrosid(&["identify", s(&est), "--stable-margin", "0.05", "--json"]);
     assert_eq!(r.code, 0, "{}", r.stderr);

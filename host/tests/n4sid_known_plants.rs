@@ -407,3 +407,112 @@ fn summary_serialises() {
     assert!(json.contains("singular_values"));
     let _ = Mat::<f64>::zeros(1, 1);
 }
+
+/// Relative frequency-response error |G_id − G|/|G| at `f_hz`.
+fn rel_err_at(model: &StateSpace, plant: &StateSpace, f_hz: f64) -> f64 {
+    let g = plant.freq_response_siso(f_hz).unwrap();
+    (model.freq_response_siso(f_hz).unwrap() - g).norm() / g.norm()
+}
+
+#[test]
+fn insignificant_feedthrough_is_dropped_and_the_test_is_calibrated() {
+    // The reference plant is strictly proper (ZOH-sampled): its true D is 0, so the estimated
+    // D is pure noise and |D|/SE is approximately standard normal when the standard error is
+    // right. Over 40 noise realisations, the share within k SE must match P(|N(0,1)| <= k):
+    // 68.3 % for k = 1 (expected 27.3 of 40, binomial sd 2.9: accept 20..=34) and 95.4 % for
+    // k = 2 (expected 38.2: accept >= 34). A standard error off by 2x either way fails the
+    // k = 1 band (it would give 38 % or 95 %).
+    let opts = |k: f64| N4sidOptions {
+        order: OrderSelection::Fixed(3),
+        d_significance: Some(k),
+        estimate_kalman_gain: false,
+        ..Default::default()
+    };
+    let (mut within1, mut within2) = (0, 0);
+    let (mut err_auto, mut err_est) = (0.0, 0.0);
+    for seed in 0..40u64 {
+        let (u, y, plant) = reference_data(4000, 0.1, 1000 + seed);
+        let r1 = n4sid_slices(TS, &[&u], &[&y], &opts(1.0)).unwrap();
+        let r2 = n4sid_slices(TS, &[&u], &[&y], &opts(2.0)).unwrap();
+        for r in [&r1, &r2] {
+            if r.d_fixed_by_test {
+                assert_eq!(r.model.d[(0, 0)], 0.0);
+                assert!(
+                    r.warnings
+                        .iter()
+                        .any(|w| w.contains("feedthrough D fixed to zero")),
+                    "{:?}",
+                    r.warnings
+                );
+            } else {
+                assert_ne!(r.model.d[(0, 0)], 0.0);
+            }
+        }
+        within1 += r1.d_fixed_by_test as usize;
+        within2 += r2.d_fixed_by_test as usize;
+        // Near Nyquist the plant is ~70 dB down and a noisy D dominates the relative error.
+        let est = n4sid_slices(
+            TS,
+            &[&u],
+            &[&y],
+            &N4sidOptions {
+                order: OrderSelection::Fixed(3),
+                estimate_kalman_gain: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(!est.d_fixed_by_test);
+        err_auto += rel_err_at(&r2.model, &plant, 450.0);
+        err_est += rel_err_at(&est.model, &plant, 450.0);
+    }
+    println!(
+        "within 1 SE: {within1}/40, within 2 SE: {within2}/40; mean rel. error at 450 Hz: \
+         auto {:.3e}, estimated {:.3e}",
+        err_auto / 40.0,
+        err_est / 40.0
+    );
+    assert!((20..=34).contains(&within1), "within 1 SE: {within1}/40");
+    assert!(within2 >= 34, "within 2 SE: {within2}/40");
+    assert!(
+        err_auto < 0.5 * err_est,
+        "mean rel. error at 450 Hz: auto {} vs estimated {}",
+        err_auto / 40.0,
+        err_est / 40.0
+    );
+}
+
+#[test]
+fn significant_feedthrough_is_kept() {
+    // Biproper plant 0.5 + 0.2/(z − 0.8) with 5 % output noise: |D|/SE is in the hundreds.
+    let plant = StateSpace::new(
+        mat(&[&[0.8]]),
+        mat(&[&[1.0]]),
+        mat(&[&[0.2]]),
+        mat(&[&[0.5]]),
+        0.1,
+    )
+    .unwrap();
+    let mut rng = Rng(21);
+    let u = rng.binary(2000);
+    let y0 = plant.simulate_siso(&u, None).unwrap();
+    let sd = std_dev(&y0);
+    let y: Vec<f64> = y0.iter().map(|v| v + 0.05 * sd * rng.normal()).collect();
+    let r = n4sid_slices(
+        0.1,
+        &[&u],
+        &[&y],
+        &N4sidOptions {
+            order: OrderSelection::Fixed(1),
+            d_significance: Some(2.0),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(!r.d_fixed_by_test);
+    assert!(
+        (r.model.d[(0, 0)] - 0.5).abs() < 0.01,
+        "D = {}",
+        r.model.d[(0, 0)]
+    );
+}

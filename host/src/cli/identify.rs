@@ -99,8 +99,12 @@ pub struct Args {
     #[arg(long, value_name = "I", default_value_t = 20)]
     pub block_rows: usize,
     /// Fix the feedthrough D to zero instead of estimating it.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "d_auto")]
     pub no_d: bool,
+    /// Estimate D, then fix it to zero when every entry lies within 2 standard errors of zero
+    /// (the sampled model of a strictly proper plant has D = 0).
+    #[arg(long)]
+    pub d_auto: bool,
     /// Enforce every discrete pole to |z| <= 1 - X (reported when poles move).
     #[arg(long, value_name = "X")]
     pub stable_margin: Option<f64>,
@@ -301,6 +305,7 @@ impl Args {
                 WeightingArg::Cva => Weighting::Cva,
             },
             estimate_d: !self.no_d,
+            d_significance: self.d_auto.then_some(2.0),
             stability_margin: self.stable_margin,
             ..N4sidOptions::default()
         })
@@ -633,7 +638,9 @@ pub fn render_text(r: &IdentifyReport) -> String {
             Weighting::Moesp => "MOESP",
             Weighting::Cva => "CVA",
         },
-        if r.options.estimate_d {
+        if r.n4sid.d_fixed_by_test {
+            "fixed to 0 (estimate within 2 SE of zero)"
+        } else if r.options.estimate_d {
             "estimated"
         } else {
             "fixed to 0"
