@@ -9,7 +9,8 @@
 //!
 //! Modules: [`excitation`] (PRBS, chirp, multisine), [`welch`] (streaming cross/auto spectra,
 //! H1, coherence, [`CoherenceGate`]), [`window`] (flash window tables), [`trig`] (const and fast
-//! sine), [`fft`] (microfft dispatch), [`rng`] (seeded SplitMix64), [`Error`].
+//! sine), [`fft`] (microfft dispatch), [`rng`] (seeded SplitMix64), [`decimal`] (small decimal
+//! parser for settings), [`Error`].
 //!
 //! ```
 //! use ferrosid_firmware::excitation::Prbs;
@@ -43,6 +44,7 @@
 //! ```
 #![cfg_attr(not(test), no_std)]
 
+pub mod decimal;
 mod error;
 pub mod excitation;
 pub mod fft;
