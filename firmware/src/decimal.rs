@@ -24,7 +24,7 @@ const POW10: [f64; 23] = [
 fn scale10(mut m: f64, e: i32) -> f64 {
     let mut left = e.unsigned_abs();
     while left > 0 && m != 0.0 && m.is_finite() {
-        let step = if left > 22 { 22 } else { left };
+        let step = left.min(22);
         let p = POW10.get(step as usize).copied().unwrap_or(1e22);
         m = if e < 0 { m / p } else { m * p };
         left -= step;

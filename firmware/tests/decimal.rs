@@ -2,6 +2,7 @@
 //! reference): within 1 ulp on fixed and random decimal strings, the same accept/reject
 //! decision on malformed text, and no panic on arbitrary bytes.
 use ferrosid_firmware::decimal::parse_f32;
+use ferrosid_firmware::rng::SplitMix64;
 
 /// Distance in units in the last place between two finite f32 of the same sign (or zeros).
 fn ulps(a: f32, b: f32) -> u32 {
@@ -58,15 +59,9 @@ fn configuration_values_parse_within_one_ulp() {
 
 #[test]
 fn random_decimals_parse_within_one_ulp() {
-    // SplitMix64, seeded: mantissas of 1..=20 digits with the point anywhere, exponents ±40.
-    let mut x = 0x5EED_u64;
-    let mut next = move || {
-        x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = x;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
+    // Seeded SplitMix64: mantissas of 1..=20 digits with the point anywhere, exponents ±40.
+    let mut rng = SplitMix64::new(0x5EED);
+    let mut next = move || rng.next_u64();
     let mut checked = 0;
     for _ in 0..20_000 {
         let nd = 1 + (next() % 20) as usize;

@@ -1170,7 +1170,9 @@ fn fit_order(
 
     // 7. B, D, x0 by output-error least squares.
     let ybig = Mat::from_fn(len * p, 1, |r, _| ys[r / len][r % len]);
-    let solve = |with_d: bool| -> Result<(Vec<f64>, usize, usize, Mat<f64>)> {
+    // θ, the output-error residual y − Φθ and, when D is estimated and tested, its largest
+    // |D|/SE; for D estimated or fixed to zero.
+    let solve = |with_d: bool| -> Result<(Mat<f64>, Mat<f64>, Option<f64>)> {
         let (buf, rows, cols) = oe_regressors(&a_s, &c_s, us, len, opts.estimate_x0, with_d);
         let phi = MatRef::from_column_major_slice(&buf, rows, cols);
         let theta = lstsq(phi, ybig.as_ref(), "B/D least squares").map_err(|e| {
@@ -1182,24 +1184,33 @@ fn fit_order(
                 e
             }
         })?;
-        Ok((buf, rows, cols, theta))
+        let mut resid = ybig.clone();
+        faer::linalg::matmul::matmul(
+            resid.as_mut(),
+            faer::Accum::Add,
+            phi,
+            theta.as_ref(),
+            -1.0,
+            faer::Par::Seq,
+        );
+        let t_ratio = match opts.d_significance {
+            Some(_) if with_d => d_t_ratio(phi, resid.as_ref(), theta.as_ref(), p * m)?,
+            _ => None,
+        };
+        Ok((theta, resid, t_ratio))
     };
-    let (mut buf, mut rows, mut cols, mut theta) = solve(opts.estimate_d)?;
+    let (mut theta, mut resid, t_ratio) = solve(opts.estimate_d)?;
     let mut with_d = opts.estimate_d;
-    if let (true, Some(k)) = (opts.estimate_d, opts.d_significance) {
-        let phi = MatRef::from_column_major_slice(&buf, rows, cols);
-        if let Some(worst) = d_t_ratio(phi, ybig.as_ref(), theta.as_ref(), p * m)? {
-            if worst <= k {
-                (buf, rows, cols, theta) = solve(false)?;
-                with_d = false;
-                notes.push(format!(
-                    "feedthrough D fixed to zero: every entry lies within {k} standard errors \
-                     of zero (largest |D|/SE = {worst:.2})"
-                ));
-            }
+    if let (Some(k), Some(worst)) = (opts.d_significance, t_ratio) {
+        if worst <= k {
+            (theta, resid, _) = solve(false)?;
+            with_d = false;
+            notes.push(format!(
+                "feedthrough D fixed to zero: every entry lies within {k} standard errors \
+                 of zero (largest |D|/SE = {worst:.2})"
+            ));
         }
     }
-    let phi = MatRef::from_column_major_slice(&buf, rows, cols);
     let mut idx = 0;
     let x0: Vec<f64> = if opts.estimate_x0 {
         idx = n;
@@ -1223,15 +1234,6 @@ fn fit_order(
         }
     }
     // Residual covariance of the output error.
-    let mut resid = ybig;
-    faer::linalg::matmul::matmul(
-        resid.as_mut(),
-        faer::Accum::Add,
-        phi.as_ref(),
-        theta.as_ref(),
-        -1.0,
-        faer::Par::Seq,
-    );
     let rv = resid.col_as_slice(0);
     let sigma = Mat::from_fn(p, p, |i, j| {
         dot(&rv[i * len..(i + 1) * len], &rv[j * len..(j + 1) * len]) / len as f64
@@ -1256,11 +1258,12 @@ fn fit_order(
 }
 
 /// Largest |θ_k|/SE(θ_k) over the last `n_d` parameters (the D entries) of the least-squares fit
-/// `phi · theta ≈ y`, with SE² = σ²·[(ΦᵀΦ)⁻¹]_kk and σ² the residual variance (rows − cols degrees
-/// of freedom). `None` when there are no D entries or no residual degrees of freedom.
+/// `phi · theta ≈ y` with residual `resid` = y − Φθ: SE² = σ²·[(ΦᵀΦ)⁻¹]_kk, σ² the residual
+/// variance (rows − cols degrees of freedom). `None` when there are no D entries or no residual
+/// degrees of freedom.
 fn d_t_ratio(
     phi: MatRef<'_, f64>,
-    y: MatRef<'_, f64>,
+    resid: MatRef<'_, f64>,
     theta: MatRef<'_, f64>,
     n_d: usize,
 ) -> Result<Option<f64>> {
@@ -1268,7 +1271,6 @@ fn d_t_ratio(
     if n_d == 0 || n_d > cols || rows <= cols {
         return Ok(None);
     }
-    let resid = y - phi * theta;
     let s2 = resid.col(0).iter().map(|r| r * r).sum::<f64>() / (rows - cols) as f64;
     let gram = phi.transpose() * phi;
     let inv = crate::lti::solve_square(

@@ -4,54 +4,9 @@ use std::f64::consts::PI;
 
 use ferrosid::spectral::PeriodicAveraging;
 use ferrosid::{Channel, Error, Log};
-use num_complex::Complex64;
 
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn gauss(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * PI * b).cos()
-    }
-}
-
-fn lfilter(b: &[f64], a: &[f64], u: &[f64]) -> Vec<f64> {
-    let mut y = vec![0.0; u.len()];
-    for n in 0..u.len() {
-        let mut acc = 0.0;
-        for (i, &bi) in b.iter().enumerate() {
-            if n >= i {
-                acc += bi * u[n - i];
-            }
-        }
-        for (i, &ai) in a.iter().enumerate().skip(1) {
-            if n >= i {
-                acc -= ai * y[n - i];
-            }
-        }
-        y[n] = acc / a[0];
-    }
-    y
-}
-
-fn freqz(b: &[f64], a: &[f64], w: f64) -> Complex64 {
-    let z1 = Complex64::from_polar(1.0, -w);
-    let poly = |c: &[f64]| {
-        c.iter()
-            .rev()
-            .fold(Complex64::new(0.0, 0.0), |acc, &ci| acc * z1 + ci)
-    };
-    poly(b) / poly(a)
-}
+mod spectral_support;
+use spectral_support::{freqz, lfilter, Rng};
 
 /// Random-phase multisine with period `p` exciting `lines`, repeated `reps` times.
 fn multisine(p: usize, lines: &[usize], reps: usize, seed: u64) -> Vec<f64> {

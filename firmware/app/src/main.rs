@@ -158,42 +158,10 @@ fn parse_args() -> Result<Scenario, &'static str> {
     Ok(Scenario { name, params: p })
 }
 
-/// Stack high-water mark by painting (the stack is outside every section, so llvm-size does
-/// not count it).
-mod stack {
-    const PAINT: u32 = 0x5AFE_C0DE;
-    const GUARD: usize = 256;
-    extern "C" {
-        static _stack_start: u32;
-    }
-    pub struct Painted {
-        low: usize,
-        high: usize,
-    }
-    #[inline(never)]
-    pub fn paint(bytes: usize) -> Painted {
-        let sp = cortex_m::register::msp::read() as usize;
-        let high = (sp - GUARD) & !3;
-        let low = high - (bytes & !3);
-        let mut a = low;
-        while a < high {
-            // SAFETY: below the live stack, above all statics (4 MiB RAM, images use far less).
-            unsafe { core::ptr::write_volatile(a as *mut u32, PAINT) };
-            a += 4;
-        }
-        Painted { low, high }
-    }
-    impl Painted {
-        pub fn high_water(&self) -> usize {
-            let mut a = self.low;
-            // SAFETY: reads of the region painted above.
-            while a < self.high && unsafe { core::ptr::read_volatile(a as *const u32) } == PAINT {
-                a += 4;
-            }
-            core::ptr::addr_of!(_stack_start) as usize - a
-        }
-    }
-}
+/// Stack high-water mark by painting: the painter the QEMU size probe uses (one source file,
+/// shared because both images are cortex-m binaries and the firmware core stays hardware-free).
+#[path = "../../../tests/qemu/src/stack.rs"]
+mod stack;
 
 /// The Welch estimator (24·N bytes) in .bss.
 static mut WELCH: Welch<N> = Welch::unconfigured();
