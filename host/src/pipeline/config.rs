@@ -265,48 +265,33 @@ impl Default for Identification {
     }
 }
 
-/// `[audit]`: dual-amplitude nonlinearity audit thresholds (see [`crate::robust::audit`]).
+/// `[audit]`: dual-amplitude nonlinearity audit thresholds (see [`crate::robust::audit`]); a
+/// missing key takes the default of [`crate::robust::audit::AuditOptions::new`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct AuditSettings {
     /// Audit band [f_c/k, f_c·k] (default 10: a decade each side of the crossover).
-    #[serde(default = "ten")]
     pub band_factor: f64,
     /// Largest tolerated gain shift between runs, dB (default 3).
-    #[serde(default = "three")]
     pub max_gain_shift_db: f64,
     /// Largest tolerated phase shift between runs, degrees (default 15).
-    #[serde(default = "fifteen")]
     pub max_phase_shift_deg: f64,
     /// Smallest tolerated coherence near crossover (default 0.6).
-    #[serde(default = "point_six")]
     pub min_coherence: f64,
     /// Coherence window [f_c/k, f_c·k] (default 3).
-    #[serde(default = "three")]
     pub coherence_band_factor: f64,
-}
-
-fn ten() -> f64 {
-    10.0
-}
-fn three() -> f64 {
-    3.0
-}
-fn fifteen() -> f64 {
-    15.0
-}
-fn point_six() -> f64 {
-    0.6
 }
 
 impl Default for AuditSettings {
     fn default() -> Self {
+        // The crossover is set by the pipeline later; only the thresholds are taken here.
+        let d = crate::robust::audit::AuditOptions::new(1.0);
         Self {
-            band_factor: 10.0,
-            max_gain_shift_db: 3.0,
-            max_phase_shift_deg: 15.0,
-            min_coherence: 0.6,
-            coherence_band_factor: 3.0,
+            band_factor: d.band_factor,
+            max_gain_shift_db: d.max_gain_shift_db,
+            max_phase_shift_deg: d.max_phase_shift_deg,
+            min_coherence: d.min_coherence,
+            coherence_band_factor: d.coherence_band_factor,
         }
     }
 }
