@@ -248,7 +248,7 @@ pub struct Identification {
 }
 
 fn default_block_rows() -> usize {
-    20
+    crate::n4sid::N4sidOptions::default().block_rows
 }
 
 impl Default for Identification {
@@ -385,7 +385,7 @@ pub struct Control {
 }
 
 fn default_ms() -> f64 {
-    1.6
+    crate::robust::pid::PidTuningSpec::new(1.0).ms_max
 }
 fn yes() -> bool {
     true
@@ -394,7 +394,7 @@ fn default_rolloff_zeta() -> f64 {
     0.7
 }
 fn default_min_scale() -> f64 {
-    0.1
+    crate::robust::pid::PidTuningSpec::new(1.0).min_crossover_scale
 }
 
 /// `[receipts]`: limits (defaults as in [`crate::robust::receipts::ReceiptLimits`]).
