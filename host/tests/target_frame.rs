@@ -96,65 +96,25 @@ fn with_line(line: usize, with: &str) -> String {
 #[test]
 fn malformed_lines_are_named() {
     // Line 4 is FRAME_BEGIN, lines 5..=37 the bins (bin k on line 5 + k), 38 FRAME_END.
-    assert_line(parse_err(&with_line(4, "FRAME_BEGIN fs=abc n=64")), 4, "fs");
-    assert_line(parse_err(&with_line(4, "FRAME_BEGIN fs=-1 n=64")), 4, "fs");
-    assert_line(
-        parse_err(&with_line(4, "FRAME_BEGIN fs=1000 n=100")),
-        4,
-        "n = 100",
-    );
-    assert_line(
-        parse_err(&with_line(4, "FRAME_BEGIN fs=1000 n=64 oops")),
-        4,
-        "key=value",
-    );
-    assert_line(
-        parse_err(&with_line(4, "FRAME_BEGIN n=64")),
-        4,
-        "missing fs",
-    );
-    assert_line(
-        parse_err(&with_line(9, "FRAME 4 1e-3 1e-3 0.1")),
-        9,
-        "6 fields",
-    );
-    assert_line(
-        parse_err(&with_line(9, "FRAME 5 1e-3 1e-3 0.1 0.1 0.9")),
-        9,
-        "out of order",
-    );
-    assert_line(
-        parse_err(&with_line(9, "FRAME 4 1e-3 x 0.1 0.1 0.9")),
-        9,
-        "S_yy",
-    );
-    assert_line(
-        parse_err(&with_line(9, "FRAME 4 1e-3 inf 0.1 0.1 0.9")),
-        9,
-        "not finite",
-    );
-    assert_line(
-        parse_err(&with_line(9, "FRAME 4 -1e-3 1 0.1 0.1 0.9")),
-        9,
-        "negative",
-    );
-    assert_line(
-        parse_err(&with_line(9, "FRAME 4 1e-3 1 0.1 0.1 1.5")),
-        9,
-        "coherence",
-    );
-    assert_line(
-        parse_err(&with_line(38, "FRAME_END bins=40")),
-        38,
-        "expected 33",
-    );
-    assert_line(
-        parse_err(&with_line(2, "RECEIPT 3 46.875 0.99")),
-        2,
-        "11 fields",
-    );
-    // A FRAME line before any FRAME_BEGIN.
-    assert_line(parse_err(&with_line(1, "FRAME 0 1 1 0 0 1")), 1, "outside");
+    for (line, text, needle) in [
+        (4, "FRAME_BEGIN fs=abc n=64", "fs"),
+        (4, "FRAME_BEGIN fs=-1 n=64", "fs"),
+        (4, "FRAME_BEGIN fs=1000 n=100", "n = 100"),
+        (4, "FRAME_BEGIN fs=1000 n=64 oops", "key=value"),
+        (4, "FRAME_BEGIN n=64", "missing fs"),
+        (9, "FRAME 4 1e-3 1e-3 0.1", "6 fields"),
+        (9, "FRAME 5 1e-3 1e-3 0.1 0.1 0.9", "out of order"),
+        (9, "FRAME 4 1e-3 x 0.1 0.1 0.9", "S_yy"),
+        (9, "FRAME 4 1e-3 inf 0.1 0.1 0.9", "not finite"),
+        (9, "FRAME 4 -1e-3 1 0.1 0.1 0.9", "negative"),
+        (9, "FRAME 4 1e-3 1 0.1 0.1 1.5", "coherence"),
+        (38, "FRAME_END bins=40", "expected 33"),
+        (2, "RECEIPT 3 46.875 0.99", "11 fields"),
+        // A FRAME line before any FRAME_BEGIN.
+        (1, "FRAME 0 1 1 0 0 1", "outside"),
+    ] {
+        assert_line(parse_err(&with_line(line, text)), line, needle);
+    }
     // A second frame.
     let mut two = frame_text(h_true);
     two.push_str("FRAME_BEGIN fs=1000 n=64\n");
