@@ -123,7 +123,84 @@ fn push_slice_length_mismatch_is_an_error_and_consumes_nothing() {
         "the failed call must not have consumed samples"
     );
     w.push(1.0, 2.0);
+    // The segment that just ended is folded in over the next hop's pushes, or by flush().
+    assert!(w.segment_in_work());
+    assert_eq!(w.averages(), 0);
+    w.flush();
+    assert!(!w.segment_in_work());
     assert_eq!(w.averages(), 1);
+}
+
+/// Bounded push: the work of a segment that has ended is spread over the next hop's pushes.
+/// Every estimate read meanwhile is, bin by bin, bit for bit either the estimate without that
+/// segment or the estimate with it (each bin is a mean over the segments it contains); the
+/// number of bins that include it never decreases; and once the next segment ends it is fully
+/// included without any flush().
+#[test]
+fn segment_work_is_spread_over_the_next_hop_and_estimates_stay_consistent() {
+    const N: usize = 256;
+    let configs = [
+        WelchConfig::scipy_default(100.0, N),
+        WelchConfig {
+            fs_hz: 100.0,
+            overlap: 37,
+            window: Window::Rectangular,
+            detrend_mean: true,
+        },
+        WelchConfig {
+            fs_hz: 100.0,
+            overlap: 0,
+            window: Window::Hann,
+            detrend_mean: false,
+        },
+    ];
+    for cfg in configs {
+        let hop = N - cfg.overlap;
+        let mut rng = XorShift::new(9);
+        let u = to_f32(&rng.gauss_vec(N + 3 * hop));
+        let y = to_f32(&lfilter(&[0.3, 0.2], &[1.0, -0.5], &widen(&u)));
+        // The second segment ends with sample `end - 1`.
+        let end = N + hop;
+        let mut before = Welch::<N>::new(cfg).unwrap();
+        before.push_slice(&u[..end - 1], &y[..end - 1]).unwrap();
+        let mut after = Welch::<N>::new(cfg).unwrap();
+        after.push_slice(&u[..end], &y[..end]).unwrap();
+        assert_eq!((before.averages(), after.averages()), (1, 2));
+        let bits = |w: &Welch<N>, k: usize| {
+            let (re, im) = w.suy(k);
+            [w.suu(k), w.syy(k), re, im, w.coherence(k)].map(f32::to_bits)
+        };
+        let mut live = Welch::<N>::new(cfg).unwrap();
+        for (&a, &b) in u[..end].iter().zip(&y[..end]) {
+            live.push(a, b);
+        }
+        assert!(live.segment_in_work(), "overlap {}", cfg.overlap);
+        let mut included = 0;
+        let mut pushes_in_work = 0;
+        for j in end..end + hop {
+            let mut now = 0;
+            for k in 0..live.bins() {
+                let v = bits(&live, k);
+                if v == bits(&after, k) {
+                    now += 1;
+                } else {
+                    assert_eq!(v, bits(&before, k), "overlap {} k={k} push {j}", cfg.overlap);
+                }
+            }
+            assert!(now >= included, "bins including the segment went {included} -> {now}");
+            included = now;
+            pushes_in_work += usize::from(live.segment_in_work());
+            live.push(u[j], y[j]);
+        }
+        // The third segment has just ended and is in work now; the second is complete.
+        assert!(live.segment_in_work(), "overlap {}", cfg.overlap);
+        assert_eq!(live.averages(), 2);
+        for k in 0..live.bins() {
+            assert_eq!(bits(&live, k), bits(&after, k), "k={k}");
+        }
+        // The work really is spread: it takes more than a few pushes.
+        assert!(pushes_in_work > 8, "segment done after {pushes_in_work} pushes");
+    }
 }
 
 #[test]
@@ -175,6 +252,7 @@ fn undefined_outputs_before_any_average() {
     assert_eq!(w.gate(0.0).count(), 0);
     // Out-of-range bins after averages: zeros / None, no panic.
     w.push(0.5, 0.5);
+    w.flush();
     assert_eq!(w.averages(), 1);
     assert_eq!(w.h1(33), None);
     assert_eq!(w.suy(1000), (0.0, 0.0));
@@ -184,6 +262,7 @@ fn undefined_outputs_before_any_average() {
     for _ in 0..64 {
         w.push(rng.gauss() as f32, rng.gauss() as f32);
     }
+    w.flush();
     for k in 1..32 {
         assert!(
             (w.coherence(k) - 1.0).abs() < 1e-5,
@@ -212,6 +291,7 @@ fn mean_noise_coherence<const N: usize>(
     for _ in 0..len {
         w.push(rng.gauss() as f32, rng.gauss() as f32);
     }
+    w.flush();
     let m = (1..N / 2).map(|k| w.coherence(k) as f64).sum::<f64>() / (N / 2 - 1) as f64;
     (m, w.averages(), w.gate(0.3).count())
 }
@@ -284,6 +364,7 @@ proptest! {
         for &(u, y) in &data {
             w.push(u, y);
         }
+        w.flush();
         let bad = data
             .iter()
             .filter(|(u, y)| !accepts(*u, *y))
@@ -305,8 +386,9 @@ proptest! {
         let _ = w.gate(0.5);
     }
 
-    /// push() per pair and push_slice() over arbitrary chunks give bit-identical estimates and
-    /// counters (push_slice has its own fast path for copying and range checks).
+    /// push() per pair (then flush()) and push_slice() over arbitrary chunks give bit-identical
+    /// estimates and counters: push spreads each segment's work over the next hop in slices,
+    /// push_slice completes it at once, and the arithmetic does not depend on the slicing.
     #[test]
     fn push_slice_equals_push(
         data in proptest::collection::vec((sample(), sample()), 0..900),
@@ -326,6 +408,7 @@ proptest! {
         for (&p, &q) in u.iter().zip(&y) {
             a.push(p, q);
         }
+        a.flush();
         let mut off = 0;
         for c in chunks.iter().cycle() {
             if off >= u.len() {

@@ -59,6 +59,18 @@ impl InstructionCounter {
         self.ticks = 0;
     }
 
+    /// Ticks elapsed while running `f`, from two raw counter reads (no running total; `f` must
+    /// take fewer than 2^24 ticks). The reads themselves add a small constant: measure an empty
+    /// closure the same way and subtract it.
+    #[inline(always)]
+    pub fn ticks_of(&mut self, f: impl FnOnce()) -> u32 {
+        let start = SYST::get_current();
+        f();
+        let end = SYST::get_current();
+        self.last = end;
+        start.wrapping_sub(end) & MASK
+    }
+
     /// Measures the number of executed instructions per SysTick tick on a loop of exactly
     /// `2 * (iterations + 1)` instructions (`cortex_m::asm::delay`: `subs`, `bne` per iteration).
     /// Returns `(instructions, ticks)` of that loop, so the caller can form the ratio.

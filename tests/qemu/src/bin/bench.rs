@@ -17,7 +17,7 @@ use cortex_m_rt::entry;
 use ferrosid_firmware::excitation::{
     Chirp, ChirpConfig, ChirpLaw, Line, Multisine, MultisineScratch, MultisineSpec, Phases, Prbs,
 };
-use ferrosid_firmware::{Excitation, Welch};
+use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
 use ferrosid_qemu::reference::XorShift32;
 use ferrosid_qemu::{exit, InstructionCounter, EXIT_FAILURE, EXIT_SUCCESS};
 
@@ -44,10 +44,28 @@ fn run(ic: &mut InstructionCounter, mut body: impl FnMut(usize)) -> u64 {
     ic.lap()
 }
 
+/// Largest number of ticks of a single `body(i)` over `SAMPLES` iterations, and the largest of
+/// an empty body measured the same way (the counter reads), to be subtracted.
+fn max_ticks(ic: &mut InstructionCounter, mut body: impl FnMut(usize)) -> (u32, u32) {
+    let (mut worst, mut empty) = (0, 0);
+    for i in 0..SAMPLES {
+        worst = worst.max(ic.ticks_of(|| body(i)));
+        empty = empty.max(ic.ticks_of(|| black_box(())));
+    }
+    (worst, empty)
+}
+
 fn report(name: &str, ticks: u64, base: u64, ipt: f64, per: usize, unit: &str) -> f64 {
     let v = (ticks as f64 - base as f64) * ipt / per as f64;
     defmt::println!("BENCH {=str} {=f64} {=str}", name, v, unit);
     v
+}
+
+/// Prints a largest single-call figure: `(worst - empty)` ticks, in instructions. A tick is
+/// `ipt` (40) instructions, so the figure is exact to one tick.
+fn report_max(name: &str, worst: u32, empty: u32, ipt: f64) {
+    let v = f64::from(worst.saturating_sub(empty)) * ipt;
+    defmt::println!("BENCH {=str} {=f64} instr/push", name, v);
 }
 
 #[panic_handler]
@@ -111,6 +129,10 @@ fn main() -> ! {
     let t = run(&mut ic, |i| w256.push(u[i & (REC - 1)], y[i & (REC - 1)]));
     black_box(w256.suu(3));
     report("welch_push_n256", t, base, ipt, SAMPLES, "instr/sample");
+    // Largest single push (every push measured alone, segment ends included).
+    w256.reset();
+    let (worst, empty) = max_ticks(&mut ic, |i| w256.push(u[i & (REC - 1)], y[i & (REC - 1)]));
+    report_max("welch_push_max_n256", worst, empty, ipt);
 
     let Some(w1024) = cortex_m::singleton!(: Option<Welch<1024>> = Welch::new(Welch::<1024>::default_config(FS)).ok())
     else {
@@ -126,6 +148,29 @@ fn main() -> ! {
         "BENCH welch_n1024_averages {=u32} segments",
         w1024.averages()
     );
+    w1024.reset();
+    let (worst, empty) = max_ticks(&mut ic, |i| w1024.push(u[i & (REC - 1)], y[i & (REC - 1)]));
+    report_max("welch_push_max_n1024", worst, empty, ipt);
+    // Rectangular window, no overlap (hop = N: the least work per push, the longest spread).
+    if w1024
+        .configure(WelchConfig {
+            fs_hz: FS,
+            overlap: 0,
+            window: Window::Rectangular,
+            detrend_mean: true,
+        })
+        .is_ok()
+    {
+        let t = run(&mut ic, |i| w1024.push(u[i & (REC - 1)], y[i & (REC - 1)]));
+        report("welch_push_rect_hop1024_n1024", t, base, ipt, SAMPLES, "instr/sample");
+        w1024.reset();
+        let (worst, empty) =
+            max_ticks(&mut ic, |i| w1024.push(u[i & (REC - 1)], y[i & (REC - 1)]));
+        report_max("welch_push_max_rect_hop1024_n1024", worst, empty, ipt);
+    }
+    if w1024.configure(Welch::<1024>::default_config(FS)).is_err() {
+        exit(EXIT_FAILURE)
+    }
 
     // push_slice over blocks (same work, slice API).
     w1024.reset();
@@ -140,11 +185,13 @@ fn main() -> ! {
     let t = ic.lap();
     report("welch_push_slice_n1024", t, 0, ipt, SAMPLES, "instr/sample");
 
-    // Latency of the one push per hop that completes a segment (window, 2 FFTs, accumulate).
+    // The push that completes a segment (it only switches banks; the work follows), and the
+    // whole work of one segment done at once by flush() (what that push used to cost).
     w1024.reset();
     for i in 0..1024 + 511 {
         w1024.push(u[i & (REC - 1)], y[i & (REC - 1)]);
     }
+    w1024.flush();
     ic.reset();
     ic.lap();
     let empty = ic.lap();
@@ -157,8 +204,12 @@ fn main() -> ! {
         empty,
         ipt,
         1,
-        "instr/segment",
+        "instr/push",
     );
+    ic.reset();
+    w1024.flush();
+    let t = ic.lap();
+    report("welch_segment_work_n1024", t, empty, ipt, 1, "instr/segment");
 
     // Post-processing per bin (N = 1024): coherence, H1.
     ic.reset();

@@ -107,6 +107,8 @@ fn main() -> ! {
             for i in 0..black_box(300) {
                 w.push(black_box(i as f32), black_box(0.5 * i as f32));
             }
+            acc += w.segment_in_work() as u32 as f32;
+            w.flush();
             let n = black_box(40usize).min(y.len());
             let _ = w.push_slice(&u, &y[..n]);
             let k = black_box(7);

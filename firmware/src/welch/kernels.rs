@@ -1,0 +1,463 @@
+//! The bounded pieces of work that turn one completed segment into spectral sums.
+//!
+//! # Data layout
+//! A segment bank holds `N` samples of both channels as `N/2` [`Quad`]s
+//! `[u[2n], u[2n+1], y[2n], y[2n+1]]`: read as complex numbers `z_u[n] = u[2n] + j·u[2n+1]` and
+//! `z_y[n]` likewise, which is the packing of a real FFT of `N` points into a complex FFT of
+//! `M = N/2` points. Every kernel moves both channels at once (one load per quad, shared
+//! twiddles and loop overhead).
+//!
+//! # Transform
+//! * Radix-4 decimation in frequency, in place, in stages of length `L = M, M/4, …`; a
+//!   butterfly is two radix-2 DIF stages fused, so the output is in **bit-reversed** order (as
+//!   after `log2 M` radix-2 DIF stages): bin `k` of `Z` sits at position `rev(k)`. When
+//!   `log2 M` is odd a final radix-2 stage (unit twiddles) completes it. The first stage also
+//!   removes the segment mean and applies the window as it loads its inputs.
+//! * Recombination to the real spectrum, `2X[k] = E - j·W_N^k·O` with
+//!   `E = Z[k] + conj Z[M-k]`, `O = Z[k] - conj Z[M-k]`, and `2X[M-k] = conj(E + j·W_N^k·O)`.
+//!   In bit-reversed order the pairs `(k, M-k)` are mirror positions inside each octave block
+//!   `[2^l, 2^(l+1))`: `p = 2^l + i` and `q = 2^(l+1) - 1 - i`. So the recombination walks
+//!   forward and backward through each block, and the products `|2U|², |2Y|², conj(2U)·2Y` are
+//!   added to the accumulators *stored in the same bit-reversed order* (no reordering pass).
+//!
+//! Every kernel takes a range of work items so that the caller can split a segment's work into
+//! slices of bounded cost. Nothing here indexes out of range: all accesses are through
+//! iterators or checked `get`, and a (never reached) empty range means no work.
+
+use super::tables::Tables;
+
+/// Two complex values, one per channel: `[Re z_u, Im z_u, Re z_y, Im z_y]`.
+pub(super) type Quad = [f32; 4];
+/// Two `f32` values.
+pub(super) type Pair = [f32; 2];
+
+/// Views a bank of `N` pairs (`2N` values) as `N/2` quads.
+#[inline(always)]
+pub(super) fn quads(bank: &[Pair]) -> &[Quad] {
+    bank.as_flattened().as_chunks::<4>().0
+}
+
+/// Mutable view of a bank as quads.
+#[inline(always)]
+pub(super) fn quads_mut(bank: &mut [Pair]) -> &mut [Quad] {
+    bank.as_flattened_mut().as_chunks_mut::<4>().0
+}
+
+/// `z·(c - j·s)`, i.e. `z·e^{-jθ}` for `(c, s) = (cos θ, sin θ)`.
+#[inline(always)]
+fn rot(zr: f32, zi: f32, c: f32, s: f32) -> (f32, f32) {
+    (zr * c + zi * s, zi * c - zr * s)
+}
+
+/// Radix-4 DIF butterfly on both channels with twiddles `[cos θ, sin θ, cos 2θ, …]`:
+/// `y0 = t0 + t1`, `y1 = (t0 - t1)W²`, `y2 = (t2 - j t3)W`, `y3 = (t2 + j t3)W³`, where
+/// `t0 = x0 + x2`, `t1 = x1 + x3`, `t2 = x0 - x2`, `t3 = x1 - x3`, `W = e^{-jθ}`.
+#[inline(always)]
+fn radix4(x: [Quad; 4], w: &[f32; 6]) -> [Quad; 4] {
+    let [c1, s1, c2, s2, c3, s3] = *w;
+    let [x0, x1, x2, x3] = x;
+    let mut y = [[0.0f32; 4]; 4];
+    for ch in [0, 2] {
+        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 1] + x2[ch + 1]);
+        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 1] + x3[ch + 1]);
+        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 1] - x2[ch + 1]);
+        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 1] - x3[ch + 1]);
+        y[0][ch] = t0r + t1r;
+        y[0][ch + 1] = t0i + t1i;
+        (y[1][ch], y[1][ch + 1]) = rot(t0r - t1r, t0i - t1i, c2, s2);
+        (y[2][ch], y[2][ch + 1]) = rot(t2r + t3i, t2i - t3r, c1, s1);
+        (y[3][ch], y[3][ch + 1]) = rot(t2r - t3i, t2i + t3r, c3, s3);
+    }
+    y
+}
+
+/// Radix-4 DIF butterfly with unit twiddles (the stage of length 4).
+#[inline(always)]
+fn radix4_unit(x: [Quad; 4]) -> [Quad; 4] {
+    let [x0, x1, x2, x3] = x;
+    let mut y = [[0.0f32; 4]; 4];
+    for ch in [0, 2] {
+        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 1] + x2[ch + 1]);
+        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 1] + x3[ch + 1]);
+        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 1] - x2[ch + 1]);
+        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 1] - x3[ch + 1]);
+        y[0][ch] = t0r + t1r;
+        y[0][ch + 1] = t0i + t1i;
+        y[1][ch] = t0r - t1r;
+        y[1][ch + 1] = t0i - t1i;
+        y[2][ch] = t2r + t3i;
+        y[2][ch + 1] = t2i - t3r;
+        y[3][ch] = t2r - t3i;
+        y[3][ch + 1] = t2i + t3r;
+    }
+    y
+}
+
+/// Splits `s` into four quarters of length `q` (`None` if it is shorter than `4q`).
+#[inline(always)]
+fn quarters<T>(s: &mut [T], q: usize) -> Option<[&mut [T]; 4]> {
+    let (a, rest) = s.split_at_mut_checked(q)?;
+    let (b, rest) = rest.split_at_mut_checked(q)?;
+    let (c, d) = rest.split_at_mut_checked(q)?;
+    Some([a, b, c, d])
+}
+
+/// Subtracts the channel means `mu` and applies the window pair `w` to one quad.
+#[inline(always)]
+fn prepare(x: &Quad, w: &Pair, mu: &Pair) -> Quad {
+    [
+        (x[0] - mu[0]) * w[0],
+        (x[1] - mu[0]) * w[1],
+        (x[2] - mu[1]) * w[0],
+        (x[3] - mu[1]) * w[1],
+    ]
+}
+
+/// Subtracts the channel means `mu` from one quad (rectangular window).
+#[inline(always)]
+fn centre(x: &Quad, mu: &Pair) -> Quad {
+    [x[0] - mu[0], x[1] - mu[0], x[2] - mu[1], x[3] - mu[1]]
+}
+
+/// Butterflies `start..start + count` of the first stage (length `M = z.len()`, one group):
+/// the inputs are centred by `mu` and windowed by `window` (pairs `[w[2n], w[2n+1]]`, `M` of
+/// them; `None` = rectangular) as they are loaded.
+pub(super) fn first_stage(
+    z: &mut [Quad],
+    window: Option<&[Pair]>,
+    mu: Pair,
+    tw: &[[f32; 6]],
+    start: usize,
+    count: usize,
+) {
+    let q = z.len() / 4;
+    let end = (start + count).min(q);
+    let Some([a, b, c, d]) = quarters(z, q) else {
+        return;
+    };
+    let (Some(a), Some(b), Some(c), Some(d), Some(tw)) = (
+        a.get_mut(start..end),
+        b.get_mut(start..end),
+        c.get_mut(start..end),
+        d.get_mut(start..end),
+        tw.get(start..end),
+    ) else {
+        return;
+    };
+    let zs = a.iter_mut().zip(b).zip(c).zip(d).zip(tw);
+    match window {
+        Some(win) => {
+            let Some(win) = win.get(..4 * q) else {
+                return;
+            };
+            let (wa, rest) = win.split_at(q);
+            let (wb, rest) = rest.split_at(q);
+            let (wc, wd) = rest.split_at(q);
+            let (Some(wa), Some(wb), Some(wc), Some(wd)) = (
+                wa.get(start..end),
+                wb.get(start..end),
+                wc.get(start..end),
+                wd.get(start..end),
+            ) else {
+                return;
+            };
+            let ws = wa.iter().zip(wb).zip(wc).zip(wd);
+            for (((((a, b), c), d), t), (((w0, w1), w2), w3)) in zs.zip(ws) {
+                let x = [
+                    prepare(a, w0, &mu),
+                    prepare(b, w1, &mu),
+                    prepare(c, w2, &mu),
+                    prepare(d, w3, &mu),
+                ];
+                [*a, *b, *c, *d] = radix4(x, t);
+            }
+        }
+        None => {
+            for ((((a, b), c), d), t) in zs {
+                let x = [centre(a, &mu), centre(b, &mu), centre(c, &mu), centre(d, &mu)];
+                [*a, *b, *c, *d] = radix4(x, t);
+            }
+        }
+    }
+}
+
+/// Butterflies `start..start + count` (numbered group by group) of a radix-4 stage of length
+/// `l >= 8` with twiddles `tw` (`l/4` entries).
+pub(super) fn radix4_stage(
+    z: &mut [Quad],
+    l: usize,
+    tw: &[[f32; 6]],
+    start: usize,
+    count: usize,
+) {
+    let q = l / 4;
+    if q == 0 {
+        return;
+    }
+    let mut t = start;
+    let end = start + count;
+    while t < end {
+        let (g, n) = (t / q, t % q);
+        let run = (q - n).min(end - t);
+        let Some(group) = z.get_mut(g * l..g * l + l) else {
+            return;
+        };
+        let Some([a, b, c, d]) = quarters(group, q) else {
+            return;
+        };
+        let (Some(a), Some(b), Some(c), Some(d), Some(tw)) = (
+            a.get_mut(n..n + run),
+            b.get_mut(n..n + run),
+            c.get_mut(n..n + run),
+            d.get_mut(n..n + run),
+            tw.get(n..n + run),
+        ) else {
+            return;
+        };
+        for ((((a, b), c), d), t) in a.iter_mut().zip(b).zip(c).zip(d).zip(tw) {
+            [*a, *b, *c, *d] = radix4([*a, *b, *c, *d], t);
+        }
+        t += run;
+    }
+}
+
+/// Butterflies `start..start + count` of the radix-4 stage of length 4 (unit twiddles).
+pub(super) fn unit4_stage(z: &mut [Quad], start: usize, count: usize) {
+    let (groups, _) = z.as_chunks_mut::<4>();
+    let Some(groups) = groups.get_mut(start..start + count) else {
+        return;
+    };
+    for g in groups {
+        *g = radix4_unit(*g);
+    }
+}
+
+/// Butterflies `start..start + count` of the final radix-2 stage (length 2, unit twiddle).
+pub(super) fn unit2_stage(z: &mut [Quad], start: usize, count: usize) {
+    let (groups, _) = z.as_chunks_mut::<2>();
+    let Some(groups) = groups.get_mut(start..start + count) else {
+        return;
+    };
+    for [a, b] in groups {
+        let (x, y) = (*a, *b);
+        *a = [x[0] + y[0], x[1] + y[1], x[2] + y[2], x[3] + y[3]];
+        *b = [x[0] - y[0], x[1] - y[1], x[2] - y[2], x[3] - y[3]];
+    }
+}
+
+/// Adds the products of one bin's doubled spectra `x = [2U, 2Y]` to its sums
+/// `[Σ|2U|², Σ|2Y|², Σ Re conj(2U)·2Y, Σ Im conj(2U)·2Y]`.
+#[inline(always)]
+fn add_products(acc: &mut Quad, x: &Quad) {
+    let [ur, ui, yr, yi] = *x;
+    acc[0] += ur * ur + ui * ui;
+    acc[1] += yr * yr + yi * yi;
+    acc[2] += ur * yr + ui * yi;
+    acc[3] += ur * yi - ui * yr;
+}
+
+/// Recombination of the mirror pair `zk = Z[k]`, `zc = Z[M-k]` with `(c, s)` of `2πk/N`:
+/// returns `(2X[k], 2X[M-k])` for both channels.
+#[inline(always)]
+fn recombine(zk: &Quad, zc: &Quad, w: &Pair) -> (Quad, Quad) {
+    let [c, s] = *w;
+    let (mut xk, mut xm) = ([0.0f32; 4], [0.0f32; 4]);
+    for ch in [0, 2] {
+        let (er, ei) = (zk[ch] + zc[ch], zk[ch + 1] - zc[ch + 1]);
+        let (or, oi) = (zk[ch] - zc[ch], zk[ch + 1] + zc[ch + 1]);
+        let (tr, ti) = rot(or, oi, c, s);
+        xk[ch] = er + ti;
+        xk[ch + 1] = ei - tr;
+        xm[ch] = er - ti;
+        xm[ch + 1] = -(ei + tr);
+    }
+    (xk, xm)
+}
+
+/// Pairs `start..start + count` of the recombination (pair `t` of level `l`, block
+/// `b = 2^l`: `t = b/2 - 1 + i`, positions `p = b + i`, `q = 2b - 1 - i`); `tw` is
+/// [`Tables::COMBINE`] as pairs. Adds the products of bins `rev(p)`, `rev(q)` to `acc[p]`,
+/// `acc[q]`.
+pub(super) fn combine(z: &[Quad], acc: &mut [Quad], tw: &[Pair], start: usize, count: usize) {
+    let mut t = start;
+    let end = start + count;
+    while t < end {
+        let level = usize::BITS - (t + 1).leading_zeros();
+        let b = 1usize << level;
+        let half = b / 2;
+        let i = t + 1 - half;
+        let run = (half - i).min(end - t);
+        let (Some(zf), Some(zs), Some(tw)) = (
+            z.get(b + i..b + i + run),
+            z.get(2 * b - i - run..2 * b - i),
+            tw.get(t..t + run),
+        ) else {
+            return;
+        };
+        let Some((lo, hi)) = acc.split_at_mut_checked(b + half) else {
+            return;
+        };
+        let (Some(af), Some(ab)) = (
+            lo.get_mut(b + i..b + i + run),
+            hi.get_mut(half - i - run..half - i),
+        ) else {
+            return;
+        };
+        let fwd = zf.iter().zip(tw).zip(af.iter_mut());
+        let bwd = zs.iter().rev().zip(ab.iter_mut().rev());
+        for (((zk, w), ak), (zc, ac)) in fwd.zip(bwd) {
+            let (xk, xm) = recombine(zk, zc, w);
+            add_products(ak, &xk);
+            add_products(ac, &xm);
+        }
+        t += run;
+    }
+}
+
+/// The bins without a mirror partner: position 0 holds `Z[0]`, giving DC `2X[0] = 2(Re + Im)`
+/// and Nyquist `2X[N/2] = 2(Re - Im)` (both real); position 1 holds `Z[M/2]`, giving
+/// `2X[N/4] = 2·conj Z[M/2]`. DC's sums take `[Σ|2U|², Σ|2Y|², Σ 2U·2Y, Σ Nyquist 2U·2Y]` (the
+/// imaginary cross part of DC is 0, so its slot holds the real Nyquist cross sum); `nyq` takes
+/// the Nyquist auto sums.
+pub(super) fn edge_bins(z: &[Quad], acc: &mut [Quad], nyq: &mut Pair) {
+    let (Some(z0), Some(z1)) = (z.first(), z.get(1)) else {
+        return;
+    };
+    let [a0, a1, ..] = acc else {
+        return;
+    };
+    let (du, dy) = (2.0 * (z0[0] + z0[1]), 2.0 * (z0[2] + z0[3]));
+    let (nu, ny) = (2.0 * (z0[0] - z0[1]), 2.0 * (z0[2] - z0[3]));
+    a0[0] += du * du;
+    a0[1] += dy * dy;
+    a0[2] += du * dy;
+    a0[3] += nu * ny;
+    nyq[0] += nu * nu;
+    nyq[1] += ny * ny;
+    let x = [2.0 * z1[0], -2.0 * z1[1], 2.0 * z1[2], -2.0 * z1[3]];
+    add_products(a1, &x);
+}
+
+/// Sample `i` (`< N`) of a bank as `(u, y)`.
+#[inline(always)]
+fn sample<const N: usize>(bank: &[Pair; N], i: usize) -> (f32, f32) {
+    let i = i & (N - 1);
+    (bank[i & !1][i & 1], bank[(i & !1) | 1][i & 1])
+}
+
+/// Stores sample `i` (`< N`) of a bank.
+#[inline(always)]
+pub(super) fn set_sample<const N: usize>(bank: &mut [Pair; N], i: usize, u: f32, y: f32) {
+    let i = i & (N - 1);
+    bank[i & !1][i & 1] = u;
+    bank[(i & !1) | 1][i & 1] = y;
+}
+
+/// Adds `x - r` for samples `start..end` of `bank` to `sum`, one sample at a time in index
+/// order (so the result does not depend on how the range is split into calls). `r` is the
+/// bank's first sample: summing deviations from it keeps the sums small for signals with an
+/// offset, and so the mean accurate.
+pub(super) fn sum_range<const N: usize>(
+    bank: &[Pair; N],
+    start: usize,
+    end: usize,
+    r: Pair,
+    sum: &mut Pair,
+) {
+    let (mut a, end) = (start, end.min(N));
+    if a < end && a % 2 == 1 {
+        add_sample(sample(bank, a), r, sum);
+        a += 1;
+    }
+    let whole = (end - a.min(end)) / 2;
+    if let Some(qs) = quads(bank).get(a / 2..a / 2 + whole) {
+        for x in qs {
+            sum[0] = sum[0] + (x[0] - r[0]) + (x[1] - r[0]);
+            sum[1] = sum[1] + (x[2] - r[1]) + (x[3] - r[1]);
+        }
+    }
+    a += 2 * whole;
+    if a < end {
+        add_sample(sample(bank, a), r, sum);
+    }
+}
+
+#[inline(always)]
+fn add_sample((u, y): (f32, f32), r: Pair, sum: &mut Pair) {
+    sum[0] += u - r[0];
+    sum[1] += y - r[1];
+}
+
+/// First sample `(u, y)` of a bank, the reference of [`sum_range`].
+#[inline(always)]
+pub(super) fn first_sample<const N: usize>(bank: &[Pair; N]) -> Pair {
+    let (u, y) = sample(bank, 0);
+    [u, y]
+}
+
+/// Copies samples `start + hop..end + hop` of `old` to `start..end` of `new` (the overlap that
+/// the next segment shares) and adds their deviations from `new`'s first sample
+/// (`old[hop]`, see [`sum_range`]) to `sum` in index order.
+pub(super) fn copy_range<const N: usize>(
+    old: &[Pair; N],
+    new: &mut [Pair; N],
+    hop: usize,
+    start: usize,
+    end: usize,
+    sum: &mut Pair,
+) {
+    let (u0, y0) = sample(old, hop);
+    let r = [u0, y0];
+    let mut a = start;
+    if hop % 2 == 0 {
+        if a < end && a % 2 == 1 {
+            copy_one(old, new, hop, a, r, sum);
+            a += 1;
+        }
+        let whole = (end - a.min(end)) / 2;
+        let (src, dst) = (quads(old), quads_mut(new));
+        let from = (a + hop) / 2;
+        if let (Some(s), Some(d)) = (src.get(from..from + whole), dst.get_mut(a / 2..a / 2 + whole))
+        {
+            for (x, d) in s.iter().zip(d) {
+                *d = *x;
+                sum[0] = sum[0] + (x[0] - r[0]) + (x[1] - r[0]);
+                sum[1] = sum[1] + (x[2] - r[1]) + (x[3] - r[1]);
+            }
+        }
+        a += 2 * whole;
+    }
+    while a < end {
+        copy_one(old, new, hop, a, r, sum);
+        a += 1;
+    }
+}
+
+#[inline(always)]
+fn copy_one<const N: usize>(
+    old: &[Pair; N],
+    new: &mut [Pair; N],
+    hop: usize,
+    i: usize,
+    r: Pair,
+    sum: &mut Pair,
+) {
+    let (u, y) = sample(old, i + hop);
+    set_sample(new, i, u, y);
+    add_sample((u, y), r, sum);
+}
+
+/// The twiddles of radix-4 stage `s` as sixes.
+#[inline(always)]
+pub(super) fn stage_twiddles<const N: usize>(s: u32) -> &'static [[f32; 6]] {
+    let table: &'static [f32; N] = &Tables::<N>::FFT;
+    let (sixes, _) = table.as_chunks::<6>();
+    sixes.get(Tables::<N>::stage_offset(s)..).unwrap_or(&[])
+}
+
+/// The recombination twiddles as pairs.
+#[inline(always)]
+pub(super) fn combine_twiddles<const N: usize>() -> &'static [Pair] {
+    let table: &'static [f32; N] = &Tables::<N>::COMBINE;
+    table.as_chunks::<2>().0
+}

@@ -1,0 +1,181 @@
+//! The work of one completed segment as a sequence of phases, executed in slices of bounded
+//! cost ("ticks", calibrated to Cortex-M4F instructions under QEMU `-icount`).
+//!
+//! Phases, for the bank holding the completed segment (the *work bank*) and the bank now being
+//! filled by `push` (the *fill bank*):
+//! 1. `Copy`: the `overlap` newest samples of the work bank become the first samples of the
+//!    fill bank (pushes write behind them, so this never races with `push`), and their sums are
+//!    kept for the next segment's mean.
+//! 2. `Sum`: the rest of the segment's samples are summed (only with mean removal); with the
+//!    sums from the previous copy this gives the segment mean.
+//! 3. `Stage(s)`: the FFT stages of [`super::kernels`] (the first one centres and windows).
+//! 4. `Combine`: recombination to the real spectrum, products added to the sums.
+//! 5. `Edges`: DC, Nyquist and `N/4`; the segment counts as one more average.
+//!
+//! A dropped segment (it contains a rejected sample) and a segment beyond `MAX_AVERAGES` only
+//! run `Copy`.
+
+use super::kernels::Pair;
+use super::tables::Tables;
+
+/// Phase of the segment in work.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Phase {
+    /// No segment in work.
+    Idle,
+    /// Copying the overlap into the fill bank.
+    Copy,
+    /// Summing the segment for its mean.
+    Sum,
+    /// FFT stage `s` (0 = first, windowed).
+    Stage(u8),
+    /// Recombination and accumulation of the mirror-pair bins.
+    Combine,
+    /// DC, Nyquist and `N/4` bins; completes the segment.
+    Edges,
+}
+
+/// State of the segment in work.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Job {
+    /// Current phase.
+    pub phase: Phase,
+    /// Work items of the current phase already done.
+    pub done: u32,
+    /// Unspent work credit (ticks).
+    pub credit: i32,
+    /// First sample of the work bank that was written by `push` (0 for the first segment
+    /// after a reset, `overlap` afterwards); samples before it came from the copy.
+    pub seg_start: u32,
+    /// Sums of the deviations of the segment's samples `(u, y)` from its first sample, turned
+    /// into the means when the FFT starts.
+    pub sum: Pair,
+    /// The segment is transformed and accumulated (not dropped, not beyond the cap).
+    pub accept: bool,
+}
+
+impl Job {
+    /// No segment in work (all-zero bits, so that an unconfigured estimator is `.bss`).
+    pub const IDLE: Job = Job {
+        phase: Phase::Idle,
+        done: 0,
+        credit: 0,
+        seg_start: 0,
+        sum: [0.0; 2],
+        accept: false,
+    };
+}
+
+/// Work-item costs in ticks (≈ Cortex-M4F instructions, both channels, measured by the QEMU
+/// bench). Only the pacing depends on them: whatever their values, every segment's work is
+/// complete before the next segment ends.
+pub(super) mod cost {
+    /// Copy of one overlap sample, even hop (two samples per quad move).
+    pub const COPY_EVEN: i32 = 5;
+    /// Copy of one overlap sample, odd hop (sample by sample).
+    pub const COPY_ODD: i32 = 16;
+    /// Sum of one sample.
+    pub const SUM: i32 = 3;
+    /// First-stage radix-4 butterfly with centring and window.
+    pub const FIRST: i32 = 110;
+    /// Radix-4 butterfly with twiddles.
+    pub const RADIX4: i32 = 80;
+    /// Radix-4 butterfly with unit twiddles.
+    pub const UNIT4: i32 = 50;
+    /// Radix-2 butterfly with unit twiddle.
+    pub const UNIT2: i32 = 22;
+    /// Recombination and accumulation of one mirror pair (two bins).
+    pub const PAIR: i32 = 70;
+    /// The edge bins and the bookkeeping of a completed segment.
+    pub const EDGES: i32 = 90;
+    /// Entering a phase (slice set-up).
+    pub const PHASE: i32 = 40;
+}
+
+/// Number of FFT stages for segment length `N`: the radix-4 stages, plus a radix-2 stage when
+/// `log2(N/2)` is odd.
+pub(super) const fn fft_stages<const N: usize>() -> u32 {
+    Tables::<N>::RADIX4_STAGES + Tables::<N>::LOG2_M % 2
+}
+
+/// Length `L` of FFT stage `s` (`M, M/4, …`; 2 for the final radix-2 stage).
+pub(super) const fn stage_len<const N: usize>(s: u32) -> usize {
+    (N / 2) >> (2 * s)
+}
+
+/// `(items, ticks per item)` of phase `p` for segment length `N`.
+pub(super) const fn phase_size<const N: usize>(
+    p: Phase,
+    overlap: usize,
+    hop: usize,
+    seg_start: usize,
+    hann: bool,
+) -> (u32, i32) {
+    let m = N / 2;
+    match p {
+        Phase::Idle => (0, 1),
+        Phase::Copy => (
+            overlap as u32,
+            if hop % 2 == 0 {
+                cost::COPY_EVEN
+            } else {
+                cost::COPY_ODD
+            },
+        ),
+        Phase::Sum => ((N - seg_start) as u32, cost::SUM),
+        Phase::Stage(s) => {
+            let l = stage_len::<N>(s as u32);
+            if l == 2 {
+                ((m / 2) as u32, cost::UNIT2)
+            } else if s == 0 {
+                ((m / 4) as u32, if hann { cost::FIRST } else { cost::RADIX4 })
+            } else if l == 4 {
+                ((m / 4) as u32, cost::UNIT4)
+            } else {
+                ((m / 4) as u32, cost::RADIX4)
+            }
+        }
+        Phase::Combine => ((m / 2 - 1) as u32, cost::PAIR),
+        Phase::Edges => (1, cost::EDGES),
+    }
+}
+
+/// Ticks of work for one accepted segment with mean removal (the largest case; the first
+/// segment after a reset sums all `N` samples), phase set-ups included.
+pub(super) const fn segment_ticks<const N: usize>(overlap: usize, hop: usize, hann: bool) -> i64 {
+    let mut total = 0i64;
+    let phases = [Phase::Copy, Phase::Sum, Phase::Combine, Phase::Edges];
+    let mut i = 0;
+    while i < phases.len() {
+        let (n, c) = phase_size::<N>(phases[i], overlap, hop, 0, hann);
+        total += n as i64 * c as i64 + cost::PHASE as i64;
+        i += 1;
+    }
+    let mut s = 0;
+    while s < fft_stages::<N>() {
+        let (n, c) = phase_size::<N>(Phase::Stage(s as u8), overlap, hop, 0, hann);
+        total += n as i64 * c as i64 + cost::PHASE as i64;
+        s += 1;
+    }
+    total
+}
+
+/// Ticks granted per `push` while a segment is in work: the segment's ticks spread evenly
+/// over the `hop` pushes until the next segment ends (rounded up).
+pub(super) const fn budget_per_push<const N: usize>(overlap: usize, hop: usize, hann: bool) -> i32 {
+    if hop == 0 {
+        return 0;
+    }
+    let t = segment_ticks::<N>(overlap, hop, hann);
+    let b = (t + hop as i64 - 1) / hop as i64;
+    if b > i32::MAX as i64 / 4 {
+        i32::MAX / 4
+    } else {
+        b as i32
+    }
+}
+
+/// Credit (ticks) below which a push does not start a slice: slices then run every few pushes
+/// and their fixed set-up cost is shared; it bounds the largest push at about this many ticks
+/// plus one push's budget.
+pub(super) const SLICE_TICKS: i32 = 1024;
