@@ -138,12 +138,17 @@ fn push_slice_length_mismatch_is_an_error_and_consumes_nothing() {
 /// included without any flush().
 #[test]
 fn segment_work_is_spread_over_the_next_hop_and_estimates_stay_consistent() {
-    const N: usize = 256;
+    // N = 256: the final radix-2 stage is fused into the recombination; N = 128: it is not.
+    spread_and_consistent::<256>();
+    spread_and_consistent::<128>();
+}
+
+fn spread_and_consistent<const N: usize>() {
     let configs = [
         WelchConfig::scipy_default(100.0, N),
         WelchConfig {
             fs_hz: 100.0,
-            overlap: 37,
+            overlap: N / 8 + 5,
             window: Window::Rectangular,
             detrend_mean: true,
         },
@@ -184,10 +189,18 @@ fn segment_work_is_spread_over_the_next_hop_and_estimates_stay_consistent() {
                 if v == bits(&after, k) {
                     now += 1;
                 } else {
-                    assert_eq!(v, bits(&before, k), "overlap {} k={k} push {j}", cfg.overlap);
+                    assert_eq!(
+                        v,
+                        bits(&before, k),
+                        "overlap {} k={k} push {j}",
+                        cfg.overlap
+                    );
                 }
             }
-            assert!(now >= included, "bins including the segment went {included} -> {now}");
+            assert!(
+                now >= included,
+                "bins including the segment went {included} -> {now}"
+            );
             included = now;
             pushes_in_work += usize::from(live.segment_in_work());
             live.push(u[j], y[j]);
@@ -199,7 +212,10 @@ fn segment_work_is_spread_over_the_next_hop_and_estimates_stay_consistent() {
             assert_eq!(bits(&live, k), bits(&after, k), "k={k}");
         }
         // The work really is spread: it takes more than a few pushes.
-        assert!(pushes_in_work > 8, "segment done after {pushes_in_work} pushes");
+        assert!(
+            pushes_in_work > 8,
+            "segment done after {pushes_in_work} pushes"
+        );
     }
 }
 

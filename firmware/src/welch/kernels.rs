@@ -11,8 +11,10 @@
 //! * Radix-4 decimation in frequency, in place, in stages of length `L = M, M/4, …`; a
 //!   butterfly is two radix-2 DIF stages fused, so the output is in **bit-reversed** order (as
 //!   after `log2 M` radix-2 DIF stages): bin `k` of `Z` sits at position `rev(k)`. When
-//!   `log2 M` is odd a final radix-2 stage (unit twiddles) completes it. The first stage also
-//!   removes the segment mean and applies the window as it loads its inputs.
+//!   `log2 M` is odd a final radix-2 stage (unit twiddles) completes it; that stage is fused
+//!   into the recombination (it pairs positions `2g, 2g+1`, whose mirrors are again such a
+//!   pair), saving a pass over the data. The first stage also removes the segment mean and
+//!   applies the window as it loads its inputs.
 //! * Recombination to the real spectrum, `2X[k] = E - j·W_N^k·O` with
 //!   `E = Z[k] + conj Z[M-k]`, `O = Z[k] - conj Z[M-k]`, and `2X[M-k] = conj(E + j·W_N^k·O)`.
 //!   In bit-reversed order the pairs `(k, M-k)` are mirror positions inside each octave block
@@ -144,7 +146,6 @@ pub(super) fn first_stage(
     ) else {
         return;
     };
-    let zs = a.iter_mut().zip(b).zip(c).zip(d).zip(tw);
     match window {
         Some(win) => {
             let Some(win) = win.get(..4 * q) else {
@@ -161,8 +162,21 @@ pub(super) fn first_stage(
             ) else {
                 return;
             };
-            let ws = wa.iter().zip(wb).zip(wc).zip(wd);
-            for (((((a, b), c), d), t), (((w0, w1), w2), w3)) in zs.zip(ws) {
+            for k in 0..end - start.min(end) {
+                let (Some(a), Some(b), Some(c), Some(d), Some(t)) = (
+                    a.get_mut(k),
+                    b.get_mut(k),
+                    c.get_mut(k),
+                    d.get_mut(k),
+                    tw.get(k),
+                ) else {
+                    return;
+                };
+                let (Some(w0), Some(w1), Some(w2), Some(w3)) =
+                    (wa.get(k), wb.get(k), wc.get(k), wd.get(k))
+                else {
+                    return;
+                };
                 let x = [
                     prepare(a, w0, &mu),
                     prepare(b, w1, &mu),
@@ -173,8 +187,22 @@ pub(super) fn first_stage(
             }
         }
         None => {
-            for ((((a, b), c), d), t) in zs {
-                let x = [centre(a, &mu), centre(b, &mu), centre(c, &mu), centre(d, &mu)];
+            for k in 0..end - start.min(end) {
+                let (Some(a), Some(b), Some(c), Some(d), Some(t)) = (
+                    a.get_mut(k),
+                    b.get_mut(k),
+                    c.get_mut(k),
+                    d.get_mut(k),
+                    tw.get(k),
+                ) else {
+                    return;
+                };
+                let x = [
+                    centre(a, &mu),
+                    centre(b, &mu),
+                    centre(c, &mu),
+                    centre(d, &mu),
+                ];
                 [*a, *b, *c, *d] = radix4(x, t);
             }
         }
@@ -182,14 +210,8 @@ pub(super) fn first_stage(
 }
 
 /// Butterflies `start..start + count` (numbered group by group) of a radix-4 stage of length
-/// `l >= 8` with twiddles `tw` (`l/4` entries).
-pub(super) fn radix4_stage(
-    z: &mut [Quad],
-    l: usize,
-    tw: &[[f32; 6]],
-    start: usize,
-    count: usize,
-) {
+/// `l >= 16` with twiddles `tw` (`l/4` entries).
+pub(super) fn radix4_stage(z: &mut [Quad], l: usize, tw: &[[f32; 6]], start: usize, count: usize) {
     let q = l / 4;
     if q == 0 {
         return;
@@ -214,10 +236,34 @@ pub(super) fn radix4_stage(
         ) else {
             return;
         };
-        for ((((a, b), c), d), t) in a.iter_mut().zip(b).zip(c).zip(d).zip(tw) {
-            [*a, *b, *c, *d] = radix4([*a, *b, *c, *d], t);
+        for k in 0..run {
+            let (Some(a), Some(b), Some(c), Some(d), Some(w)) = (
+                a.get_mut(k),
+                b.get_mut(k),
+                c.get_mut(k),
+                d.get_mut(k),
+                tw.get(k),
+            ) else {
+                return;
+            };
+            [*a, *b, *c, *d] = radix4([*a, *b, *c, *d], w);
         }
         t += run;
+    }
+}
+
+/// Groups `start..start + count` of the radix-4 stage of length 8: two butterflies per group
+/// (`n = 0` with unit twiddles, `n = 1` with `tw[1]`), without an inner loop.
+pub(super) fn radix4_stage8(z: &mut [Quad], tw: &[[f32; 6]], start: usize, count: usize) {
+    let (groups, _) = z.as_chunks_mut::<8>();
+    let (Some(groups), Some(w)) = (groups.get_mut(start..start + count), tw.get(1)) else {
+        return;
+    };
+    for g in groups {
+        let [a0, a1, b0, b1, c0, c1, d0, d1] = *g;
+        let [y0, y1, y2, y3] = radix4_unit([a0, b0, c0, d0]);
+        let [v0, v1, v2, v3] = radix4([a1, b1, c1, d1], w);
+        *g = [y0, v0, y1, v1, y2, v2, y3, v3];
     }
 }
 
@@ -229,19 +275,6 @@ pub(super) fn unit4_stage(z: &mut [Quad], start: usize, count: usize) {
     };
     for g in groups {
         *g = radix4_unit(*g);
-    }
-}
-
-/// Butterflies `start..start + count` of the final radix-2 stage (length 2, unit twiddle).
-pub(super) fn unit2_stage(z: &mut [Quad], start: usize, count: usize) {
-    let (groups, _) = z.as_chunks_mut::<2>();
-    let Some(groups) = groups.get_mut(start..start + count) else {
-        return;
-    };
-    for [a, b] in groups {
-        let (x, y) = (*a, *b);
-        *a = [x[0] + y[0], x[1] + y[1], x[2] + y[2], x[3] + y[3]];
-        *b = [x[0] - y[0], x[1] - y[1], x[2] - y[2], x[3] - y[3]];
     }
 }
 
@@ -314,14 +347,116 @@ pub(super) fn combine(z: &[Quad], acc: &mut [Quad], tw: &[Pair], start: usize, c
     }
 }
 
+/// The radix-2 butterfly with unit twiddle on both channels: `(a + b, a - b)`.
+#[inline(always)]
+fn radix2(a: &Quad, b: &Quad) -> (Quad, Quad) {
+    (
+        [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]],
+        [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]],
+    )
+}
+
+/// The recombination fused with the final radix-2 stage (when `log2 M` is odd, `z` holds the
+/// output of the last radix-4 stage and the radix-2 butterflies pair positions `2g, 2g+1`).
+/// The mirror of a radix-2 pair `(p, p+1)` (`p` even, level `>= 2`) is the radix-2 pair
+/// `(q-1, q)`, so item `j >= 1` loads those four quads once, does both butterflies and
+/// recombines the pairs `t = 2j - 1` (`p`, `q`) and `t + 1` (`p+1`, `q-1`). Item 0 is level 1:
+/// positions 2 and 3, one butterfly and pair `t = 0`. Items `start..start + count`; `M/4` in
+/// all.
+pub(super) fn combine_radix2(
+    z: &[Quad],
+    acc: &mut [Quad],
+    tw: &[Pair],
+    start: usize,
+    count: usize,
+) {
+    let end = start + count;
+    let mut j = start;
+    if j == 0 && j < end {
+        if let (Some(y2), Some(y3), Some(w), [_, _, a2, a3, ..]) =
+            (z.get(2), z.get(3), tw.first(), &mut *acc)
+        {
+            let (z2, z3) = radix2(y2, y3);
+            let (xk, xm) = recombine(&z2, &z3, w);
+            add_products(a2, &xk);
+            add_products(a3, &xm);
+        }
+        j = 1;
+    }
+    while j < end {
+        let t = 2 * j - 1;
+        let level = usize::BITS - (t + 1).leading_zeros();
+        let b = 1usize << level;
+        let half = b / 2;
+        let i = t + 1 - half;
+        let run = ((half - i) / 2).min(end - j);
+        if run == 0 {
+            return;
+        }
+        let (Some(zf), Some(zs), Some(tw)) = (
+            z.get(b + i..b + i + 2 * run),
+            z.get(2 * b - i - 2 * run..2 * b - i),
+            tw.get(t..t + 2 * run),
+        ) else {
+            return;
+        };
+        let Some((lo, hi)) = acc.split_at_mut_checked(b + half) else {
+            return;
+        };
+        let (Some(af), Some(ab)) = (
+            lo.get_mut(b + i..b + i + 2 * run),
+            hi.get_mut(half - i - 2 * run..half - i),
+        ) else {
+            return;
+        };
+        let fwd = zf
+            .as_chunks::<2>()
+            .0
+            .iter()
+            .zip(tw.as_chunks::<2>().0)
+            .zip(af.as_chunks_mut::<2>().0);
+        let bwd = zs
+            .as_chunks::<2>()
+            .0
+            .iter()
+            .rev()
+            .zip(ab.as_chunks_mut::<2>().0.iter_mut().rev());
+        for ((([yp, yp1], [w0, w1]), [ap, ap1]), ([yq1, yq], [aq1, aq])) in fwd.zip(bwd) {
+            let (zp, zp1) = radix2(yp, yp1);
+            let (zq1, zq) = radix2(yq1, yq);
+            let (xk, xm) = recombine(&zp, &zq, w0);
+            add_products(ap, &xk);
+            add_products(aq, &xm);
+            let (xk, xm) = recombine(&zp1, &zq1, w1);
+            add_products(ap1, &xk);
+            add_products(aq1, &xm);
+        }
+        j += run;
+    }
+}
+
+/// Item index of recombination pair `t` for [`combine_radix2`] (`t` itself for [`combine`]).
+#[inline]
+pub(super) const fn fused_item(t: usize) -> usize {
+    t.div_ceil(2)
+}
+
 /// The bins without a mirror partner: position 0 holds `Z[0]`, giving DC `2X[0] = 2(Re + Im)`
 /// and Nyquist `2X[N/2] = 2(Re - Im)` (both real); position 1 holds `Z[M/2]`, giving
 /// `2X[N/4] = 2·conj Z[M/2]`. DC's sums take `[Σ|2U|², Σ|2Y|², Σ 2U·2Y, Σ Nyquist 2U·2Y]` (the
 /// imaginary cross part of DC is 0, so its slot holds the real Nyquist cross sum); `nyq` takes
 /// the Nyquist auto sums.
-pub(super) fn edge_bins(z: &[Quad], acc: &mut [Quad], nyq: &mut Pair) {
-    let (Some(z0), Some(z1)) = (z.first(), z.get(1)) else {
+///
+/// With `radix2_first` (`log2 M` odd, final stage fused), positions 0 and 1 still hold the
+/// last radix-4 stage's output and their radix-2 butterfly is done here first.
+pub(super) fn edge_bins(z: &[Quad], acc: &mut [Quad], nyq: &mut Pair, radix2_first: bool) {
+    let (Some(y0), Some(y1)) = (z.first(), z.get(1)) else {
         return;
+    };
+    let (z0, z1) = if radix2_first {
+        radix2(y0, y1)
+    } else {
+        (*y0, *y1)
     };
     let [a0, a1, ..] = acc else {
         return;
@@ -417,8 +552,10 @@ pub(super) fn copy_range<const N: usize>(
         let whole = (end - a.min(end)) / 2;
         let (src, dst) = (quads(old), quads_mut(new));
         let from = (a + hop) / 2;
-        if let (Some(s), Some(d)) = (src.get(from..from + whole), dst.get_mut(a / 2..a / 2 + whole))
-        {
+        if let (Some(s), Some(d)) = (
+            src.get(from..from + whole),
+            dst.get_mut(a / 2..a / 2 + whole),
+        ) {
             for (x, d) in s.iter().zip(d) {
                 *d = *x;
                 sum[0] = sum[0] + (x[0] - r[0]) + (x[1] - r[0]);

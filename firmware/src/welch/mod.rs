@@ -42,12 +42,13 @@
 //! ended), `push` switches to the other bank, and the completed segment's work (copy of the
 //! overlap into the new bank, mean, window, FFT, recombination, accumulation) is done **in
 //! slices by the following `hop` pushes**: each push adds a fixed budget of work credit
-//! (the segment's cost divided by the hop) and, once the credit reaches a slice (about 1,000
-//! instructions), runs work items up to it. The work is complete before the next segment ends,
-//! so no push ever does a whole segment: measured under QEMU on the Cortex-M4F, N = 1024,
-//! 50 % overlap, the largest single push is under 2,000 instructions (a monolithic segment
-//! costs about 125,000). There is no separate background call to make; an ISR simply calls
-//! [`Welch::push`].
+//! (the segment's cost divided by the hop, with margin) and, once the credit reaches a slice
+//! (about 2,500 instructions), runs work items up to it. The work is complete before the next
+//! segment ends, so no push ever does a whole segment. Measured under QEMU `-icount` on the
+//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 3,120 instructions
+//! and the mean 228 per sample, while one segment's work done at once costs 93,500 (the push
+//! completing a segment used to cost 124,600). There is no separate background call to make;
+//! an ISR simply calls [`Welch::push`].
 //!
 //! Consequences of the pipeline, all explicit in the API:
 //! * A segment counts in [`Welch::averages`] once its work is complete, i.e. up to `hop`
@@ -59,8 +60,8 @@
 //!   (it is not meant for an ISR), so after it all ended segments are included.
 //!
 //! # Memory and speed
-//! `size_of::<Welch<N>>() = 24·N + 80` bytes: two banks of `N` pairs `(u, y)` and the sums of
-//! `N/2 + 1` bins, four `f32` each, nothing else. The window and twiddle tables are `const`
+//! `size_of::<Welch<N>>()` is `24·N` bytes plus about 100 bytes of state: two banks of `N`
+//! pairs `(u, y)` and the sums of `N/2 + 1` bins, four `f32` each, nothing else. The window and twiddle tables are `const`
 //! tables in flash. The transform is a radix-4 complex FFT of `N/2` points per channel (both
 //! channels in one pass, bit-reversed output) with the real-signal recombination fused into the
 //! accumulation; see the `kernels` submodule.
@@ -298,7 +299,7 @@ impl<const N: usize> Welch<N> {
     }
 
     /// Completes the segment in work, if any, so that the estimates include every segment that
-    /// has ended. Costs up to one segment's work (N = 1024: about 70,000 instructions on a
+    /// has ended. Costs up to one segment's work (N = 1024: about 93,500 instructions on a
     /// Cortex-M4F): call it outside time-critical code, e.g. after the last `push` and before
     /// reading the estimates.
     pub fn flush(&mut self) {
@@ -418,9 +419,7 @@ impl<const N: usize> Welch<N> {
                 j.sum = [r[0] + j.sum[0] * inv_n, r[1] + j.sum[1] * inv_n];
                 Phase::Stage(0)
             }
-            Phase::Stage(s) if (s as u32) + 1 < schedule::fft_stages::<N>() => {
-                Phase::Stage(s + 1)
-            }
+            Phase::Stage(s) if (s as u32) + 1 < schedule::fft_stages::<N>() => Phase::Stage(s + 1),
             Phase::Stage(_) => Phase::Combine,
             Phase::Combine => Phase::Edges,
             Phase::Edges => {
@@ -433,7 +432,11 @@ impl<const N: usize> Welch<N> {
     /// Runs items `start..start + count` of the current phase.
     fn run_items(&mut self, start: usize, count: usize) {
         let [b0, b1] = &mut self.banks;
-        let (work, fill) = if self.fill & 1 == 0 { (b1, b0) } else { (b0, b1) };
+        let (work, fill) = if self.fill & 1 == 0 {
+            (b1, b0)
+        } else {
+            (b0, b1)
+        };
         let j = &mut self.job;
         match j.phase {
             Phase::Idle => {}
@@ -457,10 +460,11 @@ impl<const N: usize> Welch<N> {
                     };
                     let tw = kernels::stage_twiddles::<N>(0);
                     kernels::first_stage(z, window, j.sum, tw, start, count);
-                } else if l == 2 {
-                    kernels::unit2_stage(z, start, count);
                 } else if l == 4 {
                     kernels::unit4_stage(z, start, count);
+                } else if l == 8 {
+                    let tw = kernels::stage_twiddles::<N>(s as u32);
+                    kernels::radix4_stage8(z, tw, start, count);
                 } else {
                     let tw = kernels::stage_twiddles::<N>(s as u32);
                     kernels::radix4_stage(z, l, tw, start, count);
@@ -468,17 +472,17 @@ impl<const N: usize> Welch<N> {
             }
             Phase::Combine => {
                 let acc = kernels::quads_mut(&mut self.acc);
-                kernels::combine(
-                    kernels::quads(work),
-                    acc,
-                    kernels::combine_twiddles::<N>(),
-                    start,
-                    count,
-                );
+                let (z, tw) = (kernels::quads(work), kernels::combine_twiddles::<N>());
+                if schedule::fused_radix2::<N>() {
+                    kernels::combine_radix2(z, acc, tw, start, count);
+                } else {
+                    kernels::combine(z, acc, tw, start, count);
+                }
             }
             Phase::Edges => {
                 let acc = kernels::quads_mut(&mut self.acc);
-                kernels::edge_bins(kernels::quads(work), acc, &mut self.nyq);
+                let fused = schedule::fused_radix2::<N>();
+                kernels::edge_bins(kernels::quads(work), acc, &mut self.nyq, fused);
             }
         }
     }
@@ -527,20 +531,31 @@ impl<const N: usize> Welch<N> {
         Ok(())
     }
 
-    /// Number of segments whose products bin `k` contains: the completed averages, plus the
-    /// segment in work once its recombination has passed `k`'s position.
+    /// Number of segments whose products the bin at position `p` contains: the completed
+    /// averages, plus the segment in work once its recombination has passed `p` (positions 0
+    /// and 1 are done in `Edges`, which also completes the segment).
     #[inline]
     fn count(&self, p: usize) -> u32 {
-        let mut n = self.averages;
-        if self.job.phase == Phase::Combine && p >= 2 {
-            let b = 1usize << (usize::BITS - 1 - p.leading_zeros());
-            let half = b / 2;
-            let i = if p < b + half { p - b } else { 2 * b - 1 - p };
-            if ((half - 1 + i) as u32) < self.job.done {
-                n += 1;
-            }
+        let n = self.averages;
+        if p < 2 {
+            return n;
         }
-        n
+        match self.job.phase {
+            Phase::Edges => n + 1,
+            Phase::Combine => {
+                let b = 1usize << (usize::BITS - 1 - p.leading_zeros());
+                let half = b / 2;
+                let i = if p < b + half { p - b } else { 2 * b - 1 - p };
+                let t = half - 1 + i;
+                let item = if schedule::fused_radix2::<N>() {
+                    kernels::fused_item(t)
+                } else {
+                    t
+                };
+                n + u32::from((item as u32) < self.job.done)
+            }
+            _ => n,
+        }
     }
 
     /// Position of bin `k` in the sums (`k < N/2`): `rev(k)` over `log2(N/2)` bits.
@@ -561,7 +576,13 @@ impl<const N: usize> Welch<N> {
             let im = if k == 0 { 0.0 } else { a[3] };
             Some((a[0], a[1], a[2], im, self.count(p)))
         } else if k == N / 2 {
-            Some((self.nyq[0], self.nyq[1], acc.first()?[3], 0.0, self.averages))
+            Some((
+                self.nyq[0],
+                self.nyq[1],
+                acc.first()?[3],
+                0.0,
+                self.averages,
+            ))
         } else {
             None
         }

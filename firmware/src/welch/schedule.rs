@@ -8,8 +8,10 @@
 //!    kept for the next segment's mean.
 //! 2. `Sum`: the rest of the segment's samples are summed (only with mean removal); with the
 //!    sums from the previous copy this gives the segment mean.
-//! 3. `Stage(s)`: the FFT stages of [`super::kernels`] (the first one centres and windows).
-//! 4. `Combine`: recombination to the real spectrum, products added to the sums.
+//! 3. `Stage(s)`: the radix-4 FFT stages of [`super::kernels`] (the first one centres and
+//!    windows).
+//! 4. `Combine`: the final radix-2 stage if any, recombination to the real spectrum, products
+//!    added to the sums.
 //! 5. `Edges`: DC, Nyquist and `N/4`; the segment counts as one more average.
 //!
 //! A dropped segment (it contains a rejected sample) and a segment beyond `MAX_AVERAGES` only
@@ -71,34 +73,39 @@ impl Job {
 /// complete before the next segment ends.
 pub(super) mod cost {
     /// Copy of one overlap sample, even hop (two samples per quad move).
-    pub const COPY_EVEN: i32 = 5;
+    pub const COPY_EVEN: i32 = 11;
     /// Copy of one overlap sample, odd hop (sample by sample).
-    pub const COPY_ODD: i32 = 16;
+    pub const COPY_ODD: i32 = 20;
     /// Sum of one sample.
-    pub const SUM: i32 = 3;
+    pub const SUM: i32 = 6;
     /// First-stage radix-4 butterfly with centring and window.
-    pub const FIRST: i32 = 110;
+    pub const FIRST: i32 = 175;
     /// Radix-4 butterfly with twiddles.
-    pub const RADIX4: i32 = 80;
+    pub const RADIX4: i32 = 110;
     /// Radix-4 butterfly with unit twiddles.
-    pub const UNIT4: i32 = 50;
-    /// Radix-2 butterfly with unit twiddle.
-    pub const UNIT2: i32 = 22;
-    /// Recombination and accumulation of one mirror pair (two bins).
-    pub const PAIR: i32 = 70;
+    pub const UNIT4: i32 = 70;
+    /// Recombination and accumulation of one mirror pair (two bins); twice that for an item
+    /// of the recombination fused with the radix-2 stage.
+    pub const PAIR: i32 = 88;
     /// The edge bins and the bookkeeping of a completed segment.
-    pub const EDGES: i32 = 90;
+    pub const EDGES: i32 = 150;
     /// Entering a phase (slice set-up).
-    pub const PHASE: i32 = 40;
+    pub const PHASE: i32 = 150;
 }
 
-/// Number of FFT stages for segment length `N`: the radix-4 stages, plus a radix-2 stage when
-/// `log2(N/2)` is odd.
+/// `true` when `log2(N/2)` is odd: the FFT ends with a radix-2 stage, which is fused into the
+/// recombination (`kernels::combine_radix2`).
+pub(super) const fn fused_radix2<const N: usize>() -> bool {
+    Tables::<N>::LOG2_M % 2 == 1
+}
+
+/// Number of FFT stages run as phases: the radix-4 stages (a final radix-2 stage, when there
+/// is one, is part of the recombination).
 pub(super) const fn fft_stages<const N: usize>() -> u32 {
-    Tables::<N>::RADIX4_STAGES + Tables::<N>::LOG2_M % 2
+    Tables::<N>::RADIX4_STAGES
 }
 
-/// Length `L` of FFT stage `s` (`M, M/4, …`; 2 for the final radix-2 stage).
+/// Length `L` of FFT stage `s` (`M, M/4, …`).
 pub(super) const fn stage_len<const N: usize>(s: u32) -> usize {
     (N / 2) >> (2 * s)
 }
@@ -125,16 +132,20 @@ pub(super) const fn phase_size<const N: usize>(
         Phase::Sum => ((N - seg_start) as u32, cost::SUM),
         Phase::Stage(s) => {
             let l = stage_len::<N>(s as u32);
-            if l == 2 {
-                ((m / 2) as u32, cost::UNIT2)
-            } else if s == 0 {
-                ((m / 4) as u32, if hann { cost::FIRST } else { cost::RADIX4 })
+            if s == 0 {
+                (
+                    (m / 4) as u32,
+                    if hann { cost::FIRST } else { cost::RADIX4 },
+                )
             } else if l == 4 {
                 ((m / 4) as u32, cost::UNIT4)
+            } else if l == 8 {
+                ((m / 8) as u32, 2 * cost::RADIX4)
             } else {
                 ((m / 4) as u32, cost::RADIX4)
             }
         }
+        Phase::Combine if fused_radix2::<N>() => ((m / 4) as u32, 2 * cost::PAIR),
         Phase::Combine => ((m / 2 - 1) as u32, cost::PAIR),
         Phase::Edges => (1, cost::EDGES),
     }
@@ -160,14 +171,17 @@ pub(super) const fn segment_ticks<const N: usize>(overlap: usize, hop: usize, ha
     total
 }
 
-/// Ticks granted per `push` while a segment is in work: the segment's ticks spread evenly
-/// over the `hop` pushes until the next segment ends (rounded up).
+/// Ticks granted per `push` while a segment is in work. Pushes run work only once the credit
+/// reaches [`SLICE_TICKS`], so after `p` pushes at least `p·budget - SLICE_TICKS` ticks are
+/// done; `budget = ⌈(ticks + SLICE_TICKS)/(hop - 1)⌉` therefore completes the segment by the
+/// push before the one that ends the next segment, which then has no remainder to finish.
 pub(super) const fn budget_per_push<const N: usize>(overlap: usize, hop: usize, hann: bool) -> i32 {
     if hop == 0 {
         return 0;
     }
-    let t = segment_ticks::<N>(overlap, hop, hann);
-    let b = (t + hop as i64 - 1) / hop as i64;
+    let t = segment_ticks::<N>(overlap, hop, hann) + SLICE_TICKS as i64;
+    let pushes = if hop > 1 { hop as i64 - 1 } else { 1 };
+    let b = (t + pushes - 1) / pushes;
     if b > i32::MAX as i64 / 4 {
         i32::MAX / 4
     } else {
@@ -178,4 +192,4 @@ pub(super) const fn budget_per_push<const N: usize>(overlap: usize, hop: usize, 
 /// Credit (ticks) below which a push does not start a slice: slices then run every few pushes
 /// and their fixed set-up cost is shared; it bounds the largest push at about this many ticks
 /// plus one push's budget.
-pub(super) const SLICE_TICKS: i32 = 1024;
+pub(super) const SLICE_TICKS: i32 = 2560;

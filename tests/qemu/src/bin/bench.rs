@@ -162,10 +162,16 @@ fn main() -> ! {
         .is_ok()
     {
         let t = run(&mut ic, |i| w1024.push(u[i & (REC - 1)], y[i & (REC - 1)]));
-        report("welch_push_rect_hop1024_n1024", t, base, ipt, SAMPLES, "instr/sample");
+        report(
+            "welch_push_rect_hop1024_n1024",
+            t,
+            base,
+            ipt,
+            SAMPLES,
+            "instr/sample",
+        );
         w1024.reset();
-        let (worst, empty) =
-            max_ticks(&mut ic, |i| w1024.push(u[i & (REC - 1)], y[i & (REC - 1)]));
+        let (worst, empty) = max_ticks(&mut ic, |i| w1024.push(u[i & (REC - 1)], y[i & (REC - 1)]));
         report_max("welch_push_max_rect_hop1024_n1024", worst, empty, ipt);
     }
     if w1024.configure(Welch::<1024>::default_config(FS)).is_err() {
@@ -198,18 +204,18 @@ fn main() -> ! {
     ic.reset();
     w1024.push(u[7], y[7]);
     let t = ic.lap();
+    report("welch_segment_push_n1024", t, empty, ipt, 1, "instr/push");
+    ic.reset();
+    w1024.flush();
+    let t = ic.lap();
     report(
-        "welch_segment_push_n1024",
+        "welch_segment_work_n1024",
         t,
         empty,
         ipt,
         1,
-        "instr/push",
+        "instr/segment",
     );
-    ic.reset();
-    w1024.flush();
-    let t = ic.lap();
-    report("welch_segment_work_n1024", t, empty, ipt, 1, "instr/segment");
 
     // Post-processing per bin (N = 1024): coherence, H1.
     ic.reset();
