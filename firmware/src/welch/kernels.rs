@@ -1,9 +1,10 @@
 //! The bounded pieces of work that turn one completed segment into spectral sums.
 //!
 //! # Data layout
-//! A segment bank holds `N` samples of both channels as `N/2` [`Quad`]s
-//! `[u[2n], u[2n+1], y[2n], y[2n+1]]`: read as complex numbers `z_u[n] = u[2n] + j·u[2n+1]` and
-//! `z_y[n]` likewise, which is the packing of a real FFT of `N` points into a complex FFT of
+//! A segment bank holds `N` sample pairs `[u[i], y[i]]` (so `push` stores one pair), read as
+//! `N/2` [`Quad`]s `[u[2n], y[2n], u[2n+1], y[2n+1]]`, i.e. the complex numbers
+//! `z_u[n] = u[2n] + j·u[2n+1]` and `z_y[n]` likewise (real parts in lanes 0, 1, imaginary
+//! parts in lanes 2, 3), which is the packing of a real FFT of `N` points into a complex FFT of
 //! `M = N/2` points. Every kernel moves both channels at once (one load per quad, shared
 //! twiddles and loop overhead).
 //!
@@ -28,7 +29,7 @@
 
 use super::tables::Tables;
 
-/// Two complex values, one per channel: `[Re z_u, Im z_u, Re z_y, Im z_y]`.
+/// Two complex values, one per channel: `[Re z_u, Re z_y, Im z_u, Im z_y]`.
 pub(super) type Quad = [f32; 4];
 /// Two `f32` values.
 pub(super) type Pair = [f32; 2];
@@ -59,16 +60,16 @@ fn radix4(x: [Quad; 4], w: &[f32; 6]) -> [Quad; 4] {
     let [c1, s1, c2, s2, c3, s3] = *w;
     let [x0, x1, x2, x3] = x;
     let mut y = [[0.0f32; 4]; 4];
-    for ch in [0, 2] {
-        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 1] + x2[ch + 1]);
-        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 1] + x3[ch + 1]);
-        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 1] - x2[ch + 1]);
-        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 1] - x3[ch + 1]);
+    for ch in [0, 1] {
+        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 2] + x2[ch + 2]);
+        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 2] + x3[ch + 2]);
+        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 2] - x2[ch + 2]);
+        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 2] - x3[ch + 2]);
         y[0][ch] = t0r + t1r;
-        y[0][ch + 1] = t0i + t1i;
-        (y[1][ch], y[1][ch + 1]) = rot(t0r - t1r, t0i - t1i, c2, s2);
-        (y[2][ch], y[2][ch + 1]) = rot(t2r + t3i, t2i - t3r, c1, s1);
-        (y[3][ch], y[3][ch + 1]) = rot(t2r - t3i, t2i + t3r, c3, s3);
+        y[0][ch + 2] = t0i + t1i;
+        (y[1][ch], y[1][ch + 2]) = rot(t0r - t1r, t0i - t1i, c2, s2);
+        (y[2][ch], y[2][ch + 2]) = rot(t2r + t3i, t2i - t3r, c1, s1);
+        (y[3][ch], y[3][ch + 2]) = rot(t2r - t3i, t2i + t3r, c3, s3);
     }
     y
 }
@@ -78,19 +79,19 @@ fn radix4(x: [Quad; 4], w: &[f32; 6]) -> [Quad; 4] {
 fn radix4_unit(x: [Quad; 4]) -> [Quad; 4] {
     let [x0, x1, x2, x3] = x;
     let mut y = [[0.0f32; 4]; 4];
-    for ch in [0, 2] {
-        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 1] + x2[ch + 1]);
-        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 1] + x3[ch + 1]);
-        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 1] - x2[ch + 1]);
-        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 1] - x3[ch + 1]);
+    for ch in [0, 1] {
+        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 2] + x2[ch + 2]);
+        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 2] + x3[ch + 2]);
+        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 2] - x2[ch + 2]);
+        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 2] - x3[ch + 2]);
         y[0][ch] = t0r + t1r;
-        y[0][ch + 1] = t0i + t1i;
+        y[0][ch + 2] = t0i + t1i;
         y[1][ch] = t0r - t1r;
-        y[1][ch + 1] = t0i - t1i;
+        y[1][ch + 2] = t0i - t1i;
         y[2][ch] = t2r + t3i;
-        y[2][ch + 1] = t2i - t3r;
+        y[2][ch + 2] = t2i - t3r;
         y[3][ch] = t2r - t3i;
-        y[3][ch + 1] = t2i + t3r;
+        y[3][ch + 2] = t2i + t3r;
     }
     y
 }
@@ -109,8 +110,8 @@ fn quarters<T>(s: &mut [T], q: usize) -> Option<[&mut [T]; 4]> {
 fn prepare(x: &Quad, w: &Pair, mu: &Pair) -> Quad {
     [
         (x[0] - mu[0]) * w[0],
-        (x[1] - mu[0]) * w[1],
-        (x[2] - mu[1]) * w[0],
+        (x[1] - mu[1]) * w[0],
+        (x[2] - mu[0]) * w[1],
         (x[3] - mu[1]) * w[1],
     ]
 }
@@ -118,7 +119,7 @@ fn prepare(x: &Quad, w: &Pair, mu: &Pair) -> Quad {
 /// Subtracts the channel means `mu` from one quad (rectangular window).
 #[inline(always)]
 fn centre(x: &Quad, mu: &Pair) -> Quad {
-    [x[0] - mu[0], x[1] - mu[0], x[2] - mu[1], x[3] - mu[1]]
+    [x[0] - mu[0], x[1] - mu[1], x[2] - mu[0], x[3] - mu[1]]
 }
 
 /// Butterflies `start..start + count` of the first stage (length `M = z.len()`, one group):
@@ -282,7 +283,7 @@ pub(super) fn unit4_stage(z: &mut [Quad], start: usize, count: usize) {
 /// `[Σ|2U|², Σ|2Y|², Σ Re conj(2U)·2Y, Σ Im conj(2U)·2Y]`.
 #[inline(always)]
 fn add_products(acc: &mut Quad, x: &Quad) {
-    let [ur, ui, yr, yi] = *x;
+    let [ur, yr, ui, yi] = *x;
     acc[0] += ur * ur + ui * ui;
     acc[1] += yr * yr + yi * yi;
     acc[2] += ur * yr + ui * yi;
@@ -295,14 +296,14 @@ fn add_products(acc: &mut Quad, x: &Quad) {
 fn recombine(zk: &Quad, zc: &Quad, w: &Pair) -> (Quad, Quad) {
     let [c, s] = *w;
     let (mut xk, mut xm) = ([0.0f32; 4], [0.0f32; 4]);
-    for ch in [0, 2] {
-        let (er, ei) = (zk[ch] + zc[ch], zk[ch + 1] - zc[ch + 1]);
-        let (or, oi) = (zk[ch] - zc[ch], zk[ch + 1] + zc[ch + 1]);
+    for ch in [0, 1] {
+        let (er, ei) = (zk[ch] + zc[ch], zk[ch + 2] - zc[ch + 2]);
+        let (or, oi) = (zk[ch] - zc[ch], zk[ch + 2] + zc[ch + 2]);
         let (tr, ti) = rot(or, oi, c, s);
         xk[ch] = er + ti;
-        xk[ch + 1] = ei - tr;
+        xk[ch + 2] = ei - tr;
         xm[ch] = er - ti;
-        xm[ch + 1] = -(ei + tr);
+        xm[ch + 2] = -(ei + tr);
     }
     (xk, xm)
 }
@@ -461,31 +462,29 @@ pub(super) fn edge_bins(z: &[Quad], acc: &mut [Quad], nyq: &mut Pair, radix2_fir
     let [a0, a1, ..] = acc else {
         return;
     };
-    let (du, dy) = (2.0 * (z0[0] + z0[1]), 2.0 * (z0[2] + z0[3]));
-    let (nu, ny) = (2.0 * (z0[0] - z0[1]), 2.0 * (z0[2] - z0[3]));
+    let (du, dy) = (2.0 * (z0[0] + z0[2]), 2.0 * (z0[1] + z0[3]));
+    let (nu, ny) = (2.0 * (z0[0] - z0[2]), 2.0 * (z0[1] - z0[3]));
     a0[0] += du * du;
     a0[1] += dy * dy;
     a0[2] += du * dy;
     a0[3] += nu * ny;
     nyq[0] += nu * nu;
     nyq[1] += ny * ny;
-    let x = [2.0 * z1[0], -2.0 * z1[1], 2.0 * z1[2], -2.0 * z1[3]];
+    let x = [2.0 * z1[0], 2.0 * z1[1], -2.0 * z1[2], -2.0 * z1[3]];
     add_products(a1, &x);
 }
 
 /// Sample `i` (`< N`) of a bank as `(u, y)`.
 #[inline(always)]
 fn sample<const N: usize>(bank: &[Pair; N], i: usize) -> (f32, f32) {
-    let i = i & (N - 1);
-    (bank[i & !1][i & 1], bank[(i & !1) | 1][i & 1])
+    let [u, y] = bank[i & (N - 1)];
+    (u, y)
 }
 
 /// Stores sample `i` (`< N`) of a bank.
 #[inline(always)]
 pub(super) fn set_sample<const N: usize>(bank: &mut [Pair; N], i: usize, u: f32, y: f32) {
-    let i = i & (N - 1);
-    bank[i & !1][i & 1] = u;
-    bank[(i & !1) | 1][i & 1] = y;
+    bank[i & (N - 1)] = [u, y];
 }
 
 /// Adds `x - r` for samples `start..end` of `bank` to `sum`, one sample at a time in index
@@ -507,8 +506,8 @@ pub(super) fn sum_range<const N: usize>(
     let whole = (end - a.min(end)) / 2;
     if let Some(qs) = quads(bank).get(a / 2..a / 2 + whole) {
         for x in qs {
-            sum[0] = sum[0] + (x[0] - r[0]) + (x[1] - r[0]);
-            sum[1] = sum[1] + (x[2] - r[1]) + (x[3] - r[1]);
+            sum[0] = sum[0] + (x[0] - r[0]) + (x[2] - r[0]);
+            sum[1] = sum[1] + (x[1] - r[1]) + (x[3] - r[1]);
         }
     }
     a += 2 * whole;
@@ -558,8 +557,8 @@ pub(super) fn copy_range<const N: usize>(
         ) {
             for (x, d) in s.iter().zip(d) {
                 *d = *x;
-                sum[0] = sum[0] + (x[0] - r[0]) + (x[1] - r[0]);
-                sum[1] = sum[1] + (x[2] - r[1]) + (x[3] - r[1]);
+                sum[0] = sum[0] + (x[0] - r[0]) + (x[2] - r[0]);
+                sum[1] = sum[1] + (x[1] - r[1]) + (x[3] - r[1]);
             }
         }
         a += 2 * whole;

@@ -127,6 +127,8 @@ pub struct Welch<const N: usize> {
     hop: u32,
     /// Work ticks granted per push while a segment is in work.
     budget: i32,
+    /// Ticks each push adds to the credit: `budget` while a segment is in work, else 0.
+    grant: i32,
     /// Next write index into the fill bank.
     pos: usize,
     /// First index of the fill bank written by `push` (0 after a reset, then `overlap`).
@@ -186,6 +188,7 @@ impl<const N: usize> Welch<N> {
             density: 0.0,
             hop: 0,
             budget: 0,
+            grant: 0,
             pos: 0,
             fill_start: 0,
             fill: 0,
@@ -256,6 +259,7 @@ impl<const N: usize> Welch<N> {
         self.nyq = [0.0; 2];
         self.head_sum = [0.0; 2];
         self.job = Job::IDLE;
+        self.grant = 0;
         for b in &mut self.banks {
             b.fill([0.0; 2]);
         }
@@ -269,9 +273,7 @@ impl<const N: usize> Welch<N> {
     /// rejected sample pair (see [`accepts`]) is dropped instead.
     #[inline]
     pub fn push(&mut self, u: f32, y: f32) {
-        if self.job.phase != Phase::Idle {
-            self.step();
-        }
+        self.step();
         let i = self.pos & (N - 1);
         let bank = &mut self.banks[self.fill & 1];
         if accepts(u, y) {
@@ -286,11 +288,11 @@ impl<const N: usize> Welch<N> {
         }
     }
 
-    /// One push's share of the segment in work: adds the budget to the credit and runs a slice
-    /// once the credit reaches [`schedule::SLICE_TICKS`].
+    /// One push's share of the segment in work: adds the grant (0 when there is none) to the
+    /// credit and runs a slice once the credit reaches [`schedule::SLICE_TICKS`].
     #[inline(always)]
     fn step(&mut self) {
-        let credit = self.job.credit.saturating_add(self.budget);
+        let credit = self.job.credit.saturating_add(self.grant);
         self.job.credit = if credit >= schedule::SLICE_TICKS {
             self.work(credit)
         } else {
@@ -356,6 +358,7 @@ impl<const N: usize> Welch<N> {
             accept,
         };
         self.head_sum = [0.0; 2];
+        self.grant = self.budget;
         self.fill ^= 1;
         self.fill_start = overlap;
         self.pos = overlap;
@@ -427,6 +430,10 @@ impl<const N: usize> Welch<N> {
                 Phase::Idle
             }
         };
+        if j.phase == Phase::Idle {
+            j.credit = 0;
+            self.grant = 0;
+        }
     }
 
     /// Runs items `start..start + count` of the current phase.

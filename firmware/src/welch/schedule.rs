@@ -192,4 +192,4 @@ pub(super) const fn budget_per_push<const N: usize>(overlap: usize, hop: usize, 
 /// Credit (ticks) below which a push does not start a slice: slices then run every few pushes
 /// and their fixed set-up cost is shared; it bounds the largest push at about this many ticks
 /// plus one push's budget.
-pub(super) const SLICE_TICKS: i32 = 2560;
+pub(super) const SLICE_TICKS: i32 = 3328;
