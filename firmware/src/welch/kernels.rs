@@ -487,8 +487,9 @@ pub(super) fn set_sample<const N: usize>(bank: &mut [Pair; N], i: usize, u: f32,
     bank[i & (N - 1)] = [u, y];
 }
 
-/// Adds `x - r` for samples `start..end` of `bank` to `sum`, one sample at a time in index
-/// order (so the result does not depend on how the range is split into calls). `r` is the
+/// Adds `x - r` for samples `start..end` of `bank` to `sum` in index order, aligned pairs of
+/// samples at a time (so the result does not depend on how the range is split into calls: a
+/// pair is split only at the range's own odd ends, the same for every segment). `r` is the
 /// bank's first sample: summing deviations from it keeps the sums small for signals with an
 /// offset, and so the mean accurate.
 pub(super) fn sum_range<const N: usize>(
@@ -505,14 +506,22 @@ pub(super) fn sum_range<const N: usize>(
     }
     let whole = (end - a.min(end)) / 2;
     if let Some(qs) = quads(bank).get(a / 2..a / 2 + whole) {
-        for x in qs {
-            sum[0] = sum[0] + (x[0] - r[0]) + (x[2] - r[0]);
-            sum[1] = sum[1] + (x[1] - r[1]) + (x[3] - r[1]);
-        }
+        sum_quads(qs, r, sum);
     }
     a += 2 * whole;
     if a < end {
         add_sample(sample(bank, a), r, sum);
+    }
+}
+
+/// Adds the deviations from `r` of the two samples of each quad to `sum`, a pair at a time:
+/// `sum += (x[2n] + x[2n+1]) - 2r` (one rounding of the pair's sum, then of the deviation).
+#[inline(always)]
+fn sum_quads(qs: &[Quad], r: Pair, sum: &mut Pair) {
+    let r2 = [2.0 * r[0], 2.0 * r[1]];
+    for x in qs {
+        sum[0] += (x[0] + x[2]) - r2[0];
+        sum[1] += (x[1] + x[3]) - r2[1];
     }
 }
 
@@ -555,10 +564,11 @@ pub(super) fn copy_range<const N: usize>(
             src.get(from..from + whole),
             dst.get_mut(a / 2..a / 2 + whole),
         ) {
+            let r2 = [2.0 * r[0], 2.0 * r[1]];
             for (x, d) in s.iter().zip(d) {
                 *d = *x;
-                sum[0] = sum[0] + (x[0] - r[0]) + (x[2] - r[0]);
-                sum[1] = sum[1] + (x[1] - r[1]) + (x[3] - r[1]);
+                sum[0] += (x[0] + x[2]) - r2[0];
+                sum[1] += (x[1] + x[3]) - r2[1];
             }
         }
         a += 2 * whole;
