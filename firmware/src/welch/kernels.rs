@@ -552,7 +552,7 @@ pub(super) fn copy_range<const N: usize>(
     let (u0, y0) = sample(old, hop);
     let r = [u0, y0];
     let mut a = start;
-    if hop % 2 == 0 {
+    if hop.is_multiple_of(2) {
         if a < end && a % 2 == 1 {
             copy_one(old, new, hop, a, r, sum);
             a += 1;

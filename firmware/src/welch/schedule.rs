@@ -123,7 +123,7 @@ pub(super) const fn phase_size<const N: usize>(
         Phase::Idle => (0, 1),
         Phase::Copy => (
             overlap as u32,
-            if hop % 2 == 0 {
+            if hop.is_multiple_of(2) {
                 cost::COPY_EVEN
             } else {
                 cost::COPY_ODD

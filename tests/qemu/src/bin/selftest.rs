@@ -850,7 +850,7 @@ fn nonfinite_quarantine(w: &mut Welch<256>, u: &mut [f32], y: &mut [f32]) -> Out
 
 /// Bad input to the estimator: mismatched slice lengths are an error that consumes nothing;
 /// invalid configurations are errors that leave the estimator unchanged; `push_slice` and
-/// sample-wise `push` give bit-identical estimates.
+/// sample-wise `push` (then `flush`) give bit-identical estimates.
 fn welch_bad_input(w: &mut Welch<256>, u: &mut [f32], y: &mut [f32]) -> Outcome {
     let mut o = Outcome::new();
     let len = 256 + 3 * 128;
@@ -882,6 +882,8 @@ fn welch_bad_input(w: &mut Welch<256>, u: &mut [f32], y: &mut [f32]) -> Outcome 
     for i in 0..len {
         w.push(u[i], y[i]);
     }
+    // The last segment ended with the last push; flush() completes its spread work.
+    w.flush();
     o.require((0..129).all(|k| w.suu(k).to_bits() == snapshot[k].to_bits()));
     o
 }
