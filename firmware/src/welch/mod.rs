@@ -43,12 +43,12 @@
 //! overlap into the new bank, mean, window, FFT, recombination, accumulation) is done **in
 //! slices by the following `hop` pushes**: each push adds a fixed budget of work credit
 //! (the segment's cost divided by the hop, with margin) and, once the credit reaches a slice
-//! (about 2,500 instructions), runs work items up to it. The work is complete before the next
+//! (about 3,300 instructions), runs work items up to it. The work is complete before the next
 //! segment ends, so no push ever does a whole segment. Measured under QEMU `-icount` on the
-//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 3,120 instructions
-//! and the mean 228 per sample, while one segment's work done at once costs 93,500 (the push
-//! completing a segment used to cost 124,600). There is no separate background call to make;
-//! an ISR simply calls [`Welch::push`].
+//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 3,840 instructions
+//! and the mean 213 per sample (N = 256: 3,840 and 197), while one segment's work done at once
+//! costs 92,700 (the push completing a segment used to cost 124,600). There is no separate
+//! background call to make; an ISR simply calls [`Welch::push`].
 //!
 //! Consequences of the pipeline, all explicit in the API:
 //! * A segment counts in [`Welch::averages`] once its work is complete, i.e. up to `hop`
@@ -301,7 +301,7 @@ impl<const N: usize> Welch<N> {
     }
 
     /// Completes the segment in work, if any, so that the estimates include every segment that
-    /// has ended. Costs up to one segment's work (N = 1024: about 93,500 instructions on a
+    /// has ended. Costs up to one segment's work (N = 1024: about 92,700 instructions on a
     /// Cortex-M4F): call it outside time-critical code, e.g. after the last `push` and before
     /// reading the estimates.
     pub fn flush(&mut self) {
