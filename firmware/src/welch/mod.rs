@@ -701,9 +701,10 @@ impl<const N: usize> Welch<N> {
     pub fn gate(&self, threshold: f32) -> CoherenceGate {
         let mut g = CoherenceGate::empty(self.bins());
         for k in 0..self.bins() {
-            let included = self.raw(k).is_some_and(|r| r.4 > 0);
-            if included && self.coherence(k) >= threshold {
-                g.set(k);
+            if let Some((uu, yy, re, im, n)) = self.raw(k) {
+                if n > 0 && msc(uu, yy, re, im) >= threshold {
+                    g.set(k);
+                }
             }
         }
         g
