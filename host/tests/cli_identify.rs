@@ -116,7 +116,8 @@ fn recovers_order_frequency_response_and_poles_of_a_known_plant() {
     assert_eq!(cmp["f_max_hz"], 20.0);
     assert!(v["validation"]["residuals"]["whiteness_ok"].is_boolean());
 
-    // The model file: exactly {a, b, c, d, ts}, readable as a StateSpaceData.
+    // The model file: exactly {a, b, c, d, ts} plus the operating point it was identified at
+    // (issue 10), readable as a StateSpaceData.
     let m = model_file(&out);
     let mut keys: Vec<&str> = m
         .as_object()
@@ -125,7 +126,7 @@ fn recovers_order_frequency_response_and_poles_of_a_known_plant() {
         .map(String::as_str)
         .collect();
     keys.sort_unstable();
-    assert_eq!(keys, ["a", "b", "c", "d", "ts"]);
+    assert_eq!(keys, ["a", "b", "c", "d", "operating_point", "ts"]);
     let data: StateSpaceData =
         serde_json::from_value(m.clone()).expect("model file is a StateSpaceData");
     assert!(StateSpace::try_from(&data).is_ok());
