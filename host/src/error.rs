@@ -67,8 +67,7 @@ pub fn excerpt(s: &str) -> String {
 /// [`excerpt`] with a caller-chosen length (e.g. longer for a list of names).
 pub fn excerpt_n(s: &str, max_chars: usize) -> String {
     let mut out = String::new();
-    let mut shown = 0usize;
-    for c in s.chars() {
+    for (shown, c) in s.chars().enumerate() {
         if shown >= max_chars {
             out.push_str(&format!("… ({} bytes in all)", s.len()));
             return out;
@@ -78,7 +77,6 @@ pub fn excerpt_n(s: &str, max_chars: usize) -> String {
         } else {
             out.push(c);
         }
-        shown += 1;
     }
     out
 }

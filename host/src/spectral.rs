@@ -514,7 +514,7 @@ impl Etfe {
     pub fn excluded_bands(&self, threshold: f64) -> Vec<ExcludedBand> {
         let gate = self.gate(threshold);
         let excited = &self.input_excited;
-        bands_from_gate(&self.freq_hz, &self.coherence, &gate, &excited)
+        bands_from_gate(&self.freq_hz, &self.coherence, &gate, excited)
     }
 }
 

@@ -244,7 +244,9 @@ fn order_options_no_d_and_stability_margin() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     let v = json(&r.stdout);
     assert_eq!(v["options"]["d_significance"], 2.0);
-    let dropped = v["n4sid"]["d_fixed_by_test"].as_bool().expect("d_fixed_by_test");
+    let dropped = v["n4sid"]["d_fixed_by_test"]
+        .as_bool()
+        .expect("d_fixed_by_test");
     assert_eq!(dropped, v["n4sid"]["model"]["d"][0][0] == 0.0);
     let r = ferrosid(&["identify", s(&est), "--d-auto", "--no-d"]);
     assert_eq!(r.code, 2, "conflicting D options must be a usage error");

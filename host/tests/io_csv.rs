@@ -176,7 +176,10 @@ fn non_uniform_time_names_line_and_tolerance_is_adjustable() {
     assert_eq!(line, 5);
     assert!(msg.contains("non-uniform"), "{msg}");
     // The message names both options that fix the file.
-    assert!(msg.contains("--time-jitter") && msg.contains("--fs"), "{msg}");
+    assert!(
+        msg.contains("--time-jitter") && msg.contains("--fs"),
+        "{msg}"
+    );
     // A looser, explicit tolerance accepts it.
     let log = read_csv(
         &p,
