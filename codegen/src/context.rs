@@ -282,6 +282,16 @@ pub(crate) fn build(
     }
     check_f32("model.ts_s", ts)?;
     let fs = 1.0 / ts;
+    // The firmware holds TS_S and the rate in f32: both must be normal f32 numbers (a 1e-300 s
+    // step made the rate infinite and the sample time zero).
+    if !(f64::from(f32::MIN_POSITIVE)..=f64::from(f32::MAX)).contains(&ts)
+        || fs > f64::from(f32::MAX)
+    {
+        return Err(Error::input(
+            "model.ts_s",
+            format!("{ts:e} s: the sample time and the rate 1/ts must be normal 32-bit floats"),
+        ));
+    }
 
     // Continuous model (documentation).
     let (has_continuous, cont_note, cont) = match &input.continuous {

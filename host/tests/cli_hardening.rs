@@ -739,3 +739,28 @@ fn identify_writes_the_operating_point_and_codegen_emits_it() {
     let h = std::fs::read_to_string(d.join("gen_old/ferrosid.h")).unwrap();
     assert!(h.contains("no operating point recorded"), "{h}");
 }
+
+#[test]
+fn codegen_tiny_sample_time_is_an_error_not_a_panic() {
+    let d = scratch("codegen_tiny_ts");
+    let m = d.join("cont.json");
+    std::fs::write(
+        &m,
+        r#"{"a":[[-1.0]],"b":[[1.0]],"c":[[1.0]],"d":[[0.0]],"ts":0}"#,
+    )
+    .unwrap();
+    for ts in ["1e-300", "1e-40"] {
+        let r = ferrosid(&[
+            "codegen",
+            "--model",
+            s(&m),
+            "--ts",
+            ts,
+            "--wm-level",
+            "0.2",
+            "--out-dir",
+            s(&d.join("gen")),
+        ]);
+        expect(&r, 2, &["--ts", "32-bit"], "codegen --ts tiny");
+    }
+}

@@ -501,6 +501,8 @@ pub struct InputFiles {
     pub pid: Option<PathBuf>,
     /// `--wm` file.
     pub wm: Option<PathBuf>,
+    /// The sample time came from `--ts` (a continuous model discretised), not from the file.
+    pub ts_flag: bool,
 }
 
 impl InputFiles {
@@ -510,6 +512,7 @@ impl InputFiles {
             model: args.model.clone(),
             pid: args.pid.clone(),
             wm: args.wm.clone(),
+            ts_flag: args.ts.is_some(),
         }
     }
 }
@@ -524,6 +527,9 @@ pub fn codegen_error(e: cg::Error, files: &InputFiles) -> Error {
             file: PathBuf::from(&template),
             msg: format!("template: {msg}"),
         },
+        cg::Error::Input { field, msg } if field == "model.ts_s" && files.ts_flag => {
+            Error::InvalidArgument(format!("--ts: {msg}"))
+        }
         cg::Error::Input { field, msg } => {
             let head = field.split(['.', '[']).next().unwrap_or("");
             let file = match head {
