@@ -174,6 +174,11 @@ pub(crate) struct Context {
     pub receipts_all_pass_rs: String,
     pub receipts: Vec<ReceiptLit>,
     pub notes: Vec<String>,
+    pub u0_c: String,
+    pub u0_rs: String,
+    pub y0_c: String,
+    pub y0_rs: String,
+    pub op_note: String,
 }
 
 fn is_hex64(s: &str) -> bool {
@@ -277,6 +282,16 @@ pub(crate) fn build(
     }
     check_f32("model.ts_s", ts)?;
     let fs = 1.0 / ts;
+    // The firmware holds TS_S and the rate in f32: both must be normal f32 numbers (a 1e-300 s
+    // step made the rate infinite and the sample time zero).
+    if !(f64::from(f32::MIN_POSITIVE)..=f64::from(f32::MAX)).contains(&ts)
+        || fs > f64::from(f32::MAX)
+    {
+        return Err(Error::input(
+            "model.ts_s",
+            format!("{ts:e} s: the sample time and the rate 1/ts must be normal 32-bit floats"),
+        ));
+    }
 
     // Continuous model (documentation).
     let (has_continuous, cont_note, cont) = match &input.continuous {
@@ -525,7 +540,43 @@ pub(crate) fn build(
         })
         .collect();
 
+    // Operating point.
+    let (u0, y0, op_note) = match &input.operating_point {
+        Some(op) => {
+            if op.u0.len() != dims.m {
+                return Err(Error::input(
+                    "model.operating_point.u0",
+                    format!("{} values for {} inputs", op.u0.len(), dims.m),
+                ));
+            }
+            if op.y0.len() != dims.p {
+                return Err(Error::input(
+                    "model.operating_point.y0",
+                    format!("{} values for {} outputs", op.y0.len(), dims.p),
+                ));
+            }
+            for (name, vals) in [("u0", &op.u0), ("y0", &op.y0)] {
+                for (i, &v) in vals.iter().enumerate() {
+                    check_f32(&format!("model.operating_point.{name}[{i}]"), v)?;
+                }
+            }
+            (op.u0.clone(), op.y0.clone(), comment_text(&op.note))
+        }
+        None => (
+            vec![0.0; dims.m],
+            vec![0.0; dims.p],
+            "no operating point recorded with the model: it maps the raw signals".to_string(),
+        ),
+    };
+    let (u0_c, u0_rs) = vec_lit(&u0);
+    let (y0_c, y0_rs) = vec_lit(&y0);
+
     let ctx = Context {
+        u0_c,
+        u0_rs,
+        y0_c,
+        y0_rs,
+        op_note,
         tool: comment_text(&pv.tool),
         guard: format!("{p}_MODEL_H"),
         c_file: format!("{}.h", p.to_ascii_lowercase()),

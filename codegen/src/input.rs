@@ -255,4 +255,19 @@ pub struct CodegenInput {
     pub self_id: SelfIdSettings,
     /// Provenance block.
     pub provenance: Provenance,
+    /// Operating point the model was identified at (None: the model maps raw signals, and the
+    /// headers state U0 = Y0 = 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub operating_point: Option<OperatingPointValues>,
+}
+
+/// The operating point of the model: it maps deviations, `y − y0 = G (u − u0)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OperatingPointValues {
+    /// Input offsets, one per input (plant input units).
+    pub u0: Vec<f64>,
+    /// Output offsets, one per output (plant output units).
+    pub y0: Vec<f64>,
+    /// How it was obtained, e.g. `means removed before identification, no decimation`.
+    pub note: String,
 }

@@ -50,6 +50,7 @@
 //!     provenance: Provenance {
 //!         tool: "example".into(), sources: vec![], receipts: vec![], notes: vec![],
 //!     },
+//!     operating_point: None,
 //! };
 //! let out = generate(&input)?;
 //! assert_eq!(out.c_file_name, "axis_1.h");
@@ -72,13 +73,20 @@ use sha2::{Digest, Sha256};
 pub use context::{snap_checks, CheckPoint, MAX_CHECKS};
 pub use error::{Error, Result};
 pub use input::{
-    Biquad, CodegenInput, ContinuousModel, ContinuousPid, Dims, DiscreteModel, Matrices, PidGains,
-    Provenance, ReceiptLine, SelfIdSettings, SourceDigest, WeightCoefficients,
+    Biquad, CodegenInput, ContinuousModel, ContinuousPid, Dims, DiscreteModel, Matrices,
+    OperatingPointValues, PidGains, Provenance, ReceiptLine, SelfIdSettings, SourceDigest,
+    WeightCoefficients,
 };
 pub use text::{c_float, comment_text, f32_literal, sanitize_prefix};
 
 /// File name of the built-in C template (also the name a user's override must have).
 pub const C_TEMPLATE: &str = "model.h";
+/// Largest accepted user template, bytes (the built-in ones have a few kB).
+pub const MAX_TEMPLATE_BYTES: u64 = 1 << 20;
+/// Engine instructions a user template may execute (minijinja fuel). The built-in templates
+/// need a few thousand for a 20-state model; ten million is far above any sane template and
+/// ends a runaway (e.g. nested loops over `range(100000)`) after about a second.
+pub const TEMPLATE_FUEL: u64 = 10_000_000;
 /// File name of the built-in Rust template (also the name a user's override must have).
 pub const RUST_TEMPLATE: &str = "model.rs";
 
@@ -176,10 +184,36 @@ pub fn generate(input: &CodegenInput) -> Result<Generated> {
 /// about undefined variables, no escaping); a file missing from `dir` falls back to the built-in
 /// template. See the crate docs.
 ///
+/// Bounds: a user template may have at most [`MAX_TEMPLATE_BYTES`] bytes, and its rendering
+/// may execute at most [`TEMPLATE_FUEL`] engine instructions (minijinja's fuel), so nested
+/// loops over huge ranges end with an error instead of running unbounded.
+///
 /// # Errors
-/// As [`generate`]; [`Error::TemplateIo`] when a template exists but cannot be read;
-/// [`Error::Render`] naming the file and line for syntax errors or unknown variables.
+/// As [`generate`]; [`Error::TemplateIo`] when `dir` is not a directory, or a template exists
+/// but cannot be read or is too large; [`Error::Render`] naming the file and line for syntax
+/// errors, unknown variables or a template that runs out of fuel.
 pub fn generate_with_templates(input: &CodegenInput, dir: &Path) -> Result<Generated> {
+    if !dir.is_dir() {
+        return Err(Error::TemplateIo {
+            file: dir.to_path_buf(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "template directory not found (write a starting point with --write-templates DIR)",
+            ),
+        });
+    }
+    if ![C_TEMPLATE, RUST_TEMPLATE]
+        .iter()
+        .any(|name| dir.join(name).is_file())
+    {
+        return Err(Error::TemplateIo {
+            file: dir.to_path_buf(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!("holds neither {C_TEMPLATE} nor {RUST_TEMPLATE}"),
+            ),
+        });
+    }
     let mut out = generate(input)?;
     let digest = out.inputs_sha256.clone();
     let (ctx, _) = context::build(input, &digest)?;
@@ -190,6 +224,15 @@ pub fn generate_with_templates(input: &CodegenInput, dir: &Path) -> Result<Gener
         let path = dir.join(name);
         if !path.exists() {
             continue;
+        }
+        let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+        if size > MAX_TEMPLATE_BYTES {
+            return Err(Error::TemplateIo {
+                file: path.clone(),
+                source: std::io::Error::other(format!(
+                    "{size} bytes; a template may have at most {MAX_TEMPLATE_BYTES}"
+                )),
+            });
         }
         let source = std::fs::read_to_string(&path).map_err(|source| Error::TemplateIo {
             file: path.clone(),
@@ -203,6 +246,7 @@ pub fn generate_with_templates(input: &CodegenInput, dir: &Path) -> Result<Gener
 /// Renders `source` with the runtime engine (the same context the built-in templates see).
 fn render_runtime(path: &Path, source: &str, ctx: &context::Context) -> Result<String> {
     let mut env = minijinja::Environment::new();
+    env.set_fuel(Some(TEMPLATE_FUEL));
     env.set_undefined_behavior(minijinja::UndefinedBehavior::Strict);
     env.set_auto_escape_callback(|_| minijinja::AutoEscape::None);
     let name = path.display().to_string();
@@ -306,6 +350,10 @@ pub fn context_variables() -> &'static [(&'static str, &'static str)] {
         (
             "c.receipt_count, c.receipts_all_pass, c.notes",
             "receipts and notes",
+        ),
+        (
+            "c.u0_c, c.u0_rs, c.y0_c, c.y0_rs, c.op_note",
+            "operating point U0/Y0 (C and Rust literals) and how it was obtained",
         ),
     ]
 }

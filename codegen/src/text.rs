@@ -68,9 +68,17 @@ fn starts_reserved(s: &str) -> bool {
 /// The caller has checked that `v` is finite and within the `f32` range.
 pub fn f32_literal(v: f64) -> String {
     let f = v as f32;
-    let s = format!("{f:?}");
-    debug_assert!(s.contains('.') || s.contains('e'));
-    s
+    if !f.is_finite() {
+        // Unreachable after the input checks; a literal that still compiles, never a panic.
+        return if f.is_nan() {
+            "0.0".into()
+        } else if f > 0.0 {
+            "3.4028235e38".into()
+        } else {
+            "-3.4028235e38".into()
+        };
+    }
+    format!("{f:?}")
 }
 
 /// The C `float` constant of `v`: [`f32_literal`] + `f`.

@@ -45,6 +45,13 @@ static const float {{ c.p }}_C[{{ c.p }}_N_OUTPUTS][{{ c.p }}_N_STATES] = {
 static const float {{ c.p }}_D[{{ c.p }}_N_OUTPUTS][{{ c.p }}_N_INPUTS] = {
 {% for row in c.d.rows_c %}    { {{ row }} },
 {% endfor %}};
+
+/* Operating point: the model maps deviations, y - Y0 = G (u - U0). Subtract U0 from the
+ * plant input before feeding the model and add Y0 to its output.
+ * {{ c.op_note }}
+ */
+static const float {{ c.p }}_U0[{{ c.p }}_N_INPUTS] = { {{ c.u0_c }} };
+static const float {{ c.p }}_Y0[{{ c.p }}_N_OUTPUTS] = { {{ c.y0_c }} };
 {% if c.has_continuous %}
 /* Continuous model (documentation only; t in s): x' = A x + B u, y = C x + D u.
  * {{ c.cont_note }}

@@ -52,6 +52,13 @@ pub static C: [[f32; N_STATES]; N_OUTPUTS] = [
 pub static D: [[f32; N_INPUTS]; N_OUTPUTS] = [
 {% for row in c.d.rows_rs %}    [{{ row }}],
 {% endfor %}];
+/// Operating point inputs: the model maps deviations, y − Y0 = G (u − U0); subtract U0 from
+/// the plant input before feeding the model. {{ c.op_note }}
+#[allow(clippy::approx_constant)]
+pub static U0: [f32; N_INPUTS] = [{{ c.u0_rs }}];
+/// Operating point outputs: add Y0 to the model's output.
+#[allow(clippy::approx_constant)]
+pub static Y0: [f32; N_OUTPUTS] = [{{ c.y0_rs }}];
 {% if c.has_continuous %}
 // Continuous model (documentation only; t in s): x' = A x + B u, y = C x + D u.
 // {{ c.cont_note }}

@@ -114,6 +114,7 @@ fn full_input() -> CodegenInput {
             ],
             notes: vec!["ferrosid identify unit_a.csv --order 3".into()],
         },
+        operating_point: None,
     }
 }
 

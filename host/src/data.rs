@@ -1,4 +1,5 @@
 //! In-memory measured logs: uniformly sampled input and output channels.
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// One named, uniformly sampled signal.
@@ -48,5 +49,32 @@ impl Log {
     /// First output channel's samples (SISO convenience).
     pub fn y(&self) -> &[f64] {
         &self.outputs[0].data
+    }
+}
+
+/// Operating point and preprocessing of an identified model (see [`crate::operating_point`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OperatingPoint {
+    /// Input values the model's input is a deviation from, one per input (log units).
+    pub u0: Vec<f64>,
+    /// Output values the model's output is a deviation from, one per output (log units).
+    pub y0: Vec<f64>,
+    /// Offset removal applied before identification: `mean`, `trend` or `none`.
+    pub detrend: String,
+    /// Decimation factor applied after offset removal (1 = none).
+    pub decimation: usize,
+    /// Sample rate of the raw logs before decimation, Hz.
+    pub fs_raw_hz: f64,
+}
+
+impl OperatingPoint {
+    /// `u0` for input `j` (0 when no offset was removed).
+    pub fn input_offset(&self, j: usize) -> f64 {
+        self.u0.get(j).copied().unwrap_or(0.0)
+    }
+
+    /// `y0` for output `i` (0 when no offset was removed).
+    pub fn output_offset(&self, i: usize) -> f64 {
+        self.y0.get(i).copied().unwrap_or(0.0)
     }
 }

@@ -53,3 +53,47 @@ pub enum Error {
     #[error("numerical failure: {0}")]
     Numerical(String),
 }
+
+/// Longest excerpt of user data (a field, a name) that an error message quotes, in characters.
+pub const EXCERPT_CHARS: usize = 60;
+
+/// `s` as quoted in an error message: control characters (NUL, escapes, newlines) escaped, and
+/// cut to [`EXCERPT_CHARS`] characters with an ellipsis and the full length, so that a 50 MB
+/// field or 50 kB of NULs never ends up whole on the terminal.
+pub fn excerpt(s: &str) -> String {
+    excerpt_n(s, EXCERPT_CHARS)
+}
+
+/// [`excerpt`] with a caller-chosen length (e.g. longer for a list of names).
+pub fn excerpt_n(s: &str, max_chars: usize) -> String {
+    let mut out = String::new();
+    for (shown, c) in s.chars().enumerate() {
+        if shown >= max_chars {
+            out.push_str(&format!("… ({} bytes in all)", s.len()));
+            return out;
+        }
+        if c.is_control() {
+            out.extend(c.escape_debug());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excerpts_are_short_and_printable() {
+        assert_eq!(excerpt("1.5x"), "1.5x");
+        assert_eq!(excerpt("a\0b"), "a\\0b");
+        let long = "9".repeat(10_000);
+        let e = excerpt(&long);
+        assert!(e.starts_with(&"9".repeat(EXCERPT_CHARS)));
+        assert!(e.ends_with("… (10000 bytes in all)"), "{e}");
+        let nuls = "\0".repeat(50_000);
+        assert!(excerpt(&nuls).len() < 4 * EXCERPT_CHARS);
+    }
+}

@@ -15,6 +15,7 @@ pub mod gap;
 pub mod io;
 pub mod lti;
 pub mod n4sid;
+pub mod operating_point;
 pub mod pipeline;
 pub mod preprocess;
 pub mod rational_fit;

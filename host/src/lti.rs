@@ -635,6 +635,11 @@ pub struct StateSpaceData {
     pub d: Vec<Vec<f64>>,
     /// Sample time in seconds; 0 for continuous time.
     pub ts: f64,
+    /// The operating point and preprocessing the model was identified with (absent in files
+    /// written before it existed, and for models not identified from logs). Apply it with
+    /// [`crate::operating_point::simulate_raw`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub operating_point: Option<crate::data::OperatingPoint>,
 }
 
 fn to_rows(m: &Mat<f64>) -> Vec<Vec<f64>> {
@@ -662,6 +667,7 @@ impl From<&StateSpace> for StateSpaceData {
             c: to_rows(&s.c),
             d: to_rows(&s.d),
             ts: s.ts,
+            operating_point: None,
         }
     }
 }

@@ -6,7 +6,14 @@ fn main() {
     match ferrosid::cli::run(&cli) {
         Ok(code) => std::process::exit(code as i32),
         Err(e) => {
-            eprintln!("error: {e}");
+            // Bounded and printable whatever the input was (no 50 MB field on the terminal).
+            let msg = e.to_string();
+            let lines: Vec<String> = msg
+                .lines()
+                .take(60)
+                .map(|l| ferrosid::error::excerpt_n(l, 2000))
+                .collect();
+            eprintln!("error: {}", lines.join("\n"));
             std::process::exit(ferrosid::cli::exit_code_for(&e));
         }
     }

@@ -92,11 +92,16 @@ pub enum OrderSelection {
     Fixed(usize),
 }
 
+/// Largest accepted number of block rows i. The data matrix has 2·i·(m+p) rows and its
+/// correlation matrix (2·i·(m+p))² entries: i = 1000 with one input and one output is already a
+/// 4000 × 4000 matrix (128 MB), beyond anything a plant model of order ≤ (i−1)·p needs.
+pub const MAX_BLOCK_ROWS: usize = 1000;
+
 /// Options of [`n4sid`]. `Default` gives i = 20, automatic order, MOESP weighting, D and x0
 /// estimated, no stability enforcement, Kalman gain estimated.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct N4sidOptions {
-    /// Number of block rows i (past and future horizon), >= 2.
+    /// Number of block rows i (past and future horizon), in 2..=[`MAX_BLOCK_ROWS`].
     pub block_rows: usize,
     /// Order choice.
     pub order: OrderSelection,
@@ -311,8 +316,11 @@ fn data_err(source: &Path, msg: String) -> Error {
     }
 }
 
+/// Root mean square, computed on the signal normalised by an exact power of two so that the
+/// squares neither overflow (|x| near 1e300) nor underflow (near 1e-300).
 fn rms(x: &[f64]) -> f64 {
-    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
+    let g = crate::spectral::power_of_two_scale(crate::spectral::max_abs(x));
+    (x.iter().map(|v| (v * g) * (v * g)).sum::<f64>() / x.len() as f64).sqrt() / g
 }
 
 fn check_channels(
@@ -356,9 +364,10 @@ fn check_channels(
             ));
         }
         if n > 0 {
-            let mean = ch.iter().sum::<f64>() / n as f64;
-            let var = ch.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64;
-            let r = rms(ch);
+            let g = crate::spectral::power_of_two_scale(crate::spectral::max_abs(ch));
+            let mean = ch.iter().map(|v| v * g).sum::<f64>() / n as f64;
+            let var = ch.iter().map(|v| (v * g - mean).powi(2)).sum::<f64>() / n as f64;
+            let r = rms(ch) * g;
             if !(var.sqrt() > 1e-12 * r) {
                 let what = if kind == "input" {
                     "no excitation"
@@ -769,9 +778,9 @@ fn identify(
         ));
     }
     let k = opts.block_rows;
-    if k < 2 {
+    if !(2..=MAX_BLOCK_ROWS).contains(&k) {
         return Err(Error::InvalidArgument(format!(
-            "block_rows (i) must be >= 2, got {k}"
+            "block_rows (i) must be in 2..={MAX_BLOCK_ROWS}, got {k}"
         )));
     }
     if let Some(mg) = opts.stability_margin {
@@ -1017,7 +1026,7 @@ fn identify(
     // Unscale: B·diag(1/su), diag(sy)·C, diag(sy)·D·diag(1/su), K·diag(1/sy).
     let b = Mat::from_fn(n, m, |i, j| b_s[(i, j)] / su[j]);
     let c = Mat::from_fn(p, n, |i, j| c_s[(i, j)] * sy[i]);
-    let d = Mat::from_fn(p, m, |i, j| d_s[(i, j)] * sy[i] / su[j]);
+    let d = Mat::from_fn(p, m, |i, j| d_s[(i, j)] * (sy[i] / su[j]));
     let model = StateSpace::new(a_s, b, c, d, ts)?;
     let (kalman_gain, innovation_cov) = match kalman {
         Some((kg, re)) => (

@@ -26,14 +26,21 @@ use faer::Mat;
 use num_complex::Complex64;
 use serde::Serialize;
 
+/// Largest accepted denominator or numerator order (a power-up frame has at most 2049 bins;
+/// polynomials of higher degree in q⁻¹ are numerically meaningless on the unit circle).
+pub const MAX_ORDER: usize = 40;
+/// Largest accepted input delay, samples.
+pub const MAX_DELAY: usize = 512;
+
 /// Orders and iteration limits of [`fit_discrete_rational`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RationalFitOptions {
-    /// Denominator order na (>= 1).
+    /// Denominator order na (1..=[`MAX_ORDER`]).
     pub na: usize,
-    /// Numerator order nb (b0..b_nb: nb + 1 coefficients).
+    /// Numerator order nb (b0..b_nb: nb + 1 coefficients; 0..=[`MAX_ORDER`]).
     pub nb: usize,
-    /// Input delay nk in samples (the numerator starts at q^nk; 1 for a ZOH plant).
+    /// Input delay nk in samples (the numerator starts at q^nk; 1 for a ZOH plant;
+    /// 0..=[`MAX_DELAY`]).
     pub nk: usize,
     /// Largest number of SK iterations (default 50).
     pub max_iterations: usize,
@@ -127,10 +134,23 @@ fn check_inputs(
             "rational fit: sample time {ts} s must be finite and > 0"
         )));
     }
-    if o.na == 0 {
-        return Err(Error::InvalidArgument(
-            "rational fit: denominator order na must be >= 1".into(),
-        ));
+    if !(1..=MAX_ORDER).contains(&o.na) {
+        return Err(Error::InvalidArgument(format!(
+            "rational fit: denominator order na must be in 1..={MAX_ORDER}, got {}",
+            o.na
+        )));
+    }
+    if o.nb > MAX_ORDER {
+        return Err(Error::InvalidArgument(format!(
+            "rational fit: numerator order nb must be in 0..={MAX_ORDER}, got {}",
+            o.nb
+        )));
+    }
+    if o.nk > MAX_DELAY {
+        return Err(Error::InvalidArgument(format!(
+            "rational fit: delay nk must be in 0..={MAX_DELAY} samples, got {}",
+            o.nk
+        )));
     }
     if freq_hz.len() != h.len() {
         return Err(Error::InvalidArgument(format!(
@@ -334,6 +354,13 @@ pub fn fit_discrete_rational_delay_search(
     opts: &RationalFitOptions,
     nk_range: std::ops::RangeInclusive<usize>,
 ) -> Result<RationalFit> {
+    if *nk_range.end() > MAX_DELAY {
+        return Err(Error::InvalidArgument(format!(
+            "rational fit: delays up to {} samples requested; the largest accepted is \
+             {MAX_DELAY}",
+            nk_range.end()
+        )));
+    }
     let mut best: Option<RationalFit> = None;
     let mut last_err = None;
     for nk in nk_range.clone() {

@@ -34,6 +34,37 @@ pub const DEFAULT_COHERENCE_THRESHOLD: f64 = 0.85;
 /// Smallest accepted Welch segment length (samples).
 pub const MIN_NPERSEG: usize = 8;
 
+/// Largest accepted Welch segment length (samples, 2^22 ≈ 4.2 M; each of the five FFT buffers
+/// then takes 32–64 MB).
+pub const MAX_NPERSEG: usize = 1 << 22;
+
+/// Fewest averaged Welch segments for which [`Etfe::gate`] passes any bin.
+///
+/// The rule: magnitude-squared coherence estimated from `n` averages is biased towards 1 (it is
+/// identically 1 for `n = 1`); for uncorrelated input and output and `n` independent segments,
+/// the estimate exceeds a threshold `c` with probability `(1 − c)^(n − 1)`. With 50 % overlapped
+/// Hann segments (nearly independent) and the default gate 0.85, `n = 4` keeps that below
+/// 0.15³ ≈ 0.3 % per bin. With fewer segments no bin passes the gate, and reports say why.
+pub const MIN_WELCH_AVERAGES: usize = 4;
+
+/// The power of two that brings `max_abs` (the largest |sample| of a signal) near 1, so that
+/// products of samples neither overflow (signals near 1e300) nor underflow (near 1e-300).
+/// Multiplying by a power of two is exact in binary floating point, so results computed on the
+/// scaled signal are the unscaled results, scaled — numerics become scale-invariant. Returns
+/// 1 for zero or non-finite `max_abs`.
+pub fn power_of_two_scale(max_abs: f64) -> f64 {
+    if !(max_abs.is_finite() && max_abs > 0.0) {
+        return 1.0;
+    }
+    let e = max_abs.log2().floor().clamp(-1000.0, 1000.0) as i32;
+    2f64.powi(-e)
+}
+
+/// Largest |x| of a signal (0 for an empty one).
+pub fn max_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
 /// Data window applied to each segment. All built-in windows are periodic (DFT-even), as
 /// `scipy.signal.get_window(name, N)` returns them.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -148,6 +179,10 @@ pub struct Etfe {
     pub syy: Vec<f64>,
     /// One-sided cross-spectral density, `mean(conj(U) Y)` scaled (u·y units / Hz).
     pub suy: Vec<Complex64>,
+    /// True where the input carries power: `S_uu >= MIN_RELATIVE_INPUT_POWER · max(S_uu)`,
+    /// decided on the internally normalised spectra (so it holds even where a density over- or
+    /// underflows f64 for signals near 1e±300).
+    pub input_excited: Vec<bool>,
 }
 
 /// One-sided power spectral density (scipy.signal.welch).
@@ -187,9 +222,9 @@ impl Welch {
     }
 
     fn validate(&self) -> Result<()> {
-        if self.nperseg < MIN_NPERSEG {
+        if !(MIN_NPERSEG..=MAX_NPERSEG).contains(&self.nperseg) {
             return Err(Error::InvalidArgument(format!(
-                "Welch segment length must be >= {MIN_NPERSEG} samples, got {}",
+                "Welch segment length must be >= {MIN_NPERSEG} and <= {MAX_NPERSEG} samples, got {}",
                 self.nperseg
             )));
         }
@@ -246,17 +281,19 @@ impl Welch {
         let mut acc = vec![0.0; nb];
         let step = n - self.overlap();
         let nseg = self.n_segments(x.len());
+        let g = power_of_two_scale(max_abs(x));
+        let xs: Vec<f64> = x.iter().map(|v| v * g).collect();
         for s in 0..nseg {
-            prepare(&x[s * step..s * step + n], &win, self.detrend, &mut buf);
+            prepare(&xs[s * step..s * step + n], &win, self.detrend, &mut buf);
             fft(&r2c, &mut buf, &mut spec, &mut scratch)?;
             for (a, z) in acc.iter_mut().zip(&spec) {
                 *a += z.norm_sqr();
             }
         }
         let w2: f64 = win.iter().map(|w| w * w).sum();
-        let scale = 1.0 / (fs * w2 * nseg as f64);
+        let scale = 1.0 / (w2 * nseg as f64);
         for (k, a) in acc.iter_mut().enumerate() {
-            *a *= scale * one_sided_factor(k, n);
+            *a = *a * (scale * one_sided_factor(k, n)) / fs / g / g;
         }
         Ok(Psd {
             freq_hz: (0..nb).map(|k| bin_hz(k, n, fs)).collect(),
@@ -281,6 +318,9 @@ pub struct WelchAccumulator {
     syy: Vec<f64>,
     suy: Vec<Complex64>,
     n_avg: usize,
+    /// Power-of-two normalisation of input and output, fixed by the first record added.
+    scale: Option<(f64, f64)>,
+    scaled: Vec<f64>,
 }
 
 impl std::fmt::Debug for WelchAccumulator {
@@ -315,6 +355,8 @@ impl WelchAccumulator {
             syy: vec![0.0; nb],
             suy: vec![Complex64::new(0.0, 0.0); nb],
             n_avg: 0,
+            scale: None,
+            scaled: Vec::new(),
         })
     }
 
@@ -332,10 +374,21 @@ impl WelchAccumulator {
         check_signal(y, "output", n)?;
         let step = n - self.settings.overlap();
         let nseg = self.settings.n_segments(u.len());
+        // Internal normalisation (exact power-of-two scaling, undone in `finish`).
+        let (gu, gy) = *self.scale.get_or_insert_with(|| {
+            (
+                power_of_two_scale(max_abs(u)),
+                power_of_two_scale(max_abs(y)),
+            )
+        });
+        self.scaled.clear();
+        self.scaled.extend(u.iter().map(|v| v * gu));
+        self.scaled.extend(y.iter().map(|v| v * gy));
+        let (us, ys) = self.scaled.split_at(u.len());
         for s in 0..nseg {
             let r = s * step..s * step + n;
             prepare(
-                &u[r.clone()],
+                &us[r.clone()],
                 &self.win,
                 self.settings.detrend,
                 &mut self.buf,
@@ -346,7 +399,7 @@ impl WelchAccumulator {
                 &mut self.spec_u,
                 &mut self.scratch,
             )?;
-            prepare(&y[r], &self.win, self.settings.detrend, &mut self.buf);
+            prepare(&ys[r], &self.win, self.settings.detrend, &mut self.buf);
             fft(
                 &self.r2c,
                 &mut self.buf,
@@ -361,6 +414,9 @@ impl WelchAccumulator {
             }
         }
         self.n_avg += nseg;
+        if nseg == 0 && self.n_avg == 0 {
+            self.scale = None;
+        }
         Ok(())
     }
 
@@ -379,29 +435,36 @@ impl WelchAccumulator {
         let n = self.settings.nperseg;
         let nb = n / 2 + 1;
         let w2: f64 = self.win.iter().map(|w| w * w).sum();
-        let scale = 1.0 / (self.fs * w2 * self.n_avg as f64);
+        let (gu, gy) = self.scale.unwrap_or((1.0, 1.0));
+        // Densities in the log's units: the normalised sums, the density scale and the
+        // normalisation undone (each factor applied separately so an intermediate does not
+        // over- or underflow when the final value is representable).
+        let per_avg = 1.0 / (w2 * self.n_avg as f64);
         let mut suu = Vec::with_capacity(nb);
         let mut syy = Vec::with_capacity(nb);
         let mut suy = Vec::with_capacity(nb);
         let mut h = Vec::with_capacity(nb);
         let mut coherence = Vec::with_capacity(nb);
         for k in 0..nb {
-            let c = scale * one_sided_factor(k, n);
-            let (pu, py, pc) = (self.suu[k] * c, self.syy[k] * c, self.suy[k] * c);
-            h.push(if pu > 0.0 {
-                pc / pu
+            // H and coherence from the normalised sums: the density scale cancels, and the
+            // sums of O(1) signals neither overflow nor underflow.
+            let (ru, ry, rc) = (self.suu[k], self.syy[k], self.suy[k]);
+            h.push(if ru > 0.0 {
+                rc / ru * (gu / gy)
             } else {
                 Complex64::new(f64::NAN, f64::NAN)
             });
-            coherence.push(if pu > 0.0 && py > 0.0 {
-                (pc.norm_sqr() / pu / py).min(1.0)
+            coherence.push(if ru > 0.0 && ry > 0.0 {
+                ((rc.norm() / ru) * (rc.norm() / ry)).min(1.0)
             } else {
                 0.0
             });
-            suu.push(pu);
-            syy.push(py);
-            suy.push(pc);
+            let c = per_avg * one_sided_factor(k, n);
+            suu.push(ru * c / self.fs / gu / gu);
+            syy.push(ry * c / self.fs / gy / gy);
+            suy.push(rc * c / self.fs / gu / gy);
         }
+        let input_excited = excited_bins(&self.suu);
         Ok(Etfe {
             fs: self.fs,
             nperseg: n,
@@ -413,6 +476,7 @@ impl WelchAccumulator {
             suu,
             syy,
             suy,
+            input_excited,
         })
     }
 }
@@ -423,20 +487,34 @@ impl Etfe {
     /// or band-limited excitation: at a bin without input power S_uu is round-off, and a
     /// deterministic output component there (e.g. nonlinear distortion of a multisine) can show
     /// a spurious coherence near 1 with a meaningless H1.
+    ///
+    /// With fewer than [`MIN_WELCH_AVERAGES`] averaged segments no bin passes (see that
+    /// constant for the rule; [`Etfe::too_few_averages`] says why in words).
     pub fn gate(&self, threshold: f64) -> Vec<bool> {
-        let excited = excited_bins(&self.suu);
+        let enough = self.n_averages >= MIN_WELCH_AVERAGES;
         coherence_gate(&self.coherence, threshold)
             .into_iter()
-            .zip(excited)
-            .map(|(c, e)| c && e)
+            .zip(&self.input_excited)
+            .map(|(c, &e)| c && e && enough)
             .collect()
+    }
+
+    /// `Some(reason)` when the estimate averages fewer than [`MIN_WELCH_AVERAGES`] segments,
+    /// so that [`Etfe::gate`] passes no bin.
+    pub fn too_few_averages(&self) -> Option<String> {
+        (self.n_averages < MIN_WELCH_AVERAGES).then(|| {
+            format!(
+                "only {} Welch segment(s) averaged: coherence from few averages is biased towards                  1 (identically 1 from one), so the gate needs at least {MIN_WELCH_AVERAGES}; no                  bin passes. Use a shorter --nperseg or a longer log",
+                self.n_averages
+            )
+        })
     }
 
     /// Runs of bins rejected by [`Etfe::gate`], for reports.
     pub fn excluded_bands(&self, threshold: f64) -> Vec<ExcludedBand> {
         let gate = self.gate(threshold);
-        let excited = excited_bins(&self.suu);
-        bands_from_gate(&self.freq_hz, &self.coherence, &gate, &excited)
+        let excited = &self.input_excited;
+        bands_from_gate(&self.freq_hz, &self.coherence, &gate, excited)
     }
 }
 
@@ -624,7 +702,47 @@ impl PeriodicFrf {
 impl PeriodicAveraging {
     /// Period-synchronous FRF of `u` → `y` (equal lengths, finite) at `fs` Hz. Needs at least
     /// two periods after the skipped ones (the noise variance comes from their spread).
+    ///
+    /// The signals are normalised internally by exact powers of two ([`power_of_two_scale`])
+    /// and the results scaled back, so the estimate does not depend on the signals' units.
     pub fn frf(&self, u: &[f64], y: &[f64], fs: f64) -> Result<PeriodicFrf> {
+        let (gu, gy) = (
+            power_of_two_scale(max_abs(u)),
+            power_of_two_scale(max_abs(y)),
+        );
+        if gu == 1.0 && gy == 1.0 {
+            return self.frf_unscaled(u, y, fs);
+        }
+        let us: Vec<f64> = u.iter().map(|v| v * gu).collect();
+        let ys: Vec<f64> = y.iter().map(|v| v * gy).collect();
+        let mut r = self.frf_unscaled(&us, &ys, fs)?;
+        let gh = gu / gy;
+        for h in &mut r.h {
+            *h *= gh;
+        }
+        for v in &mut r.var_h {
+            *v *= gh * gh;
+        }
+        let sp = &mut r.spectra;
+        for z in &mut sp.u {
+            *z /= gu;
+        }
+        for z in &mut sp.y {
+            *z /= gy;
+        }
+        for v in &mut sp.var_u {
+            *v = *v / gu / gu;
+        }
+        for v in &mut sp.var_y {
+            *v = *v / gy / gy;
+        }
+        for z in &mut sp.cov_yu {
+            *z = *z / gu / gy;
+        }
+        Ok(r)
+    }
+
+    fn frf_unscaled(&self, u: &[f64], y: &[f64], fs: f64) -> Result<PeriodicFrf> {
         let p = self.period;
         if p < 2 {
             return Err(Error::InvalidArgument(format!(

@@ -129,7 +129,7 @@ fn parse_num<T: std::str::FromStr>(
     t.parse::<T>().map_err(|_| Error::Parse {
         file: file.to_path_buf(),
         line,
-        msg: format!("{what} {t:?} is not a number"),
+        msg: format!("{what} \"{}\" is not a number", crate::error::excerpt(t)),
     })
 }
 
@@ -184,7 +184,13 @@ impl TargetFrame {
                     let mut header = Vec::new();
                     for t in rest {
                         let (k, v) = t.split_once('=').ok_or_else(|| {
-                            perr(ln, format!("FRAME_BEGIN field {t:?} is not key=value"))
+                            perr(
+                                ln,
+                                format!(
+                                    "FRAME_BEGIN field \"{}\" is not key=value",
+                                    crate::error::excerpt(t)
+                                ),
+                            )
                         })?;
                         header.push((k.to_string(), v.to_string()));
                     }
@@ -214,6 +220,14 @@ impl TargetFrame {
                     let gate = get("gate")
                         .map(|v| parse_num::<f64>(Some(v), "gate", file, ln))
                         .transpose()?;
+                    if let Some(g) = gate {
+                        if !(0.0..=1.0).contains(&g) {
+                            return Err(perr(
+                                ln,
+                                format!("gate = {g} is not a coherence in [0, 1]"),
+                            ));
+                        }
+                    }
                     frame = Some(TargetFrame {
                         source: file.to_path_buf(),
                         fs_hz,

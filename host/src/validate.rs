@@ -128,6 +128,30 @@ pub fn simulation_fit_log(
     simulation_fit_named(&log.path, model, &u, &y, x0)
 }
 
+/// Free-run simulation fit of `model` on a *raw* log (offsets not removed) through the model's
+/// operating point ([`crate::operating_point`]): the model sees `u − u0` and its output is
+/// compared with `y − y0`, initial state estimated. This is how a model file is validated on
+/// fresh data as recorded; an offset between the operating points shows up as a worse fit.
+/// The log must be at the model's sample rate (raw logs of a decimated model are not).
+///
+/// # Errors
+/// As [`simulation_fit`]; errors name the log's file.
+pub fn simulation_fit_operating_point(
+    model: &StateSpace,
+    op: &crate::data::OperatingPoint,
+    log: &Log,
+) -> Result<SimulationFit> {
+    let u: Vec<Vec<f64>> = log
+        .inputs
+        .iter()
+        .enumerate()
+        .map(|(j, c)| c.data.iter().map(|v| v - op.input_offset(j)).collect())
+        .collect();
+    let y_raw: Vec<&[f64]> = log.outputs.iter().map(|c| c.data.as_slice()).collect();
+    let y = crate::operating_point::output_deviation(Some(op), &y_raw);
+    simulation_fit_named(&log.path, model, &u, &y, InitialState::Estimate)
+}
+
 fn simulation_fit_named<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
     source: &Path,
     model: &StateSpace,
@@ -145,12 +169,19 @@ fn simulation_fit_named<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
     let mut nrmse = Vec::with_capacity(y.len());
     for (i, (yi, si)) in y.iter().zip(&y_sim).enumerate() {
         let yi = yi.as_ref();
-        let mean = yi.iter().sum::<f64>() / yi.len() as f64;
-        let den: f64 = yi.iter().map(|v| (v - mean).powi(2)).sum::<f64>().sqrt();
+        // Exact power-of-two normalisation: the ratio num/den is unchanged, and the squares
+        // neither overflow nor underflow for outputs near 1e±300.
+        let g = crate::spectral::power_of_two_scale(crate::spectral::max_abs(yi));
+        let mean = yi.iter().map(|v| v * g).sum::<f64>() / yi.len() as f64;
+        let den: f64 = yi
+            .iter()
+            .map(|v| (v * g - mean).powi(2))
+            .sum::<f64>()
+            .sqrt();
         let num: f64 = yi
             .iter()
             .zip(si)
-            .map(|(a, b)| (a - b).powi(2))
+            .map(|(a, b)| (a * g - b * g).powi(2))
             .sum::<f64>()
             .sqrt();
         if !(den > 0.0) {
@@ -418,8 +449,14 @@ pub fn residual_test<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
             )
         }
     };
-    let e: Vec<Vec<f64>> = resid.iter().map(|r| demeaned(r)).collect();
-    let uc: Vec<Vec<f64>> = u.iter().map(|c| demeaned(c.as_ref())).collect();
+    // Normalised by exact powers of two: correlations are ratios, so unchanged, and the sums
+    // of products neither overflow nor underflow for signals near 1e±300.
+    let normalised = |x: Vec<f64>| -> Vec<f64> {
+        let g = crate::spectral::power_of_two_scale(crate::spectral::max_abs(&x));
+        x.into_iter().map(|v| v * g).collect()
+    };
+    let e: Vec<Vec<f64>> = resid.iter().map(|r| normalised(demeaned(r))).collect();
+    let uc: Vec<Vec<f64>> = u.iter().map(|c| normalised(demeaned(c.as_ref()))).collect();
     let bound = Z99 / (len as f64).sqrt();
     let mut autocorr = Vec::new();
     let mut crosscorr = Vec::new();

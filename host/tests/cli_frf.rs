@@ -297,7 +297,15 @@ fn reruns_are_byte_identical() {
 
 #[test]
 fn help_has_examples_and_exit_codes() {
-    for cmd in ["frf", "identify", "codegen", "reidentify", "run", "fleet", "gap"] {
+    for cmd in [
+        "frf",
+        "identify",
+        "codegen",
+        "reidentify",
+        "run",
+        "fleet",
+        "gap",
+    ] {
         let r = ferrosid(&[cmd, "--help"]);
         assert_eq!(r.code, 0);
         assert!(r.stdout.contains("Examples:"), "{cmd}: {}", r.stdout);

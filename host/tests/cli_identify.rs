@@ -116,7 +116,8 @@ fn recovers_order_frequency_response_and_poles_of_a_known_plant() {
     assert_eq!(cmp["f_max_hz"], 20.0);
     assert!(v["validation"]["residuals"]["whiteness_ok"].is_boolean());
 
-    // The model file: exactly {a, b, c, d, ts}, readable as a StateSpaceData.
+    // The model file: exactly {a, b, c, d, ts} plus the operating point it was identified at
+    // (issue 10), readable as a StateSpaceData.
     let m = model_file(&out);
     let mut keys: Vec<&str> = m
         .as_object()
@@ -125,7 +126,7 @@ fn recovers_order_frequency_response_and_poles_of_a_known_plant() {
         .map(String::as_str)
         .collect();
     keys.sort_unstable();
-    assert_eq!(keys, ["a", "b", "c", "d", "ts"]);
+    assert_eq!(keys, ["a", "b", "c", "d", "operating_point", "ts"]);
     let data: StateSpaceData =
         serde_json::from_value(m.clone()).expect("model file is a StateSpaceData");
     assert!(StateSpace::try_from(&data).is_ok());
@@ -243,7 +244,9 @@ fn order_options_no_d_and_stability_margin() {
     assert_eq!(r.code, 0, "{}", r.stderr);
     let v = json(&r.stdout);
     assert_eq!(v["options"]["d_significance"], 2.0);
-    let dropped = v["n4sid"]["d_fixed_by_test"].as_bool().expect("d_fixed_by_test");
+    let dropped = v["n4sid"]["d_fixed_by_test"]
+        .as_bool()
+        .expect("d_fixed_by_test");
     assert_eq!(dropped, v["n4sid"]["model"]["d"][0][0] == 0.0);
     let r = ferrosid(&["identify", s(&est), "--d-auto", "--no-d"]);
     assert_eq!(r.code, 2, "conflicting D options must be a usage error");

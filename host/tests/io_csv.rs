@@ -167,20 +167,25 @@ fn non_monotonic_time_names_line() {
 
 #[test]
 fn non_uniform_time_names_line_and_tolerance_is_adjustable() {
-    // 1e-5 relative jitter on the interval into line 5: beyond the default 1e-6.
+    // 1e-2 relative jitter on the interval into line 5: beyond the default 1e-3.
     let p = file(
         "jitter.csv",
-        "t,u,y\n0,1,2\n1,2,3\n2,3,4\n3.00001,4,5\n4,5,6\n",
+        "t,u,y\n0,1,2\n1,2,3\n2,3,4\n3.01,4,5\n4,5,6\n",
     );
     let (line, msg) = parse_line(read_csv(&p, &CsvOptions::default()).unwrap_err());
     assert_eq!(line, 5);
     assert!(msg.contains("non-uniform"), "{msg}");
+    // The message names both options that fix the file.
+    assert!(
+        msg.contains("--time-jitter") && msg.contains("--fs"),
+        "{msg}"
+    );
     // A looser, explicit tolerance accepts it.
     let log = read_csv(
         &p,
         &CsvOptions {
             checks: Checks {
-                time_jitter_rel: 1e-4,
+                time_jitter_rel: 2e-2,
                 ..Checks::default()
             },
             ..CsvOptions::default()
@@ -194,6 +199,14 @@ fn non_uniform_time_names_line_and_tolerance_is_adjustable() {
         "t,u,y\n0,1,2\n1,2,3\n2.00000001,3,4\n3,4,5\n",
     );
     assert!(read_csv(&p, &CsvOptions::default()).is_ok());
+    // Rounding of real time vectors (2.4e-4 of the interval, issue 10) is accepted by default,
+    // and the sample time is the mean interval, not a rounded one.
+    let p = file(
+        "rounded.csv",
+        "t,u,y\n0,1,2\n0.001,2,3\n0.00200024,3,4\n0.003,4,5\n0.004,5,6\n",
+    );
+    let log = read_csv(&p, &CsvOptions::default()).unwrap();
+    assert!((log.ts - 0.001).abs() < 1e-15, "{}", log.ts);
 }
 
 #[test]

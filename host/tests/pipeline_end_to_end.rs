@@ -255,9 +255,10 @@ fn known_plant_end_to_end_receipts_cross_checked() {
         .expect("fit");
     assert!(fit > 90.0, "fit {fit}");
 
-    // model.json is the {"a","b","c","d","ts"} form other commands read.
+    // model.json is the {"a","b","c","d","ts"} form other commands read, with the operating
+    // point of the estimation run (issue 10).
     let keys: Vec<&String> = model.as_object().expect("object").keys().collect();
-    assert_eq!(keys, ["a", "b", "c", "d", "ts"]);
+    assert_eq!(keys, ["a", "b", "c", "d", "operating_point", "ts"]);
 }
 
 #[test]

@@ -32,6 +32,7 @@
 //! ```
 use super::ExitCode;
 use crate::error::{Error, Result};
+use crate::io::file_safety::{refuse_input_overwrite, write_atomic};
 use crate::lti::{StateSpace, StateSpaceData};
 use crate::robust::pid::{DiscretePid, Pid};
 use ferrosid_codegen as cg;
@@ -83,8 +84,13 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     pub templates: Option<PathBuf>,
     /// Write the built-in templates to DIR (a starting point for --templates) and exit.
+    /// An existing template that differs from the built-in one (an edited copy) is not
+    /// replaced unless --force is given.
     #[arg(long, value_name = "DIR")]
     pub write_templates: Option<PathBuf>,
+    /// With --write-templates: replace edited templates too.
+    #[arg(long, requires = "write_templates")]
+    pub force: bool,
     /// Check frequencies in Hz, comma separated (snapped to Welch bins). Default: 8
     /// log-spaced frequencies from 2 bins to the highest excited frequency.
     #[arg(long, value_name = "HZ,...", value_delimiter = ',')]
@@ -151,6 +157,11 @@ fn matrices(s: &StateSpace) -> cg::Matrices {
 
 /// Reads a model file: a `StateSpaceData` at the top level or under `"model"`.
 pub fn read_model(path: &Path) -> Result<StateSpace> {
+    read_model_file(path).map(|(s, _)| s)
+}
+
+/// [`read_model`] with the operating point the file records (None for files without one).
+pub fn read_model_file(path: &Path) -> Result<(StateSpace, Option<crate::data::OperatingPoint>)> {
     let v = read_json(path)?;
     let inner = if v.get("a").is_some() {
         v
@@ -164,7 +175,8 @@ pub fn read_model(path: &Path) -> Result<StateSpace> {
     };
     let data: StateSpaceData =
         serde_json::from_value(inner).map_err(|e| data_err(path, format!("model fields: {e}")))?;
-    StateSpace::try_from(&data).map_err(|e| data_err(path, e.to_string()))
+    let sys = StateSpace::try_from(&data).map_err(|e| data_err(path, e.to_string()))?;
+    Ok((sys, data.operating_point))
 }
 
 /// The discrete model at the control rate and the continuous model for documentation.
@@ -385,8 +397,22 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
         .model
         .as_deref()
         .ok_or_else(|| Error::InvalidArgument("--model is required".into()))?;
-    let sys = read_model(model_path)?;
+    let (sys, op) = read_model_file(model_path)?;
     let (disc, cont) = models(model_path, &sys, args.ts)?;
+    let operating_point = op.map(|o| cg::OperatingPointValues {
+        note: format!(
+            "Identified after {} removal{} from logs at {} Hz.",
+            o.detrend,
+            if o.decimation > 1 {
+                format!(" and decimation by {}", o.decimation)
+            } else {
+                String::new()
+            },
+            o.fs_raw_hz
+        ),
+        u0: o.u0,
+        y0: o.y0,
+    });
     let ts = disc.ts;
     let fs = 1.0 / ts;
     let mut sources = vec![digest_file(model_path, "model")?];
@@ -462,7 +488,65 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
             receipts,
             notes: Vec::new(),
         },
+        operating_point,
     })
+}
+
+/// The files a codegen input came from, so that errors in their contents name them.
+#[derive(Debug, Clone, Default)]
+pub struct InputFiles {
+    /// `--model` file.
+    pub model: Option<PathBuf>,
+    /// `--pid` file.
+    pub pid: Option<PathBuf>,
+    /// `--wm` file.
+    pub wm: Option<PathBuf>,
+    /// The sample time came from `--ts` (a continuous model discretised), not from the file.
+    pub ts_flag: bool,
+}
+
+impl InputFiles {
+    /// The files named by the flags.
+    pub fn of(args: &Args) -> Self {
+        Self {
+            model: args.model.clone(),
+            pid: args.pid.clone(),
+            wm: args.wm.clone(),
+            ts_flag: args.ts.is_some(),
+        }
+    }
+}
+
+/// Maps a generator error to the crate error: a bad field of the model, PID or W_m is an input
+/// data error naming that file (exit 3); a bad self-identification setting or prefix is a usage
+/// error (exit 2); a user template that cannot be read or rendered is a data error naming it.
+pub fn codegen_error(e: cg::Error, files: &InputFiles) -> Error {
+    match e {
+        cg::Error::TemplateIo { file, source } => Error::Io { file, source },
+        cg::Error::Render { template, msg } => Error::Data {
+            file: PathBuf::from(&template),
+            msg: format!("template: {msg}"),
+        },
+        cg::Error::Input { field, msg } if field == "model.ts_s" && files.ts_flag => {
+            Error::InvalidArgument(format!("--ts: {msg}"))
+        }
+        cg::Error::Input { field, msg } => {
+            let head = field.split(['.', '[']).next().unwrap_or("");
+            let file = match head {
+                "model" | "continuous" => files.model.as_ref(),
+                "pid" => files.pid.as_ref(),
+                "weight" => files.wm.as_ref(),
+                _ => None,
+            };
+            match file {
+                Some(f) => Error::Data {
+                    file: f.clone(),
+                    msg: format!("`{field}`: {msg}"),
+                },
+                None => Error::InvalidArgument(format!("codegen input `{field}`: {msg}")),
+            }
+        }
+    }
 }
 
 /// Generates the files for `input` (with `templates` when given) and writes them into
@@ -471,21 +555,27 @@ pub fn generate_to_dir(
     input: &cg::CodegenInput,
     templates: Option<&Path>,
     out_dir: &Path,
+    files: &InputFiles,
 ) -> Result<(cg::Generated, PathBuf, PathBuf)> {
     let g = match templates {
         Some(dir) => cg::generate_with_templates(input, dir),
         None => cg::generate(input),
     }
-    .map_err(|e| match e {
-        cg::Error::TemplateIo { file, source } => Error::Io { file, source },
-        other => Error::InvalidArgument(other.to_string()),
-    })?;
+    .map_err(|e| codegen_error(e, files))?;
     std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
         file: out_dir.to_path_buf(),
         source,
     })?;
     let h = out_dir.join(&g.c_file_name);
     let r = out_dir.join(&g.rs_file_name);
+    for path in [&h, &r] {
+        let inputs: Vec<&Path> = [&files.model, &files.pid, &files.wm]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect();
+        refuse_input_overwrite(path, "--out-dir", &inputs)?;
+    }
     for (path, text) in [(&h, &g.c_header), (&r, &g.rust_module)] {
         write_if_changed(path, text)?;
     }
@@ -497,10 +587,7 @@ pub fn write_if_changed(path: &Path, text: &str) -> Result<()> {
     if std::fs::read(path).ok().as_deref() == Some(text.as_bytes()) {
         return Ok(());
     }
-    std::fs::write(path, text).map_err(|source| Error::Io {
-        file: path.to_path_buf(),
-        source,
-    })
+    write_atomic(path, text.as_bytes())
 }
 
 #[derive(serde::Serialize)]
@@ -520,7 +607,24 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             file: dir.clone(),
             source,
         })?;
-        for name in [cg::C_TEMPLATE, cg::RUST_TEMPLATE] {
+        let names = [cg::C_TEMPLATE, cg::RUST_TEMPLATE];
+        if !args.force {
+            for name in names {
+                let p = dir.join(name);
+                let text = cg::builtin_template(name).unwrap_or_default();
+                if p.exists() && std::fs::read(&p).ok().as_deref() != Some(text.as_bytes()) {
+                    return Err(Error::Io {
+                        file: p,
+                        source: std::io::Error::new(
+                            std::io::ErrorKind::AlreadyExists,
+                            "exists and differs from the built-in template (edited?): not \
+                             replaced; pass --force to overwrite it",
+                        ),
+                    });
+                }
+            }
+        }
+        for name in names {
             let text = cg::builtin_template(name).unwrap_or_default();
             write_if_changed(&dir.join(name), text)?;
         }
@@ -541,8 +645,14 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .out_dir
         .as_deref()
         .ok_or_else(|| Error::InvalidArgument("--out-dir is required".into()))?;
+    crate::io::file_safety::check_dir_writable(out_dir)?;
     let input = build_input(args)?;
-    let (g, h, r) = generate_to_dir(&input, args.templates.as_deref(), out_dir)?;
+    let (g, h, r) = generate_to_dir(
+        &input,
+        args.templates.as_deref(),
+        out_dir,
+        &InputFiles::of(args),
+    )?;
     let samples = u64::from(input.self_id.settle_periods + input.self_id.averages)
         * input.self_id.welch_n as u64;
     if args.json {

@@ -29,7 +29,7 @@ pub struct Args {
     /// Pipeline template (default: DIR/pipeline.toml); its log paths are per unit.
     #[arg(long, value_name = "TEMPLATE.toml")]
     pub pipeline: Option<PathBuf>,
-    /// Worker threads (default: one per CPU).
+    /// Worker threads, 1..=256 (default: one per CPU; never more than the CPUs or the units).
     #[arg(long, value_name = "N")]
     pub jobs: Option<usize>,
     /// Output directory for per-unit results and fleet.json (default: out/fleet).
@@ -201,6 +201,20 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
 
 /// Runs `ferrosid fleet`.
 pub fn run(args: &Args) -> Result<ExitCode> {
+    if !args.dir.is_dir() {
+        return Err(Error::Io {
+            file: args.dir.clone(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                if args.dir.exists() {
+                    "not a directory: give the fleet directory holding one log set per unit"
+                } else {
+                    "fleet directory not found"
+                },
+            ),
+        });
+    }
+    crate::pipeline::fleet::worker_threads(args.jobs, 1)?;
     let template_path = args
         .pipeline
         .clone()

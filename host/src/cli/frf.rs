@@ -19,7 +19,7 @@ use crate::error::{Error, Result};
 use crate::io::{read_log, require_len, LogSpec};
 use crate::spectral::{
     Detrend, Etfe, ExcludedBand, PeriodicAveraging, PeriodicFrf, Welch, Window,
-    DEFAULT_COHERENCE_THRESHOLD, MIN_NPERSEG,
+    DEFAULT_COHERENCE_THRESHOLD, MAX_NPERSEG, MIN_NPERSEG,
 };
 use clap::ValueEnum;
 use num_complex::Complex64;
@@ -172,6 +172,13 @@ impl EtfeArgs {
             )));
         }
         self.nperseg_fixed()?;
+        if let Some(p) = self.period {
+            if !(2..=MAX_NPERSEG).contains(&p) {
+                return Err(Error::InvalidArgument(format!(
+                    "--period must be in 2..={MAX_NPERSEG} samples, got {p}"
+                )));
+            }
+        }
         Ok(())
     }
 
@@ -185,9 +192,9 @@ impl EtfeArgs {
                 self.nperseg
             ))
         })?;
-        if n < MIN_NPERSEG {
+        if !(MIN_NPERSEG..=MAX_NPERSEG).contains(&n) {
             return Err(Error::InvalidArgument(format!(
-                "--nperseg must be at least {MIN_NPERSEG} samples, got {n}"
+                "--nperseg must be in {MIN_NPERSEG}..={MAX_NPERSEG} samples, got {n}"
             )));
         }
         Ok(Some(n))
@@ -349,6 +356,9 @@ pub struct FrfEstimate {
     pub gated: Vec<bool>,
     /// Runs of bins rejected by the gate.
     pub excluded_bands: Vec<ExcludedBand>,
+    /// Why bins cannot pass the gate beyond coherence (e.g. too few averages), if anything.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 /// The JSON document of `ferrosid frf --json`.
@@ -364,7 +374,14 @@ pub struct FrfReport {
     pub gate: f64,
     /// One estimate per pair (Welch) or per log and pair (periodic).
     pub estimates: Vec<FrfEstimate>,
+    /// How the numerics treat signal scale.
+    pub normalisation: &'static str,
 }
+
+/// What `frf` says about signal scale (also in its JSON report).
+pub const NORMALISATION_NOTE: &str = "signals are normalised internally by exact powers of two \
+    before the FFTs, so H and coherence do not depend on the signals' units (densities are \
+    reported in the log's units)";
 
 /// Magnitude in dB (NaN where H is not finite or zero).
 pub fn mag_db(h: Complex64) -> f64 {
@@ -417,11 +434,12 @@ impl FrfEstimate {
             std_h,
             gated,
             excluded_bands,
+            notes: Vec::new(),
         }
     }
 
     fn from_welch(e: &Etfe, input: &str, output: &str, logs: Vec<String>, gate: f64) -> Self {
-        Self::new(
+        let mut est = Self::new(
             input,
             output,
             logs,
@@ -432,7 +450,9 @@ impl FrfEstimate {
             None,
             e.gate(gate),
             e.excluded_bands(gate),
-        )
+        );
+        est.notes.extend(e.too_few_averages());
+        est
     }
 
     fn from_periodic(p: &PeriodicFrf, input: &str, output: &str, log: String, gate: f64) -> Self {
@@ -566,6 +586,7 @@ pub fn estimate(logs: &[Log], etfe: &EtfeArgs) -> Result<FrfReport> {
         method,
         gate: etfe.gate,
         estimates,
+        normalisation: NORMALISATION_NOTE,
     })
 }
 
@@ -616,6 +637,7 @@ pub fn render_text(r: &FrfReport) -> String {
         }
     }
     let _ = writeln!(s, "coherence gate: >= {}", r.gate);
+    let _ = writeln!(s, "{}", r.normalisation);
     for e in &r.estimates {
         let _ = writeln!(s);
         let _ = writeln!(
@@ -664,6 +686,9 @@ pub fn render_text(r: &FrfReport) -> String {
             e.n_gated(),
             e.freq_hz.len()
         );
+        for n in &e.notes {
+            let _ = writeln!(s, "note: {n}");
+        }
         if !e.excluded_bands.is_empty() {
             let bands: Vec<String> = e
                 .excluded_bands

@@ -14,22 +14,29 @@
 //!    data, labelled as such): free-run simulation fit (NRMSE, fit %), model versus ETFE at
 //!    every coherence-gated bin up to twice `--crossover-hz` with the ±5° phase checklist, and
 //!    residual auto/cross-correlation tests at 99 % confidence;
-//! 6. the model is written with `--out` as `{"a", "b", "c", "d", "ts"}` JSON (rows of the
-//!    matrices, `ts` in seconds), the format `ferrosid gap --sim` reads.
+//! 6. the model is written with `--out` as `{"a", "b", "c", "d", "ts", "operating_point"}` JSON
+//!    (rows of the matrices, `ts` in seconds, the means removed and the preprocessing; see
+//!    [`crate::operating_point`]), the format `ferrosid gap --sim` reads. The output path is
+//!    checked before any work: not one of the input logs, writable; the file is replaced
+//!    atomically.
 //!
 //! Exit status: 0 when the model was identified and, if `--crossover-hz` was given, every
 //! compared bin is within the phase bound; 1 when that phase checklist fails.
 use super::frf::{check_compatible, EtfeArgs, LogArgs, LogSummary};
 use super::output::{self, fixed, general, Align, Table};
 use super::ExitCode;
+use crate::data::OperatingPoint;
 use crate::data::{Channel, Log};
 use crate::error::{Error, Result};
+use crate::io::file_safety::{check_writable, refuse_input_overwrite, write_atomic};
 use crate::lti::{StateSpace, StateSpaceData};
-use crate::n4sid::{n4sid, N4sidOptions, N4sidSummary, OrderSelection, Weighting};
+use crate::n4sid::{n4sid, N4sidOptions, N4sidSummary, OrderSelection, Weighting, MAX_BLOCK_ROWS};
+use crate::operating_point::operating_point_of;
+use crate::preprocess::MAX_DECIMATION;
 use crate::preprocess::{preprocess, Preprocessing, Step};
 use crate::validate::{
-    compare_with_etfe, residual_test, simulation_fit_log, EtfeComparison, InitialState,
-    ResidualTest, SimulationFit, PHASE_BOUND_DEG,
+    compare_with_etfe, residual_test, simulation_fit_log, simulation_fit_operating_point,
+    EtfeComparison, InitialState, ResidualTest, SimulationFit, PHASE_BOUND_DEG,
 };
 use clap::ValueEnum;
 use num_complex::Complex64;
@@ -73,8 +80,9 @@ Examples:
 
 Several estimation logs are preprocessed separately and concatenated. The validation log gets the
 same preprocessing; its ETFE uses the --nperseg/--window/--period/--gate settings (as `frf`).
-The model file (--out) holds {\"a\",\"b\",\"c\",\"d\",\"ts\"} (matrix rows, ts in seconds) and is
-accepted by `ferrosid gap --sim`.
+The model file (--out) holds {\"a\",\"b\",\"c\",\"d\",\"ts\"} (matrix rows, ts in seconds) and the
+operating point (the means removed: the model maps y - y0 = G (u - u0)); it is accepted by
+`ferrosid gap --sim` and `ferrosid codegen --model`. --out may not name an input log.
 
 Exit codes: 0 success, 1 the phase checklist failed (a gated bin up to 2x --crossover-hz is
 outside +-phase-tol degrees), 2 usage error, 3 input data error (file and line named),
@@ -209,6 +217,13 @@ pub struct Validation {
     pub phase: Vec<PairComparison>,
     /// Residual correlation tests.
     pub residuals: ResidualTest,
+    /// Free-run fit on the raw validation log through the model's operating point (the model
+    /// sees u − u0, its output is compared with y − y0): how the model file performs on data as
+    /// recorded. Absent without `--validate`, or with decimation (the raw log is then not at
+    /// the model's rate), with the reason in `operating_point_fit_note`.
+    pub operating_point_fit: Option<SimulationFit>,
+    /// Why `operating_point_fit` is absent, when it is.
+    pub operating_point_fit_note: Option<String>,
 }
 
 /// Model-versus-ETFE comparison of one channel pair.
@@ -254,7 +269,16 @@ pub struct IdentifyReport {
     pub phase_checklist_passed: Option<bool>,
     /// The model file written, if any.
     pub model_file: Option<String>,
+    /// Operating point and preprocessing of the model (also stored in the model file).
+    pub operating_point: OperatingPoint,
+    /// How the numerics treat signal scale.
+    pub normalisation: &'static str,
 }
+
+/// What `identify` says about signal scale (also in its JSON report).
+pub const NORMALISATION_NOTE: &str = "signals are normalised internally (N4SID: per-channel RMS; \
+    spectra, fits and correlations: exact powers of two), so results do not depend on the \
+    signals' units; every number is reported in the log's units";
 
 fn parse_range(s: &str) -> Result<(usize, usize)> {
     let bad = || {
@@ -342,11 +366,18 @@ impl Args {
         if self.max_lag == 0 {
             return Err(Error::InvalidArgument("--max-lag must be >= 1".into()));
         }
-        if self.block_rows < 2 {
+        if !(2..=MAX_BLOCK_ROWS).contains(&self.block_rows) {
             return Err(Error::InvalidArgument(format!(
-                "--block-rows must be >= 2, got {}",
+                "--block-rows must be in 2..={MAX_BLOCK_ROWS}, got {}",
                 self.block_rows
             )));
+        }
+        if let Some(q) = self.decimate {
+            if !(2..=MAX_DECIMATION).contains(&q) {
+                return Err(Error::InvalidArgument(format!(
+                    "--decimate must be in 2..={MAX_DECIMATION}, got {q}"
+                )));
+            }
         }
         Ok(())
     }
@@ -460,6 +491,7 @@ pub fn identify(logs: &[Log], vlog: Option<&Log>, args: &Args) -> Result<Identif
         ));
         concatenate(&pre_logs)
     };
+    let operating_point = operating_point_of(&records, est.inputs.len(), est.outputs.len())?;
     let pb = output::spinner("N4SID");
     let res = n4sid(&est, &opts);
     pb.finish_and_clear();
@@ -553,6 +585,20 @@ pub fn identify(logs: &[Log], vlog: Option<&Log>, args: &Args) -> Result<Identif
         max_lag,
     )?;
     pb.finish_and_clear();
+    let (operating_point_fit, operating_point_fit_note) = match vlog {
+        None => (None, Some("no --validate log".to_string())),
+        Some(_) if operating_point.decimation > 1 => (
+            None,
+            Some(format!(
+                "the model is decimated by {}: the raw validation log is not at its rate",
+                operating_point.decimation
+            )),
+        ),
+        Some(v) => match simulation_fit_operating_point(model, &operating_point, v) {
+            Ok(f) => (Some(f), None),
+            Err(e) => (None, Some(e.to_string())),
+        },
+    };
     let phase_checklist_passed = args
         .crossover_hz
         .map(|_| phase.iter().all(|p| p.comparison.within_bound));
@@ -563,7 +609,6 @@ pub fn identify(logs: &[Log], vlog: Option<&Log>, args: &Args) -> Result<Identif
         estimation_samples: est.len(),
         ts: model.ts,
         options: opts,
-        n4sid: res.summary(),
         poles,
         continuous,
         validation: Validation {
@@ -574,10 +619,19 @@ pub fn identify(logs: &[Log], vlog: Option<&Log>, args: &Args) -> Result<Identif
             gate: args.etfe.gate,
             phase,
             residuals,
+            operating_point_fit,
+            operating_point_fit_note,
         },
         warnings,
         phase_checklist_passed,
         model_file: args.out.as_ref().map(|p| p.display().to_string()),
+        normalisation: NORMALISATION_NOTE,
+        n4sid: {
+            let mut s = res.summary();
+            s.model.operating_point = Some(operating_point.clone());
+            s
+        },
+        operating_point,
     })
 }
 
@@ -709,6 +763,21 @@ pub fn render_text(r: &IdentifyReport) -> String {
             fixed(*nrmse, 4)
         );
     }
+    match (&v.operating_point_fit, &v.operating_point_fit_note) {
+        (Some(f), _) => {
+            for (i, fit) in f.fit_percent.iter().enumerate() {
+                let _ = writeln!(
+                    s,
+                    "  fit on the raw log through the operating point (output {i}): {} %",
+                    fixed(*fit, 2)
+                );
+            }
+        }
+        (None, Some(why)) if vlog_given(v) => {
+            let _ = writeln!(s, "  no fit through the operating point: {why}");
+        }
+        _ => {}
+    }
     let _ = writeln!(s, "  ETFE: {}, coherence gate >= {}", v.etfe, v.gate);
     for p in &v.phase {
         let c = &p.comparison;
@@ -779,10 +848,25 @@ pub fn render_text(r: &IdentifyReport) -> String {
             let _ = writeln!(s, "  {w}");
         }
     }
+    let op = &r.operating_point;
+    let _ =
+        writeln!(
+        s,
+        "\noperating point (stored in the model file): u0 [{}], y0 [{}], detrend {}, decimation {}",
+        op.u0.iter().map(|v| general(*v, 4)).collect::<Vec<_>>().join(", "),
+        op.y0.iter().map(|v| general(*v, 4)).collect::<Vec<_>>().join(", "),
+        op.detrend,
+        op.decimation
+    );
+    let _ = writeln!(s, "{}", r.normalisation);
     if let Some(f) = &r.model_file {
         let _ = writeln!(s, "\nmodel written to {f}");
     }
     s
+}
+
+fn vlog_given(v: &Validation) -> bool {
+    v.preprocessing.is_some()
 }
 
 fn describe_step(step: &crate::preprocess::StepRecord) -> String {
@@ -826,6 +910,16 @@ fn describe_step(step: &crate::preprocess::StepRecord) -> String {
 pub fn run(args: &Args) -> Result<ExitCode> {
     args.check()?;
     args.n4sid_options()?;
+    if let Some(out) = &args.out {
+        let inputs: Vec<&std::path::Path> = args
+            .logs
+            .iter()
+            .chain(&args.validate)
+            .map(PathBuf::as_path)
+            .collect();
+        refuse_input_overwrite(out, "--out", &inputs)?;
+        check_writable(out)?;
+    }
     let logs = args.select.read_all(&args.logs)?;
     let vlog = match &args.validate {
         Some(p) => args.select.read_all(std::slice::from_ref(p))?.pop(),
@@ -833,7 +927,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     };
     let report = identify(&logs, vlog.as_ref(), args)?;
     if let Some(path) = &args.out {
-        output::write_file(path, &output::json_string(&report.n4sid.model)?)?;
+        write_atomic(path, output::json_string(&report.n4sid.model)?.as_bytes())?;
     }
     if args.json {
         output::emit(&output::json_string(&report)?)?;

@@ -16,6 +16,7 @@
 //! ```
 use super::ExitCode;
 use crate::error::{Error, Result};
+use crate::io::file_safety::{check_writable, refuse_input_overwrite, write_atomic};
 use crate::lti::StateSpaceData;
 use crate::rational_fit::{fit_discrete_rational_delay_search, RationalFit, RationalFitOptions};
 use crate::target_frame::{FrfPoints, TargetFrame};
@@ -32,16 +33,16 @@ use std::path::PathBuf;
 pub struct Args {
     /// Decoded target log holding FRAME_BEGIN / FRAME / FRAME_END lines.
     pub frame: PathBuf,
-    /// Denominator order.
+    /// Denominator order, 1..=40.
     #[arg(long, default_value_t = 2)]
     pub na: usize,
-    /// Numerator order (nb + 1 coefficients).
+    /// Numerator order (nb + 1 coefficients), 0..=40.
     #[arg(long, default_value_t = 1)]
     pub nb: usize,
-    /// Smallest input delay tried, samples (1 for a ZOH plant without feedthrough).
+    /// Smallest input delay tried, samples, 0..=512 (1 for a ZOH plant without feedthrough).
     #[arg(long, default_value_t = 1)]
     pub min_delay: usize,
-    /// Largest input delay tried, samples (the best-fitting delay is kept).
+    /// Largest input delay tried, samples, up to 512 (the best-fitting delay is kept).
     #[arg(long, default_value_t = 1)]
     pub max_delay: usize,
     /// Coherence gate (default: the target's own gate, else 0.9).
@@ -83,11 +84,22 @@ pub fn reidentify(
     gate: Option<f64>,
     min_rel_suu: f64,
 ) -> Result<Reidentification> {
+    if let Some(g) = gate {
+        if !(g.is_finite() && (0.0..=1.0).contains(&g)) {
+            return Err(Error::InvalidArgument(format!(
+                "--gate must be a coherence in [0, 1], got {g}"
+            )));
+        }
+    }
     let gate = gate.or(frame.gate).unwrap_or(0.9);
     if !(gate.is_finite() && (0.0..=1.0).contains(&gate)) {
-        return Err(Error::InvalidArgument(format!(
-            "--gate must be a coherence in [0, 1], got {gate}"
-        )));
+        return Err(Error::Data {
+            file: frame.source.clone(),
+            msg: format!(
+                "the frame header's gate = {gate} is not a coherence in [0, 1]; override it \
+                 with --gate"
+            ),
+        });
     }
     let points = frame.gated_h1(gate, min_rel_suu);
     let need = (opts.na + opts.nb + 1).div_ceil(2) + 1;
@@ -122,6 +134,46 @@ pub fn reidentify(
 
 /// Runs `ferrosid reidentify`.
 pub fn run(args: &Args) -> Result<ExitCode> {
+    use crate::rational_fit::{MAX_DELAY, MAX_ORDER};
+    if !(1..=MAX_ORDER).contains(&args.na) {
+        return Err(Error::InvalidArgument(format!(
+            "--na must be in 1..={MAX_ORDER}, got {}",
+            args.na
+        )));
+    }
+    if args.nb > MAX_ORDER {
+        return Err(Error::InvalidArgument(format!(
+            "--nb must be in 0..={MAX_ORDER}, got {}",
+            args.nb
+        )));
+    }
+    for (flag, v) in [
+        ("--min-delay", args.min_delay),
+        ("--max-delay", args.max_delay),
+    ] {
+        if v > MAX_DELAY {
+            return Err(Error::InvalidArgument(format!(
+                "{flag} must be in 0..={MAX_DELAY} samples, got {v}"
+            )));
+        }
+    }
+    if let Some(g) = args.gate {
+        if !(g.is_finite() && (0.0..=1.0).contains(&g)) {
+            return Err(Error::InvalidArgument(format!(
+                "--gate must be a coherence in [0, 1], got {g}"
+            )));
+        }
+    }
+    if !(args.min_rel_suu.is_finite() && (0.0..1.0).contains(&args.min_rel_suu)) {
+        return Err(Error::InvalidArgument(format!(
+            "--min-rel-suu must be in [0, 1), got {}",
+            args.min_rel_suu
+        )));
+    }
+    if let Some(out) = &args.out {
+        refuse_input_overwrite(out, "--out", &[args.frame.as_path()])?;
+        check_writable(out)?;
+    }
     if args.max_delay < args.min_delay {
         return Err(Error::InvalidArgument(format!(
             "--max-delay {} is below --min-delay {}",
@@ -140,10 +192,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     if let Some(out) = &args.out {
         let text = serde_json::to_string_pretty(&r.model)
             .map_err(|e| Error::InvalidArgument(format!("model JSON: {e}")))?;
-        std::fs::write(out, text + "\n").map_err(|source| Error::Io {
-            file: out.clone(),
-            source,
-        })?;
+        write_atomic(out, (text + "\n").as_bytes())?;
     }
     if args.json {
         let text = serde_json::to_string_pretty(&r)

@@ -11,7 +11,10 @@
 //! * `report.html` — the self-contained report; `figures/*.svg` — its figures.
 //!
 //! Output directory: `--out DIR`, else `output_dir` of the pipeline file (relative to that
-//! file), else `out` in the current directory. The same logs and settings give byte-identical
+//! file), else `out` in the current directory. It is checked before anything is computed: it is
+//! created if missing, locked (`.ferrosid.lock`) against a concurrent run, and ferrosid only
+//! replaces or removes files it wrote there itself (listed in `.ferrosid-manifest`); see
+//! [`crate::io::file_safety`]. The same logs and settings give byte-identical
 //! files.
 //!
 //! Exit status: 0 when every receipt passes, 1 when any receipt fails (the files are written
@@ -19,7 +22,9 @@
 //! 4 when identification fails numerically.
 use super::ExitCode;
 use crate::error::{Error, Result};
-use crate::pipeline::{run_pipeline, write_outputs, LoadedConfig, ReceiptsDocument};
+use crate::pipeline::{
+    prepare_output_dir, run_pipeline, write_outputs_to, LoadedConfig, ReceiptsDocument,
+};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
@@ -77,11 +82,15 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         (None, Some(o)) => cfg.resolve(o),
         (None, None) => PathBuf::from("out"),
     };
+    // File safety before any computation: the directory is writable, locked against a
+    // concurrent run, and holds no file of ours' names that ferrosid did not write.
+    let mut out = prepare_output_dir(&out_dir)?;
     let pb = spinner();
     let result = run_pipeline(&cfg, &|stage| pb.set_message(stage.to_string()));
     pb.finish_and_clear();
     let run = result?;
-    let written = write_outputs(&run, &out_dir)?;
+    let written = write_outputs_to(&run, &mut out)?;
+    drop(out);
     let doc = ReceiptsDocument::from_run(&run);
     if args.json {
         print(&doc.to_json()?)?;

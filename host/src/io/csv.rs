@@ -134,13 +134,18 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
             [] => Err(parse_err(
                 header_line,
                 format!(
-                    "column `{name}` not found in the header; columns are: {}",
-                    header.join(", ")
+                    "column `{}` not found in the header; columns are: {}",
+                    crate::error::excerpt(name),
+                    crate::error::excerpt_n(&header.join(", "), 400)
                 ),
             )),
             _ => Err(parse_err(
                 header_line,
-                format!("column `{name}` appears {} times in the header", hits.len()),
+                format!(
+                    "column `{}` appears {} times in the header",
+                    crate::error::excerpt(name),
+                    hits.len()
+                ),
             )),
         }
     };
@@ -175,13 +180,21 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
         let v: f64 = s.parse().map_err(|_| {
             parse_err(
                 line,
-                format!("column `{}`: `{s}` is not a number", header[i]),
+                format!(
+                    "column `{}`: `{}` is not a number",
+                    crate::error::excerpt(&header[i]),
+                    crate::error::excerpt(s)
+                ),
             )
         })?;
         if !v.is_finite() {
             return Err(parse_err(
                 line,
-                format!("column `{}`: value `{s}` is not finite", header[i]),
+                format!(
+                    "column `{}`: value `{}` is not finite",
+                    crate::error::excerpt(&header[i]),
+                    crate::error::excerpt(s)
+                ),
             ));
         }
         Ok(v)
@@ -214,7 +227,7 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
         )));
     }
 
-    let ts = match &time_name {
+    let (ts, time_warning) = match &time_name {
         Some(name) => {
             let what = format!("time column `{name}`");
             sample_time(
@@ -246,13 +259,15 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
             })
             .collect()
     };
-    finish_log(
+    let mut log = finish_log(
         path,
         ts,
         mk(&opts.inputs, ins),
         mk(&opts.outputs, outs),
         &opts.checks,
-    )
+    )?;
+    log.warnings.extend(time_warning);
+    Ok(log)
 }
 
 /// Delimiter of the first non-comment, non-blank line: `,` if present, else `;`, else tab,

@@ -469,9 +469,38 @@ impl MatFile {
                     ));
                 }
                 let names: Vec<&str> = self.infos.iter().map(|v| v.name.as_str()).collect();
+                if names.is_empty() {
+                    let skipped: Vec<String> = self
+                        .skipped
+                        .iter()
+                        .map(|s| {
+                            if s.name.is_empty() {
+                                s.reason.clone()
+                            } else {
+                                format!("`{}`: {}", crate::error::excerpt(&s.name), s.reason)
+                            }
+                        })
+                        .collect();
+                    return Err(self.var_err(
+                        name,
+                        format!(
+                            "not found: the file holds no numeric variable at all ({} bytes after \
+                             the 128-byte header{}); is it truncated or empty?",
+                            self.bytes.len().saturating_sub(128),
+                            if skipped.is_empty() {
+                                String::new()
+                            } else {
+                                format!("; skipped: {}", skipped.join("; "))
+                            }
+                        ),
+                    ));
+                }
                 return Err(self.var_err(
                     name,
-                    format!("not found; numeric variables are: {}", names.join(", ")),
+                    format!(
+                        "not found; numeric variables are: {}",
+                        crate::error::excerpt_n(&names.join(", "), 400)
+                    ),
                 ));
             }
         };
@@ -700,7 +729,7 @@ pub fn read_mat(path: &Path, opts: &MatOptions) -> Result<Log> {
             msg: format!("variables have different lengths: {}", mismatch.join(", ")),
         });
     }
-    let ts = if let Some(tv) = &opts.time {
+    let (ts, time_warning) = if let Some(tv) = &opts.time {
         let mut t = mf.vector(tv)?;
         if t.len() != n {
             return Err(Error::MatVar {
@@ -759,7 +788,9 @@ pub fn read_mat(path: &Path, opts: &MatOptions) -> Result<Log> {
                 msg: format!("sample rate must be finite and > 0 Hz, got {fs}"),
             });
         }
-        1.0 / fs
+        (1.0 / fs, None)
     };
-    finish_log(path, ts, inputs, outputs, &opts.checks)
+    let mut log = finish_log(path, ts, inputs, outputs, &opts.checks)?;
+    log.warnings.extend(time_warning);
+    Ok(log)
 }

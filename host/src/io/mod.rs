@@ -7,11 +7,16 @@
 //! in [`Checks`]:
 //!
 //! * **Time axis.** A time column/variable must be strictly increasing (else: error naming the
-//!   first offending line) and uniform: every interval `dt_k` must satisfy
-//!   `|dt_k - ts| <= time_jitter_rel * ts + 64 * eps * max(|t_k|, |t_k+1|)` where
-//!   `ts = (t_last - t_first) / (n - 1)`; the default `time_jitter_rel` is `1e-6`. Time columns
-//!   printed with few digits (e.g. `%.6f` at 3 kHz) fail this on purpose: pass the sample rate
-//!   explicitly instead, or raise the tolerance knowingly.
+//!   first offending line) and uniform: with `m` the median interval, every interval `dt_k`
+//!   must satisfy `|dt_k - m| <= time_jitter_rel * m + 64 * eps * max(|t_k|, |t_k+1|)`; the
+//!   default `time_jitter_rel` is `1e-3` ([`DEFAULT_TIME_JITTER_REL`]), which accepts the
+//!   rounding of time vectors printed to 6–9 digits. The sample time is then the mean interval
+//!   `(t_last - t_first) / (n - 1)` (rounding averages out). A log that fails names the line
+//!   and the two options that fix it: a larger tolerance, or an explicit sample rate.
+//! * **Explicit sample rate with a time column.** The rate takes precedence: the log uses
+//!   `1/fs`, with a warning when the time column is irregular. The column's mean interval must
+//!   still agree with `1/fs` within `max(time_jitter_rel, FS_AGREEMENT_REL)`, else the log is
+//!   refused (one of the two is wrong).
 //! * **Length.** At least [`Checks::min_samples`] samples (default 2). Analyses that need more
 //!   call [`require_len`].
 //! * **Excitation.** An input channel whose samples are all identical is an error (no
@@ -28,6 +33,7 @@ use crate::data::{Channel, Log};
 use crate::error::{Error, Result};
 
 pub mod csv;
+pub mod file_safety;
 pub mod mat;
 pub mod text;
 
@@ -35,8 +41,17 @@ pub use self::csv::{read_csv, CsvOptions};
 pub use self::mat::{read_mat, MatFile, MatOptions};
 pub use self::text::{read_columns, TextOptions};
 
-/// Default relative tolerance on the sample-interval jitter of a time column.
-pub const DEFAULT_TIME_JITTER_REL: f64 = 1e-6;
+/// Default relative tolerance on the sample-interval jitter of a time column (1e-3 of the
+/// interval: time vectors printed with 9 significant digits, or accumulated in single
+/// precision, carry rounding of 1e-6..2.4e-4 of the interval and must not be refused).
+pub const DEFAULT_TIME_JITTER_REL: f64 = 1e-3;
+/// Largest relative disagreement between an explicit sample rate and the mean interval of a
+/// time column that is accepted (the explicit rate is then used); beyond it one of the two is
+/// wrong and the reader refuses the log.
+pub const FS_AGREEMENT_REL: f64 = 1e-3;
+/// Largest accepted jitter tolerance: beyond half an interval a time column does not describe
+/// a uniform sampling at all.
+pub const MAX_TIME_JITTER_REL: f64 = 0.5;
 /// Default run length (samples) of identical extreme output values flagged as clipping.
 pub const DEFAULT_CLIP_RUN: usize = 4;
 
@@ -66,9 +81,10 @@ impl Default for Checks {
 
 impl Checks {
     fn validate(&self) -> Result<()> {
-        if !(self.time_jitter_rel.is_finite() && self.time_jitter_rel >= 0.0) {
+        if !(0.0..=MAX_TIME_JITTER_REL).contains(&self.time_jitter_rel) {
             return Err(Error::InvalidArgument(format!(
-                "time jitter tolerance must be finite and >= 0, got {}",
+                "time jitter tolerance (--time-jitter) must lie in [0, {MAX_TIME_JITTER_REL}], \
+                 got {}",
                 self.time_jitter_rel
             )));
         }
@@ -229,19 +245,20 @@ pub(crate) fn check_fs(fs: f64) -> Result<()> {
     Ok(())
 }
 
-/// Derives the sample time (s) from time stamps or a rate, checking monotonicity and uniformity.
-/// `loc(k)` turns a 0-based sample index into the caller's error location; errors are made by
-/// `err(k, msg)`.
+/// Derives the sample time (s) from time stamps or a rate, checking monotonicity and uniformity
+/// (rules in the module documentation). `err(k, msg)` makes the error for 0-based sample `k`,
+/// `whole(msg)` one about the whole time axis. Returns the sample time and, when an explicit
+/// sample rate overrides an irregular time column, a warning saying so.
 pub(crate) fn sample_time(
     src: TimeSource<'_>,
     checks: &Checks,
     err: &dyn Fn(usize, String) -> Error,
     whole: &dyn Fn(String) -> Error,
-) -> Result<f64> {
+) -> Result<(f64, Option<String>)> {
     match src {
         TimeSource::Rate(fs) => {
             check_fs(fs)?;
-            Ok(1.0 / fs)
+            Ok((1.0 / fs, None))
         }
         TimeSource::Stamps { t, fs, what } => {
             let n = t.len();
@@ -249,7 +266,7 @@ pub(crate) fn sample_time(
                 return match fs {
                     Some(fs) => {
                         check_fs(fs)?;
-                        Ok(1.0 / fs)
+                        Ok((1.0 / fs, None))
                     }
                     None => Err(whole(format!(
                         "a single sample in {what} does not define a sample time; give fs"
@@ -268,40 +285,67 @@ pub(crate) fn sample_time(
                     ));
                 }
             }
-            let ts = (t[n - 1] - t[0]) / (n - 1) as f64;
-            if !(ts.is_finite() && ts > 0.0) {
+            // Robust interval: the median (a dropped sample or a glitch does not move it).
+            let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+            dts.sort_by(f64::total_cmp);
+            let median = dts[dts.len() / 2];
+            let mean = (t[n - 1] - t[0]) / (n - 1) as f64;
+            if !(median.is_finite() && median > 0.0 && mean.is_finite() && mean > 0.0) {
                 return Err(whole(format!(
-                    "{what} gives an unusable sample time {ts} s"
+                    "{what} gives an unusable sample time {median} s"
                 )));
             }
-            for k in 0..n - 1 {
-                let dt = t[k + 1] - t[k];
-                let tol = checks.time_jitter_rel * ts
-                    + 64.0 * f64::EPSILON * t[k].abs().max(t[k + 1].abs());
-                if (dt - ts).abs() > tol {
-                    return Err(err(
-                        k + 1,
-                        format!(
-                            "non-uniform sampling in {what}: interval {dt:e} s, mean interval \
-                             {ts:e} s (relative deviation {:.3e} exceeds the tolerance {:e}); \
-                             if the time stamps are rounded, give the sample rate instead",
-                            (dt - ts).abs() / ts,
-                            checks.time_jitter_rel
-                        ),
-                    ));
-                }
-            }
+            let tol_rel = checks.time_jitter_rel;
+            let worst = (0..n - 1)
+                .map(|k| {
+                    let dt = t[k + 1] - t[k];
+                    let tol =
+                        tol_rel * median + 64.0 * f64::EPSILON * t[k].abs().max(t[k + 1].abs());
+                    (k, dt, (dt - median).abs() / tol.max(f64::MIN_POSITIVE))
+                })
+                .max_by(|a, b| a.2.total_cmp(&b.2));
+            let irregular = worst.filter(|w| w.2 > 1.0);
             if let Some(fs) = fs {
                 check_fs(fs)?;
-                let rel = (ts * fs - 1.0).abs();
-                if rel > checks.time_jitter_rel.max(1e-12) {
+                // An explicit rate takes precedence over the time column; the column must
+                // still describe roughly the same rate (else one of the two is wrong).
+                let rel = (mean * fs - 1.0).abs();
+                if rel > tol_rel.max(FS_AGREEMENT_REL) {
                     return Err(whole(format!(
-                        "{what} implies fs = {} Hz but fs = {fs} Hz was given",
-                        1.0 / ts
+                        "{what} implies fs = {} Hz but fs = {fs} Hz was given (they differ by \
+                         {:.2e} relative, more than {:e}); drop one of the two",
+                        1.0 / mean,
+                        rel,
+                        tol_rel.max(FS_AGREEMENT_REL)
                     )));
                 }
+                let warning = irregular.map(|(k, dt, _)| {
+                    format!(
+                        "{what} is not uniform (interval {dt:e} s after sample {}, median \
+                         {median:e} s); using the given fs = {fs} Hz instead of the time stamps",
+                        k + 1
+                    )
+                });
+                return Ok((1.0 / fs, warning));
             }
-            Ok(ts)
+            if let Some((k, dt, _)) = irregular {
+                return Err(err(
+                    k + 1,
+                    format!(
+                        "non-uniform sampling in {what}: interval {dt:e} s, median interval \
+                         {median:e} s (relative deviation {:.3e} exceeds the tolerance {:e}); \
+                         if the time stamps are rounded or jittered, raise the tolerance \
+                         (--time-jitter REL, pipeline `[signals] time_jitter`) or give the sample \
+                         rate (--fs HZ, pipeline `fs`), which then takes precedence over the \
+                         time column",
+                        (dt - median).abs() / median,
+                        tol_rel
+                    ),
+                ));
+            }
+            // Every interval is within the tolerance of the median: the mean over the whole
+            // log is the more precise estimate (rounding errors of the stamps average out).
+            Ok((mean, None))
         }
     }
 }

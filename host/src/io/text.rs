@@ -117,13 +117,19 @@ pub fn read_columns(path: &Path, opts: &TextOptions) -> Result<Log> {
         }
         let get = |c: usize| -> Result<f64> {
             let f = fields[c - 1];
-            let v: f64 = f
-                .parse()
-                .map_err(|_| parse_err(line, format!("column {c}: `{f}` is not a number")))?;
+            let v: f64 = f.parse().map_err(|_| {
+                parse_err(
+                    line,
+                    format!("column {c}: `{}` is not a number", crate::error::excerpt(f)),
+                )
+            })?;
             if !v.is_finite() {
                 return Err(parse_err(
                     line,
-                    format!("column {c}: value `{f}` is not finite"),
+                    format!(
+                        "column {c}: value `{}` is not finite",
+                        crate::error::excerpt(f)
+                    ),
                 ));
             }
             Ok(v)

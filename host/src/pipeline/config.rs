@@ -26,9 +26,14 @@ pub struct Signals {
     /// Seconds per unit of the time column (default 1).
     #[serde(default)]
     pub time_scale: Option<f64>,
-    /// Sample rate in Hz, required when there is no time column.
+    /// Sample rate in Hz, required when there is no time column; with one, it takes
+    /// precedence (see [`crate::io`]).
     #[serde(default)]
     pub fs: Option<f64>,
+    /// Largest accepted relative jitter of a time column's intervals, in [0, 0.5] (default
+    /// [`crate::io::DEFAULT_TIME_JITTER_REL`]).
+    #[serde(default)]
+    pub time_jitter: Option<f64>,
     /// Unit of the input (actuator command), for tables and plots. Default `u`.
     #[serde(default = "default_input_unit")]
     pub input_unit: String,
@@ -58,6 +63,7 @@ impl Default for Signals {
             time: None,
             time_scale: None,
             fs: None,
+            time_jitter: None,
             input_unit: default_input_unit(),
             output_unit: default_output_unit(),
         }
@@ -264,6 +270,10 @@ impl Default for Identification {
         }
     }
 }
+
+/// Largest accepted `[audit]` band factor: the band [f_c/k, f_c·k] then spans 12 decades,
+/// more than any log resolves (a larger factor only means "everything").
+pub const MAX_BAND_FACTOR: f64 = 1e6;
 
 /// `[audit]`: dual-amplitude nonlinearity audit thresholds (see [`crate::robust::audit`]); a
 /// missing key takes the default of [`crate::robust::audit::AuditOptions::new`].
@@ -629,18 +639,33 @@ impl LoadedConfig {
         if let Some(s) = c.signals.time_scale {
             pos("signals.time_scale", s)?;
         }
-        if c.preprocess.decimate == 0 {
-            return Err(self.key_error("preprocess.decimate", "must be >= 1 (1 = no decimation)"));
+        if let Some(j) = c.signals.time_jitter {
+            if !(0.0..=crate::io::MAX_TIME_JITTER_REL).contains(&j) {
+                return Err(self.key_error(
+                    "signals.time_jitter",
+                    format!(
+                        "must lie in [0, {}], got {j}",
+                        crate::io::MAX_TIME_JITTER_REL
+                    ),
+                ));
+            }
+        }
+        let max_q = crate::preprocess::MAX_DECIMATION;
+        if !(1..=max_q).contains(&c.preprocess.decimate) {
+            return Err(self.key_error(
+                "preprocess.decimate",
+                format!(
+                    "must be in 1..={max_q} (1 = no decimation), got {}",
+                    c.preprocess.decimate
+                ),
+            ));
         }
         let e = &c.etfe;
-        if e.nperseg < crate::spectral::MIN_NPERSEG {
+        let (lo, hi) = (crate::spectral::MIN_NPERSEG, crate::spectral::MAX_NPERSEG);
+        if !(lo..=hi).contains(&e.nperseg) {
             return Err(self.key_error(
                 "etfe.nperseg",
-                format!(
-                    "must be >= {}, got {}",
-                    crate::spectral::MIN_NPERSEG,
-                    e.nperseg
-                ),
+                format!("must be in {lo}..={hi}, got {}", e.nperseg),
             ));
         }
         if let Some(o) = e.overlap {
@@ -666,10 +691,11 @@ impl LoadedConfig {
                 ));
             }
         }
-        if id.block_rows < 2 {
+        let max_i = crate::n4sid::MAX_BLOCK_ROWS;
+        if !(2..=max_i).contains(&id.block_rows) {
             return Err(self.key_error(
                 "identification.block_rows",
-                format!("must be >= 2, got {}", id.block_rows),
+                format!("must be in 2..={max_i}, got {}", id.block_rows),
             ));
         }
         if id.order == Some(0) {
@@ -698,10 +724,10 @@ impl LoadedConfig {
             }
         }
         let a = &c.audit;
-        if !(a.band_factor.is_finite() && a.band_factor > 1.0) {
+        if !(a.band_factor > 1.0 && a.band_factor <= MAX_BAND_FACTOR) {
             return Err(self.key_error(
                 "audit.band_factor",
-                format!("must be > 1, got {}", a.band_factor),
+                format!("must lie in (1, {MAX_BAND_FACTOR}], got {}", a.band_factor),
             ));
         }
         pos("audit.max_gain_shift_db", a.max_gain_shift_db)?;
@@ -712,10 +738,13 @@ impl LoadedConfig {
                 format!("must lie in [0, 1], got {}", a.min_coherence),
             ));
         }
-        if !(a.coherence_band_factor.is_finite() && a.coherence_band_factor >= 1.0) {
+        if !(a.coherence_band_factor >= 1.0 && a.coherence_band_factor <= MAX_BAND_FACTOR) {
             return Err(self.key_error(
                 "audit.coherence_band_factor",
-                format!("must be >= 1, got {}", a.coherence_band_factor),
+                format!(
+                    "must lie in [1, {MAX_BAND_FACTOR}], got {}",
+                    a.coherence_band_factor
+                ),
             ));
         }
         let u = &c.uncertainty;

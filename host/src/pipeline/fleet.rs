@@ -25,6 +25,7 @@ use super::config::LoadedConfig;
 use super::document::{weight_high_gain, weight_low_gain};
 use super::{run_pipeline, write_outputs, Mode, PipelineRun};
 use crate::error::{Error, Result};
+use crate::io::file_safety::{check_dir_writable, write_atomic};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -384,10 +385,31 @@ impl FleetSummary {
 /// Options of [`run_fleet`].
 #[derive(Debug, Clone, Default)]
 pub struct FleetOptions {
-    /// Worker threads (None: rayon's default, the number of CPUs).
+    /// Worker threads (None: the available parallelism); capped by [`worker_threads`].
     pub jobs: Option<usize>,
     /// Write each unit's outputs to `<out>/<serial>/` and the summary to `<out>/fleet.json`.
     pub out_dir: Option<PathBuf>,
+}
+
+/// Most worker threads [`run_fleet`] starts, whatever `--jobs` asks for.
+pub const MAX_JOBS: usize = 256;
+
+/// Worker threads for `units` units: `jobs` (1..=[`MAX_JOBS`]) or, without it, the available
+/// parallelism; never more than the number of units (one thread per unit at most) nor more than
+/// the available parallelism (more threads than cores only add contention).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for `jobs` outside 1..=[`MAX_JOBS`].
+pub fn worker_threads(jobs: Option<usize>, units: usize) -> Result<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if let Some(j) = jobs {
+        if !(1..=MAX_JOBS).contains(&j) {
+            return Err(Error::InvalidArgument(format!(
+                "--jobs must be in 1..={MAX_JOBS}, got {j}"
+            )));
+        }
+    }
+    Ok(jobs.unwrap_or(cores).min(cores).min(units).max(1))
 }
 
 /// Runs the template on every unit of `dir` (see the module docs). `on_unit_done` is called
@@ -401,13 +423,11 @@ pub fn run_fleet(
     on_unit_done: &(dyn Fn(&str) + Sync),
 ) -> Result<FleetSummary> {
     let (layout, serials) = discover_units(dir)?;
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(j) = opts.jobs {
-        if j == 0 {
-            return Err(Error::InvalidArgument("--jobs must be >= 1".into()));
-        }
-        builder = builder.num_threads(j);
+    if let Some(o) = &opts.out_dir {
+        check_dir_writable(o)?;
     }
+    let threads = worker_threads(opts.jobs, serials.len())?;
+    let builder = rayon::ThreadPoolBuilder::new().num_threads(threads);
     let pool = builder.build().map_err(|e| {
         Error::InvalidArgument(format!("cannot start {:?} worker threads: {e}", opts.jobs))
     })?;
@@ -442,11 +462,10 @@ pub fn run_fleet(
             file: o.clone(),
             source,
         })?;
-        let p = o.join("fleet.json");
-        std::fs::write(&p, super::json_pretty(&summary)?).map_err(|source| Error::Io {
-            file: p.clone(),
-            source,
-        })?;
+        write_atomic(
+            &o.join("fleet.json"),
+            super::json_pretty(&summary)?.as_bytes(),
+        )?;
     }
     Ok(summary)
 }

@@ -32,6 +32,7 @@ pub mod fleet;
 
 use crate::data::Log;
 use crate::error::{Error, Result};
+use crate::io::file_safety::OutputDir;
 use crate::io::{read_log, LogSpec};
 use crate::lti::StateSpace;
 use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, OrderSelection};
@@ -208,6 +209,20 @@ pub struct PipelineRun {
 }
 
 impl PipelineRun {
+    /// The model file content (`model.json`): G0 with the operating point and preprocessing
+    /// of the estimation run ([`crate::operating_point`]).
+    pub fn model_file(&self) -> crate::lti::StateSpaceData {
+        let mut d = crate::lti::StateSpaceData::from(self.model());
+        let run = self.nominal_run();
+        d.operating_point = crate::operating_point::operating_point_of(
+            std::slice::from_ref(&run.preprocessing),
+            run.log.inputs.len(),
+            run.log.outputs.len(),
+        )
+        .ok();
+        d
+    }
+
     /// The estimation run.
     pub fn nominal_run(&self) -> &LogData {
         &self.runs[self.nominal]
@@ -298,6 +313,10 @@ fn ingest(
         fs: entry.fs.or(s.fs),
         ..LogSpec::default()
     };
+    let mut spec = spec;
+    if let Some(j) = s.time_jitter {
+        spec.checks.time_jitter_rel = j;
+    }
     let log = read_log(&path, &spec).map_err(|e| match e {
         Error::InvalidArgument(m) => cfg.key_error(&format!("{key}.file"), m),
         other => other,
@@ -960,68 +979,78 @@ pub const OUTPUT_FILES: [&str; 5] = [
     "report.html",
 ];
 
+/// Every path (relative to the output directory) that [`write_outputs`] may write or remove:
+/// [`OUTPUT_FILES`] and `figures/<name>.svg` for each of [`crate::report::FIGURE_NAMES`].
+pub fn output_paths() -> Vec<PathBuf> {
+    OUTPUT_FILES
+        .iter()
+        .map(PathBuf::from)
+        .chain(
+            crate::report::FIGURE_NAMES
+                .iter()
+                .map(|n| Path::new("figures").join(format!("{n}.svg"))),
+        )
+        .collect()
+}
+
+/// Takes `dir` for writing before any computation (see [`crate::io::file_safety`]): creates
+/// it, takes its lock, and checks that none of [`output_paths`] exists there unless ferrosid
+/// wrote it.
+///
+/// # Errors
+/// [`Error::Io`] naming the directory, the lock holder or the file that would be replaced.
+pub fn prepare_output_dir(dir: &Path) -> Result<OutputDir> {
+    let out = OutputDir::acquire(dir)?;
+    let paths = output_paths();
+    out.check_replaceable(paths.iter().map(PathBuf::as_path))?;
+    Ok(out)
+}
+
 /// Writes `receipts.json`, `model.json` (`{"a","b","c","d","ts"}`, the discrete G0 for
 /// `ferrosid gap --sim` and `ferrosid codegen --model`), `pid.json` (the tuning result, for
 /// `codegen --pid`; absent without a controller), `wm.json` (the fitted weight, for
 /// `codegen --wm`; absent without one), `report.html` and `figures/*.svg` into `dir` (created
-/// if missing). Stale `pid.json`/`wm.json` and figures from earlier runs are removed so the
-/// directory always describes this run. Returns the paths written.
+/// if missing), through [`prepare_output_dir`] and [`write_outputs_to`]. Returns the paths
+/// written.
 pub fn write_outputs(run: &PipelineRun, dir: &Path) -> Result<Vec<PathBuf>> {
-    let io = |p: &Path| {
-        let p = p.to_path_buf();
-        move |source| Error::Io { file: p, source }
-    };
-    let figdir = dir.join("figures");
-    std::fs::create_dir_all(&figdir).map_err(io(&figdir))?;
+    let mut out = prepare_output_dir(dir)?;
+    write_outputs_to(run, &mut out)
+}
+
+/// Writes the outputs of `run` into a held output directory. Every file is written atomically
+/// and listed in the directory's manifest; `pid.json`/`wm.json` and figures that this run does
+/// not produce are removed only when an earlier ferrosid run wrote them (the manifest says so),
+/// so the directory describes this run and no user file is ever deleted.
+pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    let mut put = |name: &Path, text: &str| -> Result<()> {
-        let p = dir.join(name);
-        std::fs::write(&p, text).map_err(io(&p))?;
-        written.push(p);
-        Ok(())
-    };
     let doc = ReceiptsDocument::from_run(run);
-    put(Path::new("receipts.json"), &doc.to_json()?)?;
-    put(
-        Path::new("model.json"),
-        &json_pretty(&crate::lti::StateSpaceData::from(run.model()))?,
-    )?;
+    written.push(out.write(Path::new("receipts.json"), &doc.to_json()?)?);
+    written.push(out.write(Path::new("model.json"), &json_pretty(&run.model_file())?)?);
     match &run.tuned {
-        Some(t) => put(Path::new("pid.json"), &json_pretty(t)?)?,
-        None => remove_stale(&dir.join("pid.json"))?,
+        Some(t) => written.push(out.write(Path::new("pid.json"), &json_pretty(t)?)?),
+        None => out.remove_stale(Path::new("pid.json"))?,
     }
     match &run.weight {
-        Some(w) => put(Path::new("wm.json"), &json_pretty(w)?)?,
-        None => remove_stale(&dir.join("wm.json"))?,
+        Some(w) => written.push(out.write(Path::new("wm.json"), &json_pretty(w)?)?),
+        None => out.remove_stale(Path::new("wm.json"))?,
     }
     let figures = crate::report::figures(run)?;
     for f in &figures {
-        put(
+        written.push(out.write(
             &Path::new("figures").join(format!("{}.svg", f.name)),
             &f.svg,
-        )?;
+        )?);
     }
     for name in crate::report::FIGURE_NAMES {
         if !figures.iter().any(|f| f.name == name) {
-            remove_stale(&figdir.join(format!("{name}.svg")))?;
+            out.remove_stale(&Path::new("figures").join(format!("{name}.svg")))?;
         }
     }
-    put(
+    written.push(out.write(
         Path::new("report.html"),
         &crate::report::render_html(run, &figures)?,
-    )?;
+    )?);
     Ok(written)
-}
-
-fn remove_stale(p: &Path) -> Result<()> {
-    match std::fs::remove_file(p) {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-        Err(source) => Err(Error::Io {
-            file: p.to_path_buf(),
-            source,
-        }),
-    }
 }
 
 /// Pretty JSON with a trailing newline (non-finite floats become `null`).

@@ -719,7 +719,15 @@ fn fig_audit(run: &PipelineRun) -> Result<Option<Figure>> {
             .filter(|v| v.is_finite())
             .fold(thr, f64::max);
         p.y_range = Some((-1.2 * m, 1.2 * m));
-        p.x_range = Some(a.band_hz);
+        // The audit band, cut to the bins that exist (a huge band factor means "all bins").
+        let (blo, bhi) = a.bins.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), b| {
+            (lo.min(b.f_hz), hi.max(b.f_hz))
+        });
+        p.x_range = Some(if blo.is_finite() && bhi > blo {
+            (a.band_hz.0.max(blo / 1.2), a.band_hz.1.min(bhi * 1.2))
+        } else {
+            a.band_hz
+        });
         p.bands = bands.clone();
         p.band_label = Some("flagged".into());
         p.vlines.push(RefLine {
@@ -841,6 +849,8 @@ pub fn esc(s: &str) -> String {
             '>' => o.push_str("&gt;"),
             '"' => o.push_str("&quot;"),
             '\'' => o.push_str("&#39;"),
+            // Control characters are not allowed in XML/HTML text: shown as U+FFFD.
+            c if c.is_control() && !matches!(c, '\n' | '\t') => o.push('\u{FFFD}'),
             c => o.push(c),
         }
     }

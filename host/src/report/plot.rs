@@ -204,10 +204,23 @@ fn pad(r: (f64, f64), log: bool) -> (f64, f64) {
     }
 }
 
+/// Most decades a log axis spans; a wider range keeps its upper end (plotters' log-axis key
+/// points are generated decade by decade, and an axis from 4e-4 to 1e300 never finishes).
+pub const MAX_LOG_DECADES: f64 = 30.0;
+
 fn fix_range(r: (f64, f64), log: bool) -> (f64, f64) {
     let (mut a, mut b) = r;
-    if !(a.is_finite() && b.is_finite()) {
+    if !(a.is_finite() && b.is_finite()) || (log && !(a > 0.0 && b > 0.0)) {
         return if log { (0.1, 10.0) } else { (-1.0, 1.0) };
+    }
+    if log {
+        // Normal, finite positive numbers whose ratio is representable.
+        a = a.clamp(1e-290, 1e290);
+        b = b.clamp(1e-290, 1e290);
+    } else if !(b - a).is_finite() {
+        // A linear span that overflows: keep the larger magnitude's half.
+        let m = a.abs().max(b.abs());
+        (a, b) = (-m / 2.0, m / 2.0);
     }
     if b <= a {
         if log {
@@ -218,6 +231,9 @@ fn fix_range(r: (f64, f64), log: bool) -> (f64, f64) {
             a -= d;
             b += d;
         }
+    }
+    if log && (b / a).log10() > MAX_LOG_DECADES {
+        a = b / 10f64.powf(MAX_LOG_DECADES);
     }
     (a, b)
 }
@@ -250,8 +266,41 @@ fn err<E: std::fmt::Debug>(what: &str) -> impl Fn(E) -> Error + '_ {
     move |e| Error::Numerical(format!("rendering figure `{what}`: {e:?}"))
 }
 
-/// Renders `panels` stacked vertically into an SVG of `width` × Σ heights pixels.
+/// `s` without the characters XML forbids in text (control characters other than tab and
+/// newline, e.g. a NUL in a unit string), each replaced by U+FFFD, so every figure is valid
+/// SVG whatever the pipeline file says.
+pub fn xml_text(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_control() && !matches!(c, '\n' | '\t') {
+                '\u{FFFD}'
+            } else {
+                c
+            }
+        })
+        .collect()
+}
+
+fn xml_safe(p: &Panel) -> Panel {
+    let mut p = p.clone();
+    p.title = xml_text(&p.title);
+    p.x_desc = xml_text(&p.x_desc);
+    p.y_desc = xml_text(&p.y_desc);
+    p.band_label = p.band_label.as_deref().map(xml_text);
+    for l in p.hlines.iter_mut().chain(p.vlines.iter_mut()) {
+        l.label = l.label.as_deref().map(xml_text);
+    }
+    for s in &mut p.series {
+        s.label = s.label.as_deref().map(xml_text);
+    }
+    p
+}
+
+/// Renders `panels` stacked vertically into an SVG of `width` × Σ heights pixels. Text is made
+/// XML-safe first ([`xml_text`]).
 pub fn render(name: &str, width: u32, panels: &[(Panel, u32)]) -> Result<String> {
+    let panels: Vec<(Panel, u32)> = panels.iter().map(|(p, h)| (xml_safe(p), *h)).collect();
+    let panels = panels.as_slice();
     let height: u32 = panels.iter().map(|p| p.1).sum();
     let mut svg = String::new();
     {
@@ -484,6 +533,35 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn huge_log_ranges_render_in_bounded_work() {
+        // Before: a log axis from 4e-4 Hz to 1e300 Hz never finished (plotters walks decades).
+        for (lo, hi) in [
+            (4e-4, 1e300),
+            (1e-310, 1.0),
+            (0.0, 10.0),
+            (1.0, f64::INFINITY),
+        ] {
+            let (a, b) = fix_range((lo, hi), true);
+            assert!(
+                a > 0.0 && b > a && (b / a).log10() <= MAX_LOG_DECADES + 1e-9,
+                "{a} {b}"
+            );
+        }
+        let mut p = Panel::new("t\0itle", "f", "unit \u{1}x", true, false);
+        p.x_range = Some((4e-4, 1e300));
+        p.series.push(Series::new(
+            "s\0",
+            vec![(1.0, 1.0), (10.0, 2.0)],
+            RGBColor(0, 0, 0),
+            Kind::Line(1),
+        ));
+        let svg = render("t", 400, &[(p, 300)]).unwrap();
+        assert!(!svg
+            .chars()
+            .any(|c| c.is_control() && c != '\n' && c != '\t'));
+    }
 
     #[test]
     fn ticks_are_short() {
