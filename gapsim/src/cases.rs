@@ -15,7 +15,9 @@
 //!
 //! The integrating axis has f_lo = 2 Hz (no DC or very-low-frequency content, so the position
 //! stays bounded). Each log has `n` samples at [`TS`]; white Gaussian measurement noise of
-//! [`NOISE_REL`] times the low run's noise-free output RMS is added before the sensor's range
+//! [`NOISE_REL`] times the low run's noise-free output standard deviation is added (standard
+//! deviation rather than RMS: the integrating axis's position settles at an offset from its
+//! start) before the sensor's range
 //! and resolution.
 //!
 //! # Ground truth (per CONTRACT-gap.md)
@@ -42,7 +44,7 @@
 //! Every other effect is *cross-family*: Stribeck, LuGre and Dahl friction, load-side friction,
 //! shaft backlash, slew-rate limit, state limit, sensor clipping, fractional (non-integer-sample)
 //! delays at either end, sensor-side modes. A pair is cross-family when either effect is.
-use crate::excite::{band_noise, log_multisine, odd_multisine, rms};
+use crate::excite::{band_noise, log_multisine, odd_multisine, std_dev};
 use crate::laws::{Body, Effects, FrictionLaw, Mode};
 use crate::plants::Plant;
 use crate::rng::Xoshiro;
@@ -56,7 +58,8 @@ use std::path::PathBuf;
 pub const TS: f64 = 1e-3;
 /// Relative parameter mismatch of the nominal model (uniform ±).
 pub const NOMINAL_MISMATCH: f64 = 0.15;
-/// Measurement noise standard deviation relative to the low run's noise-free output RMS.
+/// Measurement noise standard deviation relative to the low run's noise-free output standard
+/// deviation.
 pub const NOISE_REL: f64 = 0.01;
 /// Period of the periodic excitation, samples (f0 = 0.488 Hz at 1 kHz).
 pub const PERIOD: usize = 2048;
@@ -165,9 +168,9 @@ pub enum Spec {
     ActuatorMode(f64, f64),
     /// Sensor mode (Hz, damping ratio).
     SensorMode(f64, f64),
-    /// Sensor range ±`r` times the low run's noise-free output RMS.
+    /// Sensor range ±`r` times the low run's noise-free output standard deviation.
     SensorClip(f64),
-    /// Quantization step `r` times the low run's noise-free output RMS.
+    /// Quantization step `r` times the low run's noise-free output standard deviation.
     Quantization(f64),
     /// Quantization step in absolute output units.
     QuantizationAbs(f64),
@@ -388,8 +391,8 @@ fn bristle_stiffness(f_hz: f64, inv_mass: f64) -> f64 {
 }
 
 /// The effects (physical units) and the truth of `specs` on `setup`; output-relative parameters
-/// use `y_rms` (noise-free output RMS of the low run).
-pub fn resolve(setup: &Setup, specs: &[Spec], y_rms: f64) -> (Effects, Vec<TruthEffect>) {
+/// use `y_sd` (noise-free output standard deviation of the low run).
+pub fn resolve(setup: &Setup, specs: &[Spec], y_sd: f64) -> (Effects, Vec<TruthEffect>) {
     let plant = setup.plant;
     let a = setup.a;
     let mut fx = Effects::default();
@@ -521,12 +524,12 @@ pub fn resolve(setup: &Setup, specs: &[Spec], y_rms: f64) -> (Effects, Vec<Truth
                 te("resonance", "sensor", vec![("freq_hz", f), ("damping", z)], true, "sensor mode".into());
             }
             Spec::SensorClip(r) => {
-                fx.sensor_clip = Some(r * y_rms);
-                te("saturation", "sensor", vec![("limit", r * y_rms)], true, "sensor clip".into());
+                fx.sensor_clip = Some(r * y_sd);
+                te("saturation", "sensor", vec![("limit", r * y_sd)], true, "sensor clip".into());
             }
             Spec::Quantization(r) => {
-                fx.quant_step = Some(r * y_rms);
-                te("quantization", "sensor", vec![("step", r * y_rms)], false, "quantizer after noise".into());
+                fx.quant_step = Some(r * y_sd);
+                te("quantization", "sensor", vec![("step", r * y_sd)], false, "quantizer after noise".into());
             }
             Spec::QuantizationAbs(q) => {
                 fx.quant_step = Some(q);
@@ -568,9 +571,9 @@ pub fn generate(case: &Case, n: usize) -> ferrosid::error::Result<CaseData> {
     let (fx0, _) = resolve(&s, &case.specs, 1.0);
     let (clean_low, st_low) =
         simulate(s.plant, &fx0, &u_low, TS, s.a, s.y_ref).map_err(|e| sim_err(&case.id, e))?;
-    let y_rms = rms(&clean_low);
-    let (fx, truth) = resolve(&s, &case.specs, y_rms);
-    let noise_std = NOISE_REL * y_rms;
+    let y_sd = std_dev(&clean_low);
+    let (fx, truth) = resolve(&s, &case.specs, y_sd);
+    let noise_std = NOISE_REL * y_sd;
     let run = |u: &[f64], amp: f64| simulate(s.plant, &fx, u, TS, amp, s.y_ref * amp / s.a);
     let (clean_high, st_high) = run(&u_high, 3.0 * s.a).map_err(|e| sim_err(&case.id, e))?;
     let (clean_val, st_val) = run(&u_val, 2.0 * s.a).map_err(|e| sim_err(&case.id, e))?;

@@ -52,6 +52,13 @@ pub fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
+/// Standard deviation (population, mean removed).
+pub fn std_dev(v: &[f64]) -> f64 {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().sum::<f64>() / n;
+    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n).sqrt()
+}
+
 fn remove_mean_and_scale(v: &mut [f64], target: f64) {
     let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
     v.iter_mut().for_each(|x| *x -= m);

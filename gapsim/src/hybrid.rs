@@ -368,7 +368,9 @@ impl HybridSystem for Machine {
 
     fn settle(&mut self, x: &mut State) {
         if let Some((law, iv)) = self.friction_velocity() {
-            if law.has_stick_mode() && (self.slide == Slide::Stick || x[iv] == 0.0) {
+            let inconsistent = (self.slide == Slide::Pos && x[iv] < 0.0)
+                || (self.slide == Slide::Neg && x[iv] > 0.0);
+            if law.has_stick_mode() && (self.slide == Slide::Stick || x[iv] == 0.0 || inconsistent) {
                 self.decide_slide(x);
             }
         }

@@ -8,7 +8,8 @@
 //! at the event is fifth-order accurate), to [`EVENT_TIME_TOL`] s; the system then switches
 //! mode (and may reset states, e.g. a velocity to exactly zero when a body sticks) and the
 //! integration continues from the event. A guard that starts a step at exactly zero (a mode just
-//! entered on its boundary) cannot fire in that step.
+//! entered on its boundary) fires only if it goes strictly negative (the mode was invalid after
+//! all, e.g. a body released from stick whose drive fell back below the sliding level at once).
 //!
 //! Step-size control: error per component relative to `abs_tol_i + rel_tol·|x_i|`, max norm,
 //! step factor 0.9·err^(−1/5) clamped to [0.2, 5].
@@ -243,7 +244,11 @@ impl Integrator {
             self.steps += 1;
             let grow = if e == 0.0 { 5.0 } else { (0.9 * e.powf(-0.2)).clamp(0.2, 5.0) };
             sys.guards(&xn, &mut g1);
-            let fired: Vec<usize> = (0..ng).filter(|&k| g0[k] > 0.0 && g1[k] <= 0.0).collect();
+            // A guard fires when it goes from > 0 to <= 0, or from exactly 0 (a mode entered on
+            // its boundary) to < 0 (the mode turned out invalid right away).
+            let fired: Vec<usize> = (0..ng)
+                .filter(|&k| (g0[k] > 0.0 && g1[k] <= 0.0) || (g0[k] == 0.0 && g1[k] < 0.0))
+                .collect();
             if fired.is_empty() {
                 *x = xn;
                 t += h;

@@ -266,3 +266,23 @@ fn fractional_input_delay_equals_a_shifted_output_grid() {
         assert!((y[k] - reference).abs() < 1e-6 * scale, "k = {k}: {} vs {reference}", y[k]);
     }
 }
+
+/// Coulomb friction (breakaway = Coulomb) released from stick right at its level must never
+/// push along the motion: a voltage-driven motor under a zero-mean periodic drive keeps a mean
+/// speed near zero. (A mode entered on its boundary and invalid at once used to slip through
+/// the event detection and run the motor away at −13 rad/s.)
+#[test]
+fn coulomb_friction_never_drives_the_motion() {
+    use ferrosid_gapsim::cases::{cases, generate};
+    use ferrosid_gapsim::excite::std_dev;
+    let case = cases()
+        .into_iter()
+        .find(|c| c.id == "indep/dc_motor/coulomb/1")
+        .expect("case exists");
+    let d = generate(&case, 8192).unwrap();
+    for log in &d.train {
+        let y = log.y();
+        let mean = y.iter().sum::<f64>() / y.len() as f64;
+        assert!(mean.abs() < 0.05 * std_dev(y), "{}: mean speed {mean}", log.path.display());
+    }
+}
