@@ -10,11 +10,14 @@
 //!   report's candidates), e.g. `slew_rate` or `state_limit` before they exist; otherwise the set
 //!   of true effect names. A verdict is right when its `+`-separated names equal that set (order
 //!   free); `none` and `unexplained` must match exactly.
-//! * place (right verdicts only, when the report gives places): every true effect has an entry
-//!   of its name in `verdict_effects` with the true place; for `time_delay` and `resonance`
-//!   `drive` and `sensor` are both accepted.
+//! * place (right verdicts only): every true effect has an entry of its name in
+//!   `verdict_effects` with the true place; for `time_delay` and `resonance` `drive` and `sensor`
+//!   are both accepted. A report without places (the diagnosis before issue 9) is read with
+//!   [`legacy_place`]: friction at `motor`, quantization at `sensor`, everything else at `drive`.
 //! * parameter errors: |fitted − true|/|true| per parameter of each true effect, from its
-//!   `verdict_effects` entry if there is one, else from the first candidate of that name.
+//!   `verdict_effects` entry if there is one, else from the first candidate of that name — in
+//!   both cases only from an entry at an accepted place (a drive saturation's limit in input
+//!   units says nothing about a sensor range in output units).
 //! * honesty counts: a `none` verdict on an effect case whose linear re-fit stays above twice
 //!   the noise floor; a linear re-fit worse than the nominal on validation (gap_linear >
 //!   gap_before·(1 + 1e-9)).
@@ -75,8 +78,10 @@ pub struct Outcome {
     pub verdict: String,
     /// Verdict right.
     pub verdict_right: bool,
-    /// Place right (right verdicts with places reported only).
+    /// Place right (right effect verdicts only; [`legacy_place`] where the report gives none).
     pub place_right: Option<bool>,
+    /// Whether the report gave places (else the legacy places were assumed).
+    pub places_reported: bool,
     /// Relative parameter errors, `effect.param`.
     pub param_errors: Vec<(String, f64)>,
     /// Validation NRMSE: nominal, linear re-fit, verdict model.
@@ -134,6 +139,23 @@ fn accepted_places(t: &TruthEffect) -> Vec<&'static str> {
     }
 }
 
+/// The place the diagnosis gave before places were reported: friction on the driven body,
+/// quantization at the sensor, everything else in the drive.
+pub fn legacy_place(name: &str) -> &'static str {
+    match name {
+        "coulomb_friction" | "stiction" => "motor",
+        "quantization" => "sensor",
+        _ => "drive",
+    }
+}
+
+/// The place of a reported effect entry (its `place`, else [`legacy_place`]).
+fn entry_place(e: &Value) -> &str {
+    e.get("place")
+        .and_then(Value::as_str)
+        .unwrap_or_else(|| legacy_place(e.get("effect").and_then(Value::as_str).unwrap_or("")))
+}
+
 fn f64_at(v: &Value, key: &str) -> f64 {
     v.get(key).and_then(Value::as_f64).unwrap_or(f64::NAN)
 }
@@ -162,32 +184,28 @@ pub fn score(
         let b: BTreeSet<&str> = expected.split('+').collect();
         a == b
     };
-    let ve: Vec<Value> = report
+    let reported: Vec<Value> = report
         .get("verdict_effects")
         .and_then(Value::as_array)
         .cloned()
         .unwrap_or_default();
+    let places_reported = reported.iter().any(|e| e.get("place").is_some());
+    // Without `verdict_effects`, the verdict's names at their legacy places.
+    let ve: Vec<Value> = if reported.is_empty() && verdict != "none" && verdict != "unexplained" {
+        verdict
+            .split('+')
+            .map(|n| serde_json::json!({ "effect": n }))
+            .collect()
+    } else {
+        reported
+    };
     let place_right = if verdict_right && !truth.is_empty() && expected != "unexplained" {
-        let mut all = Some(true);
-        for t in truth {
+        Some(truth.iter().all(|t| {
             let ok = accepted_places(t);
-            let entries: Vec<&Value> = ve
-                .iter()
+            ve.iter()
                 .filter(|e| e.get("effect").and_then(Value::as_str) == Some(t.name))
-                .collect();
-            let places: Vec<&str> = entries
-                .iter()
-                .filter_map(|e| e.get("place").and_then(Value::as_str))
-                .collect();
-            if places.is_empty() {
-                all = None;
-                break;
-            }
-            if !places.iter().any(|p| ok.contains(p)) {
-                all = Some(false);
-            }
-        }
-        all
+                .any(|e| ok.contains(&entry_place(e)))
+        }))
     } else {
         None
     };
@@ -198,9 +216,13 @@ pub fn score(
         .unwrap_or_default();
     let mut param_errors = Vec::new();
     for t in truth {
+        let ok = accepted_places(t);
         let by_name = |list: &[Value]| -> Option<Value> {
             list.iter()
-                .find(|e| e.get("effect").and_then(Value::as_str) == Some(t.name))
+                .find(|e| {
+                    e.get("effect").and_then(Value::as_str) == Some(t.name)
+                        && ok.contains(&entry_place(e))
+                })
                 .and_then(|e| e.get("params").cloned())
         };
         if let Some(params) = by_name(&ve).or_else(|| by_name(&candidates)) {
@@ -231,6 +253,7 @@ pub fn score(
         verdict,
         verdict_right,
         place_right,
+        places_reported,
         param_errors,
         gaps: [
             f64_at(report, "gap_before"),
@@ -275,7 +298,7 @@ pub struct Aggregate {
     pub cases: usize,
     /// Right verdicts.
     pub right: usize,
-    /// Right verdicts with a place reported.
+    /// Right effect verdicts (with a place, reported or legacy).
     pub placed: usize,
     /// Of those, place right.
     pub place_right: usize,
@@ -348,7 +371,7 @@ fn row(s: &mut String, label: &str, os: &[&Outcome]) {
     );
 }
 
-const HEADER: &str = "| cases | n | verdict right | place right (of right, placed) | median (worst) param error | `none` > 2× floor | linear worse | median gap before → linear → after |\n|---|---:|---:|---:|---|---:|---:|---|";
+const HEADER: &str = "| cases | n | verdict right | place right (of right) | median (worst) param error | `none` > 2× floor | linear worse | median gap before → linear → after |\n|---|---:|---:|---:|---|---:|---:|---|";
 
 fn table<'a, K: Ord + Clone + std::fmt::Display>(
     s: &mut String,
@@ -402,6 +425,13 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
         median(timing.clone()),
         timing.iter().copied().fold(0.0, f64::max)
     );
+    if outcomes.iter().any(|o| o.n_effects > 0 && !o.places_reported) {
+        let _ = writeln!(
+            s,
+            "Places: where a report names none, the legacy places were assumed (friction at \
+             `motor`, quantization at `sensor`, everything else at `drive`)."
+        );
+    }
     let nf: Vec<(f64, f64)> = outcomes
         .iter()
         .filter_map(|o| o.noise_floor_reported.map(|r| (r, o.noise_floor)))
