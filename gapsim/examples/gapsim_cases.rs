@@ -24,13 +24,18 @@ fn main() {
                 })
             }
             (other, _) => {
-                eprintln!("unknown argument {other}; usage: gapsim_cases [--filter TEXT] [--n SAMPLES]");
+                eprintln!(
+                    "unknown argument {other}; usage: gapsim_cases [--filter TEXT] [--n SAMPLES]"
+                );
                 std::process::exit(2)
             }
         }
         i += 2;
     }
-    let all: Vec<_> = cases().into_iter().filter(|c| c.id.contains(&filter)).collect();
+    let all: Vec<_> = cases()
+        .into_iter()
+        .filter(|c| c.id.contains(&filter))
+        .collect();
     println!("{} cases", all.len());
     for c in &all {
         let t0 = std::time::Instant::now();
@@ -40,8 +45,18 @@ fn main() {
                     .truth
                     .iter()
                     .map(|t| {
-                        let p: Vec<String> = t.params.iter().map(|(k, v)| format!("{k}={v:.4e}")).collect();
-                        format!("{}@{}{{{}}}{}", t.name, t.place, p.join(","), if t.cross_family { "*" } else { "" })
+                        let p: Vec<String> = t
+                            .params
+                            .iter()
+                            .map(|(k, v)| format!("{k}={v:.4e}"))
+                            .collect();
+                        format!(
+                            "{}@{}{{{}}}{}",
+                            t.name,
+                            t.place,
+                            p.join(","),
+                            if t.cross_family { "*" } else { "" }
+                        )
                     })
                     .collect();
                 println!(

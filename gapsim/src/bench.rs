@@ -51,7 +51,11 @@ impl AnyCase {
 pub fn all_cases(family: &str) -> Vec<AnyCase> {
     let mut v = Vec::new();
     if family == "same" || family == "all" {
-        v.extend(ferrosid::gap::benchmark::cases().into_iter().map(AnyCase::Same));
+        v.extend(
+            ferrosid::gap::benchmark::cases()
+                .into_iter()
+                .map(AnyCase::Same),
+        );
     }
     if family == "indep" || family == "all" {
         v.extend(cases::cases().into_iter().map(AnyCase::Indep));
@@ -77,7 +81,13 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
     let id = case.id();
     let fam = case.family();
     let plant = plant_of(&id);
-    type Gen = (ferrosid::lti::StateSpace, Vec<ferrosid::data::Log>, ferrosid::data::Log, Vec<TruthEffect>, f64);
+    type Gen = (
+        ferrosid::lti::StateSpace,
+        Vec<ferrosid::data::Log>,
+        ferrosid::data::Log,
+        Vec<TruthEffect>,
+        f64,
+    );
     let generated: Result<Gen, String> = match case {
         AnyCase::Same(c) => ferrosid::gap::benchmark::generate(c, n)
             .map(|d| {
@@ -97,7 +107,8 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
                     .collect();
                 let yv = d.validate.y();
                 let m = yv.iter().sum::<f64>() / yv.len().max(1) as f64;
-                let sd = (yv.iter().map(|v| (v - m).powi(2)).sum::<f64>() / yv.len().max(1) as f64).sqrt();
+                let sd = (yv.iter().map(|v| (v - m).powi(2)).sum::<f64>() / yv.len().max(1) as f64)
+                    .sqrt();
                 let floor = 0.01 * rms(d.train[0].y()) / sd;
                 (d.sim, d.train, d.validate, truth, floor)
             })
@@ -108,7 +119,12 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
     };
     let (sim, train, validate, truth, floor) = match generated {
         Ok(g) => g,
-        Err(e) => return (failed(fam, &id, &plant, &[], &format!("generation: {e}")), None),
+        Err(e) => {
+            return (
+                failed(fam, &id, &plant, &[], &format!("generation: {e}")),
+                None,
+            )
+        }
     };
     let t0 = std::time::Instant::now();
     let result = sim
@@ -118,7 +134,10 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
     match result {
         Ok(d) => match serde_json::to_value(&d.report) {
             Ok(v) => (score(fam, &id, &plant, &truth, &v, floor, secs), Some(v)),
-            Err(e) => (failed(fam, &id, &plant, &truth, &format!("report: {e}")), None),
+            Err(e) => (
+                failed(fam, &id, &plant, &truth, &format!("report: {e}")),
+                None,
+            ),
         },
         Err(e) => (failed(fam, &id, &plant, &truth, &e.to_string()), None),
     }

@@ -227,7 +227,9 @@ fn load(kind: FrictionKind, level: f64, ratio: f64) -> Spec {
 /// Short label of a spec for case ids.
 pub fn spec_label(s: &Spec) -> String {
     match s {
-        Spec::Friction { kind, ratio, body, .. } => {
+        Spec::Friction {
+            kind, ratio, body, ..
+        } => {
             let k = match kind {
                 FrictionKind::Karnopp if *ratio <= 1.0 => "coulomb",
                 FrictionKind::Karnopp => "karnopp",
@@ -277,10 +279,16 @@ pub fn cases() -> Vec<Case> {
             [Some(Spec::Deadzone(0.6)), Some(Spec::Deadzone(1.2))],
             [Some(Spec::Saturation(1.5)), Some(Spec::Saturation(2.5))],
             [Some(Spec::SlewRate(0.4)), None],
-            [Some(Spec::InputDelay(2.4e-3)), Some(Spec::InputDelay(5.7e-3))],
+            [
+                Some(Spec::InputDelay(2.4e-3)),
+                Some(Spec::InputDelay(5.7e-3)),
+            ],
             [Some(Spec::OutputDelay(3.3e-3)), None],
             [Some(Spec::SensorClip(2.0)), None],
-            [Some(Spec::Quantization(0.03)), Some(Spec::Quantization(0.08))],
+            [
+                Some(Spec::Quantization(0.03)),
+                Some(Spec::Quantization(0.08)),
+            ],
         ];
         let (f_act, f_sens) = match plant {
             Plant::TwoMass(_) => ([110.0, 140.0], 160.0),
@@ -294,9 +302,15 @@ pub fn cases() -> Vec<Case> {
         ]);
         singles.push([Some(Spec::SensorMode(f_sens, 0.03)), None]);
         if is("two_mass") {
-            singles.push([Some(load(Karnopp, 0.3, 1.0)), Some(load(Karnopp, 0.25, 1.8))]);
+            singles.push([
+                Some(load(Karnopp, 0.3, 1.0)),
+                Some(load(Karnopp, 0.25, 1.8)),
+            ]);
             singles.push([Some(load(Stribeck, 0.25, 1.8)), None]);
-            singles.push([Some(Spec::ShaftBacklash(0.5)), Some(Spec::ShaftBacklash(1.2))]);
+            singles.push([
+                Some(Spec::ShaftBacklash(0.5)),
+                Some(Spec::ShaftBacklash(1.2)),
+            ]);
             singles.push([Some(Spec::ShaftBacklash(2.5)), None]);
         }
         if is("dc_motor") || is("int_axis") {
@@ -462,78 +476,168 @@ pub fn resolve(setup: &Setup, specs: &[Spec], y_sd: f64) -> (Effects, Vec<TruthE
                         law_s,
                     );
                 } else {
-                    te("coulomb_friction", place, vec![("level", level * a)], cross, law_s);
+                    te(
+                        "coulomb_friction",
+                        place,
+                        vec![("level", level * a)],
+                        cross,
+                        law_s,
+                    );
                 }
             }
             Spec::Play(g) => {
                 fx.drive_play = Some(g * a);
-                te("backlash", "drive", vec![("gap", g * a)], false, "play".into());
+                te(
+                    "backlash",
+                    "drive",
+                    vec![("gap", g * a)],
+                    false,
+                    "play".into(),
+                );
             }
             Spec::Deadzone(w) => {
                 fx.drive_deadzone = Some(w * a);
-                te("deadzone", "drive", vec![("width", w * a)], false, "dead band".into());
+                te(
+                    "deadzone",
+                    "drive",
+                    vec![("width", w * a)],
+                    false,
+                    "dead band".into(),
+                );
             }
             Spec::Saturation(l) => {
                 fx.drive_saturation = Some(l * a);
-                te("saturation", "drive", vec![("limit", l * a)], false, "clamp".into());
+                te(
+                    "saturation",
+                    "drive",
+                    vec![("limit", l * a)],
+                    false,
+                    "clamp".into(),
+                );
             }
             Spec::SlewRate(r) => {
                 let rate = r * 2.0 * PI * setup.f_hi * a;
                 fx.slew_rate = Some(rate);
-                te("slew_rate", "drive", vec![("rate", rate)], true, "slew limit".into());
+                te(
+                    "slew_rate",
+                    "drive",
+                    vec![("rate", rate)],
+                    true,
+                    "slew limit".into(),
+                );
             }
             Spec::ShaftBacklash(g) => {
                 let k = plant.shaft().map_or(1.0, |(k, _)| k);
                 let gap = g * a / k;
                 fx.shaft_backlash = Some(gap);
-                te("backlash", "drivetrain", vec![("gap", gap)], true, "shaft dead zone".into());
+                te(
+                    "backlash",
+                    "drivetrain",
+                    vec![("gap", gap)],
+                    true,
+                    "shaft dead zone".into(),
+                );
             }
             Spec::StateLimit(r) => match plant {
                 Plant::DcMotor(p) => {
                     let imax = r * a / p.r;
                     fx.state_limit = Some((0, imax));
-                    te("state_limit", "state", vec![("limit", imax * p.r)], true, "current limit".into());
+                    te(
+                        "state_limit",
+                        "state",
+                        vec![("limit", imax * p.r)],
+                        true,
+                        "current limit".into(),
+                    );
                 }
                 Plant::IntegratingAxis(p) => {
                     let vmax = r * setup.v_ref;
                     fx.state_limit = Some((1, vmax));
-                    te("state_limit", "state", vec![("limit", vmax * p.c)], true, "velocity limit".into());
+                    te(
+                        "state_limit",
+                        "state",
+                        vec![("limit", vmax * p.c)],
+                        true,
+                        "velocity limit".into(),
+                    );
                 }
                 _ => {}
             },
             Spec::InputDelay(d) => {
                 fx.input_delay = d;
-                te("time_delay", "drive", vec![("seconds", d)], true, "fractional input delay".into());
+                te(
+                    "time_delay",
+                    "drive",
+                    vec![("seconds", d)],
+                    true,
+                    "fractional input delay".into(),
+                );
             }
             Spec::OutputDelay(d) => {
                 fx.output_delay = d;
-                te("time_delay", "sensor", vec![("seconds", d)], true, "fractional output delay".into());
+                te(
+                    "time_delay",
+                    "sensor",
+                    vec![("seconds", d)],
+                    true,
+                    "fractional output delay".into(),
+                );
             }
             Spec::ActuatorMode(f, z) => {
                 fx.actuator_mode = Some(Mode {
                     freq_hz: f,
                     damping: z,
                 });
-                te("resonance", "drive", vec![("freq_hz", f), ("damping", z)], false, "actuator mode".into());
+                te(
+                    "resonance",
+                    "drive",
+                    vec![("freq_hz", f), ("damping", z)],
+                    false,
+                    "actuator mode".into(),
+                );
             }
             Spec::SensorMode(f, z) => {
                 fx.sensor_mode = Some(Mode {
                     freq_hz: f,
                     damping: z,
                 });
-                te("resonance", "sensor", vec![("freq_hz", f), ("damping", z)], true, "sensor mode".into());
+                te(
+                    "resonance",
+                    "sensor",
+                    vec![("freq_hz", f), ("damping", z)],
+                    true,
+                    "sensor mode".into(),
+                );
             }
             Spec::SensorClip(r) => {
                 fx.sensor_clip = Some(r * y_sd);
-                te("saturation", "sensor", vec![("limit", r * y_sd)], true, "sensor clip".into());
+                te(
+                    "saturation",
+                    "sensor",
+                    vec![("limit", r * y_sd)],
+                    true,
+                    "sensor clip".into(),
+                );
             }
             Spec::Quantization(r) => {
                 fx.quant_step = Some(r * y_sd);
-                te("quantization", "sensor", vec![("step", r * y_sd)], false, "quantizer after noise".into());
+                te(
+                    "quantization",
+                    "sensor",
+                    vec![("step", r * y_sd)],
+                    false,
+                    "quantizer after noise".into(),
+                );
             }
             Spec::QuantizationAbs(q) => {
                 fx.quant_step = Some(q);
-                te("quantization", "sensor", vec![("step", q)], false, "quantizer after noise".into());
+                te(
+                    "quantization",
+                    "sensor",
+                    vec![("step", q)],
+                    false,
+                    "quantizer after noise".into(),
+                );
             }
         }
     }
@@ -554,7 +658,17 @@ pub fn generate(case: &Case, n: usize) -> ferrosid::error::Result<CaseData> {
         let periods = n.div_ceil(PERIOD);
         let f_lo = s.f_lo.max(0.4);
         let mut mk = |r: f64| {
-            let mut v = odd_multisine(PERIOD, periods, TS, f_lo, s.f_hi, DETECTION_GROUP, r, &mut rng).signal;
+            let mut v = odd_multisine(
+                PERIOD,
+                periods,
+                TS,
+                f_lo,
+                s.f_hi,
+                DETECTION_GROUP,
+                r,
+                &mut rng,
+            )
+            .signal;
             v.truncate(n);
             v
         };

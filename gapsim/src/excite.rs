@@ -37,7 +37,8 @@ impl Biquad {
     fn run(&self, x: &mut [f64]) {
         let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
         for v in x.iter_mut() {
-            let y = self.b[0] * *v + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
+            let y =
+                self.b[0] * *v + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
             x2 = x1;
             x1 = *v;
             y2 = y1;
@@ -71,7 +72,14 @@ fn remove_mean_and_scale(v: &mut [f64], target: f64) {
 /// Gaussian noise through a 4th-order Butterworth low-pass at `f_hi` Hz (two sections) and,
 /// when `f_lo` > 0, a 4th-order Butterworth high-pass at `f_lo` Hz; zero mean, RMS `rms_target`.
 /// A 2 s lead-in is run and discarded so the filters start in steady state.
-pub fn band_noise(n: usize, ts: f64, f_lo: f64, f_hi: f64, rms_target: f64, rng: &mut Xoshiro) -> Vec<f64> {
+pub fn band_noise(
+    n: usize,
+    ts: f64,
+    f_lo: f64,
+    f_hi: f64,
+    rms_target: f64,
+    rng: &mut Xoshiro,
+) -> Vec<f64> {
     let lead = (2.0 / ts) as usize;
     let mut v: Vec<f64> = (0..n + lead).map(|_| rng.normal()).collect();
     let lp = Biquad::low_pass(f_hi, ts);

@@ -84,7 +84,11 @@ impl Machine {
             n += k;
             i
         };
-        let i_slew = if fx.slew_rate.is_some() { take(1, &[u_scale]) } else { NONE };
+        let i_slew = if fx.slew_rate.is_some() {
+            take(1, &[u_scale])
+        } else {
+            NONE
+        };
         let i_act = match fx.actuator_mode {
             Some(m) => take(2, &[u_scale, u_scale * m.omega()]),
             None => NONE,
@@ -122,7 +126,10 @@ impl Machine {
         self.fx.friction.map(|(law, body)| {
             let iv = match body {
                 Body::Motor => self.plant.motor_velocity(),
-                Body::Load => self.plant.load_velocity().unwrap_or(self.plant.motor_velocity()),
+                Body::Load => self
+                    .plant
+                    .load_velocity()
+                    .unwrap_or(self.plant.motor_velocity()),
             };
             (law, iv)
         })
@@ -370,7 +377,8 @@ impl HybridSystem for Machine {
         if let Some((law, iv)) = self.friction_velocity() {
             let inconsistent = (self.slide == Slide::Pos && x[iv] < 0.0)
                 || (self.slide == Slide::Neg && x[iv] > 0.0);
-            if law.has_stick_mode() && (self.slide == Slide::Stick || x[iv] == 0.0 || inconsistent) {
+            if law.has_stick_mode() && (self.slide == Slide::Stick || x[iv] == 0.0 || inconsistent)
+            {
                 self.decide_slide(x);
             }
         }

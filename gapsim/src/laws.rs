@@ -84,7 +84,10 @@ impl FrictionLaw {
 
     /// Whether the law has a stick mode (switch model) rather than an internal state.
     pub fn has_stick_mode(&self) -> bool {
-        matches!(self, FrictionLaw::Karnopp { .. } | FrictionLaw::Stribeck { .. })
+        matches!(
+            self,
+            FrictionLaw::Karnopp { .. } | FrictionLaw::Stribeck { .. }
+        )
     }
 
     /// Whether the law has the bristle state z.

@@ -87,7 +87,10 @@ impl std::fmt::Display for OdeError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             OdeError::StepUnderflow { t } => write!(f, "step size underflow at t = {t} s"),
-            OdeError::Zeno { t } => write!(f, "more than {MAX_EVENTS_PER_INTERVAL} events in one interval at t = {t} s"),
+            OdeError::Zeno { t } => write!(
+                f,
+                "more than {MAX_EVENTS_PER_INTERVAL} events in one interval at t = {t} s"
+            ),
             OdeError::NonFinite { t } => write!(f, "state became non-finite at t = {t} s"),
         }
     }
@@ -242,7 +245,11 @@ impl Integrator {
                 continue;
             }
             self.steps += 1;
-            let grow = if e == 0.0 { 5.0 } else { (0.9 * e.powf(-0.2)).clamp(0.2, 5.0) };
+            let grow = if e == 0.0 {
+                5.0
+            } else {
+                (0.9 * e.powf(-0.2)).clamp(0.2, 5.0)
+            };
             sys.guards(&xn, &mut g1);
             // A guard fires when it goes from > 0 to <= 0, or from exactly 0 (a mode entered on
             // its boundary) to < 0 (the mode turned out invalid right away).
@@ -253,7 +260,11 @@ impl Integrator {
                 *x = xn;
                 t += h;
                 std::mem::swap(&mut g0, &mut g1);
-                self.h = if h < remaining { h * grow } else { self.h.max(h) };
+                self.h = if h < remaining {
+                    h * grow
+                } else {
+                    self.h.max(h)
+                };
                 continue;
             }
             // Locate the earliest crossing: phi(θ) = min over fired guards, phi(0) > 0 >= phi(h).
@@ -269,7 +280,10 @@ impl Integrator {
                 }
                 (m, arg, xt)
             };
-            let (mut a, mut fa) = (0.0, fired.iter().map(|&k| g0[k]).fold(f64::INFINITY, f64::min));
+            let (mut a, mut fa) = (
+                0.0,
+                fired.iter().map(|&k| g0[k]).fold(f64::INFINITY, f64::min),
+            );
             let (mut b, mut fb, mut kb, mut xb) = {
                 let (m, arg, _) = phi(sys, h, &mut g1);
                 (h, m, arg, xn)

@@ -187,7 +187,11 @@ impl Plant {
     /// output scale `y_scale` (output units).
     pub fn state_scales(&self, y_scale: f64) -> [f64; 3] {
         match self {
-            Plant::TwoMass(p) => [y_scale / (2.0 * std::f64::consts::PI * 40.0), y_scale, y_scale * (p.jm / p.jl).max(0.1)],
+            Plant::TwoMass(p) => [
+                y_scale / (2.0 * std::f64::consts::PI * 40.0),
+                y_scale,
+                y_scale * (p.jm / p.jl).max(0.1),
+            ],
             Plant::Flexure(p) => {
                 let x = y_scale / FLEXURE_OUTPUT_PER_M;
                 [x, x * (p.k / p.m).sqrt(), 0.0]
@@ -281,7 +285,14 @@ impl Plant {
         for j in 0..n {
             let mut x = [0.0; 3];
             x[j] = 1.0;
-            self.deriv(&x[..n], 0.0, self.linear_shaft(&x[..n]), 0.0, 0.0, &mut dx[..n]);
+            self.deriv(
+                &x[..n],
+                0.0,
+                self.linear_shaft(&x[..n]),
+                0.0,
+                0.0,
+                &mut dx[..n],
+            );
             for i in 0..n {
                 a[(i, j)] = dx[i];
             }

@@ -79,7 +79,10 @@ mod tests {
         let g: Vec<f64> = (0..n).map(|_| r.normal()).collect();
         let m = g.iter().sum::<f64>() / n as f64;
         let v = g.iter().map(|x| (x - m).powi(2)).sum::<f64>() / n as f64;
-        assert!(m.abs() < 0.01 && (v - 1.0).abs() < 0.02, "normal mean {m} var {v}");
+        assert!(
+            m.abs() < 0.01 && (v - 1.0).abs() < 0.02,
+            "normal mean {m} var {v}"
+        );
     }
 
     #[test]

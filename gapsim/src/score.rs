@@ -331,7 +331,11 @@ pub fn aggregate<'a>(outcomes: impl IntoIterator<Item = &'a Outcome>) -> Aggrega
         right: os.iter().filter(|o| o.verdict_right).count(),
         placed: os.iter().filter(|o| o.place_right.is_some()).count(),
         place_right: os.iter().filter(|o| o.place_right == Some(true)).count(),
-        param_worst: pe.iter().copied().filter(|x| x.is_finite()).fold(f64::NAN, f64::max),
+        param_worst: pe
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .fold(f64::NAN, f64::max),
         param_median: median(pe),
         none_above_floor: os.iter().filter(|o| o.none_above_floor()).count(),
         linear_worse: os.iter().filter(|o| o.linear_worse()).count(),
@@ -353,7 +357,11 @@ fn row(s: &mut String, label: &str, os: &[&Outcome]) {
     let a = aggregate(os.iter().copied());
     let g = |i: usize| median(os.iter().map(|o| o.gaps[i]).collect());
     let perr = if a.param_median.is_finite() {
-        format!("{:.1} % ({:.0} %)", 100.0 * a.param_median, 100.0 * a.param_worst)
+        format!(
+            "{:.1} % ({:.0} %)",
+            100.0 * a.param_median,
+            100.0 * a.param_worst
+        )
     } else {
         "—".into()
     };
@@ -407,14 +415,23 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
     table(&mut s, "Per family and plant", outcomes, |o| {
         format!("{} {}", o.family.name(), o.plant)
     });
-    table(&mut s, "Per family, single / pair / effect-free", outcomes, |o| {
-        let k = match o.n_effects {
-            0 => "none",
-            1 => "single",
-            _ => "pair",
-        };
-        format!("{} {k}{}", o.family.name(), if o.cross_family { " (cross)" } else { "" })
-    });
+    table(
+        &mut s,
+        "Per family, single / pair / effect-free",
+        outcomes,
+        |o| {
+            let k = match o.n_effects {
+                0 => "none",
+                1 => "single",
+                _ => "pair",
+            };
+            format!(
+                "{} {k}{}",
+                o.family.name(),
+                if o.cross_family { " (cross)" } else { "" }
+            )
+        },
+    );
     table(&mut s, "Per true effect (name@place)", outcomes, |o| {
         format!("{} {}", o.family.name(), o.label)
     });
@@ -425,7 +442,10 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
         median(timing.clone()),
         timing.iter().copied().fold(0.0, f64::max)
     );
-    if outcomes.iter().any(|o| o.n_effects > 0 && !o.places_reported) {
+    if outcomes
+        .iter()
+        .any(|o| o.n_effects > 0 && !o.places_reported)
+    {
         let _ = writeln!(
             s,
             "Places: where a report names none, the legacy places were assumed (friction at \
@@ -474,7 +494,11 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
                 o.gaps[0],
                 o.gaps[1],
                 o.gaps[2],
-                if o.linear_worse() { " (linear worse)" } else { "" },
+                if o.linear_worse() {
+                    " (linear worse)"
+                } else {
+                    ""
+                },
                 o.noise_floor
             );
         }

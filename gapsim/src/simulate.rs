@@ -65,7 +65,11 @@ pub fn simulate(
     let mut play_state = 0.0;
     m.settle(&mut x);
     while k < n {
-        let next_in = if j < n { j as f64 * ts + d_in } else { f64::INFINITY };
+        let next_in = if j < n {
+            j as f64 * ts + d_in
+        } else {
+            f64::INFINITY
+        };
         let next_out = k as f64 * ts - d_out;
         let t_next = next_in.min(next_out);
         if t_next > t {

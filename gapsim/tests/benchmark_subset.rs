@@ -31,7 +31,9 @@ fn subset() -> Vec<AnyCase> {
             .filter(move |(i, _)| i % stride == 0)
             .map(|(_, c)| c)
     };
-    pick("same", SAME_STRIDE).chain(pick("indep", INDEP_STRIDE)).collect()
+    pick("same", SAME_STRIDE)
+        .chain(pick("indep", INDEP_STRIDE))
+        .collect()
 }
 
 #[test]
@@ -54,15 +56,41 @@ fn benchmark_subset_holds_the_measured_aggregates() {
     let all = aggregate(&outcomes);
     eprintln!(
         "same {}/{}, indep {}/{}, cross {}/{}, none>2floor {}, linear worse {}",
-        same.right, same.cases, indep.right, indep.cases, cross.right, cross.cases,
-        all.none_above_floor, all.linear_worse
+        same.right,
+        same.cases,
+        indep.right,
+        indep.cases,
+        cross.right,
+        cross.cases,
+        all.none_above_floor,
+        all.linear_worse
     );
     // Measured values (see the module docs); margin: one case each.
-    assert!(same.right + 1 >= SAME_RIGHT, "same family: {} right", same.right);
-    assert!(indep.right + 1 >= INDEP_RIGHT, "independent family: {} right", indep.right);
-    assert!(cross.right + 1 >= CROSS_RIGHT, "cross-family: {} right", cross.right);
-    assert!(all.none_above_floor <= NONE_ABOVE_FLOOR + 1, "{} none verdicts above 2x floor", all.none_above_floor);
-    assert!(all.linear_worse <= LINEAR_WORSE + 1, "{} linear re-fits worse than nominal", all.linear_worse);
+    assert!(
+        same.right + 1 >= SAME_RIGHT,
+        "same family: {} right",
+        same.right
+    );
+    assert!(
+        indep.right + 1 >= INDEP_RIGHT,
+        "independent family: {} right",
+        indep.right
+    );
+    assert!(
+        cross.right + 1 >= CROSS_RIGHT,
+        "cross-family: {} right",
+        cross.right
+    );
+    assert!(
+        all.none_above_floor <= NONE_ABOVE_FLOOR + 1,
+        "{} none verdicts above 2x floor",
+        all.none_above_floor
+    );
+    assert!(
+        all.linear_worse <= LINEAR_WORSE + 1,
+        "{} linear re-fits worse than nominal",
+        all.linear_worse
+    );
 }
 
 // Measured on the diagnosis of main at 5e6f936 (issue 9 not yet done), 46 cases:

@@ -41,7 +41,12 @@ fn linear_plants_match_the_exact_zoh_discretisation() {
             "{}: max error {worst:e} vs output RMS {scale:e}",
             plant.name()
         );
-        assert_eq!(stats.events, 0, "{}: no events without effects", plant.name());
+        assert_eq!(
+            stats.events,
+            0,
+            "{}: no events without effects",
+            plant.name()
+        );
     }
 }
 
@@ -52,7 +57,9 @@ fn linear_plants_match_the_exact_zoh_discretisation() {
 #[test]
 fn karnopp_stick_band_sticks_exactly() {
     let plant = Plant::dc_motor();
-    let Plant::DcMotor(p) = plant else { unreachable!() };
+    let Plant::DcMotor(p) = plant else {
+        unreachable!()
+    };
     let fc_in = 0.3; // V
     let fpi = p.kt / p.r;
     let fx = Effects {
@@ -73,7 +80,10 @@ fn karnopp_stick_band_sticks_exactly() {
     let (y, stats) = simulate(plant, &fx, &u, TS, 1.0, 10.0).unwrap();
     assert!(y[..601].iter().all(|&v| v == 0.0), "stuck below breakaway");
     assert!(y[650] > 0.0 && y[790] > 0.0, "breaks away above breakaway");
-    assert!(y[800..1100].iter().all(|&v| v > 0.0), "keeps sliding above Coulomb");
+    assert!(
+        y[800..1100].iter().all(|&v| v > 0.0),
+        "keeps sliding above Coulomb"
+    );
     let tail = &y[2000..];
     assert!(tail.iter().all(|&v| v == 0.0), "sticks again at zero drive");
     assert!(stats.events >= 2, "break-away and stop are events");
@@ -86,7 +96,9 @@ fn karnopp_stick_band_sticks_exactly() {
 #[test]
 fn lugre_steady_state_friction_is_the_stribeck_curve() {
     let plant = Plant::integrating_axis();
-    let Plant::IntegratingAxis(p) = plant else { unreachable!() };
+    let Plant::IntegratingAxis(p) = plant else {
+        unreachable!()
+    };
     let (fc, fs, vs, s2) = (0.05, 0.09, 2e-3, 5.0);
     let sigma0 = p.m * (2.0 * std::f64::consts::PI * 250.0f64).powi(2);
     let law = FrictionLaw::LuGre {
@@ -119,7 +131,9 @@ fn lugre_steady_state_friction_is_the_stribeck_curve() {
 #[test]
 fn stribeck_steady_state() {
     let plant = Plant::integrating_axis();
-    let Plant::IntegratingAxis(p) = plant else { unreachable!() };
+    let Plant::IntegratingAxis(p) = plant else {
+        unreachable!()
+    };
     let (fc, fs, vs, b) = (0.05, 0.09, 2e-3, 5.0);
     let fx = Effects {
         friction: Some((
@@ -147,7 +161,9 @@ fn stribeck_steady_state() {
 #[test]
 fn shaft_backlash_transmits_no_torque_inside_the_gap() {
     let plant = Plant::two_mass();
-    let Plant::TwoMass(p) = plant else { unreachable!() };
+    let Plant::TwoMass(p) = plant else {
+        unreachable!()
+    };
     let gap = 0.02; // rad total, ±0.01
     let fx = Effects {
         shaft_backlash: Some(gap),
@@ -162,13 +178,21 @@ fn shaft_backlash_transmits_no_torque_inside_the_gap() {
     // The twist decreases at about 1 rad/s: 5 ms stays well inside ±0.01 rad.
     integ.advance(&mut m, &mut x, 0.0, 5e-3).unwrap();
     let expect = (-p.bl / p.jl * 5e-3).exp();
-    assert!((x[2] - expect).abs() < 1e-9, "load coasts freely: {} vs {expect}", x[2]);
+    assert!(
+        (x[2] - expect).abs() < 1e-9,
+        "load coasts freely: {} vs {expect}",
+        x[2]
+    );
     assert_eq!(x[1], 0.0, "no torque reaches the motor inside the gap");
     assert_eq!(integ.events, 0);
     // Keep going: the twist reaches −0.01 rad after ~10 ms and the motor starts to turn.
     integ.advance(&mut m, &mut x, 5e-3, 30e-3).unwrap();
     assert!(integ.events >= 1, "contact is an event");
-    assert!(x[1] > 1e-3, "motor dragged along after contact: ωm = {}", x[1]);
+    assert!(
+        x[1] > 1e-3,
+        "motor dragged along after contact: ωm = {}",
+        x[1]
+    );
 }
 
 /// Quantization after noise puts every reading on the lattice step·k; clipping bounds it.
@@ -188,7 +212,8 @@ fn sensor_readings_on_the_lattice_and_in_range() {
         assert!((k - k.round()).abs() < 1e-9, "{v} off the lattice");
         assert!(v.abs() <= 2.5e-4 + step, "{v} beyond the range");
     }
-    let levels: std::collections::BTreeSet<i64> = y.iter().map(|v| (v / step).round() as i64).collect();
+    let levels: std::collections::BTreeSet<i64> =
+        y.iter().map(|v| (v / step).round() as i64).collect();
     assert!(levels.len() > 50, "uses many lattice levels");
 }
 
@@ -198,7 +223,9 @@ fn sensor_readings_on_the_lattice_and_in_range() {
 #[test]
 fn event_location_matches_the_closed_form_stop() {
     let plant = Plant::integrating_axis();
-    let Plant::IntegratingAxis(p) = plant else { unreachable!() };
+    let Plant::IntegratingAxis(p) = plant else {
+        unreachable!()
+    };
     let fc = 0.5;
     let fx = Effects {
         friction: Some((
@@ -231,7 +258,11 @@ fn event_location_matches_the_closed_form_stop() {
     );
     assert_eq!(m.slide, Slide::Stick);
     assert_eq!(x[1], 0.0);
-    assert!((x[0] - x_stop).abs() < 1e-9 * x_stop, "x = {} vs {x_stop}", x[0]);
+    assert!(
+        (x[0] - x_stop).abs() < 1e-9 * x_stop,
+        "x = {} vs {x_stop}",
+        x[0]
+    );
 }
 
 /// A fractional input delay of d = 2.4 samples equals the exact response to the input delayed
@@ -251,7 +282,10 @@ fn fractional_input_delay_equals_a_shifted_output_grid() {
     // Reference: the same plant on a 0.1 ms grid with the input held per 1 ms sample, read at
     // t_k − d (= grid points since d is a multiple of 0.1 ms).
     let fine = 10usize;
-    let u_fine: Vec<f64> = u.iter().flat_map(|&v| std::iter::repeat_n(v, fine)).collect();
+    let u_fine: Vec<f64> = u
+        .iter()
+        .flat_map(|&v| std::iter::repeat_n(v, fine))
+        .collect();
     let yf = plant
         .linear()
         .unwrap()
@@ -263,7 +297,11 @@ fn fractional_input_delay_equals_a_shifted_output_grid() {
     let scale = rms(&y);
     for k in 10..600 {
         let reference = yf[k * fine - shift];
-        assert!((y[k] - reference).abs() < 1e-6 * scale, "k = {k}: {} vs {reference}", y[k]);
+        assert!(
+            (y[k] - reference).abs() < 1e-6 * scale,
+            "k = {k}: {} vs {reference}",
+            y[k]
+        );
     }
 }
 
@@ -283,6 +321,10 @@ fn coulomb_friction_never_drives_the_motion() {
     for log in &d.train {
         let y = log.y();
         let mean = y.iter().sum::<f64>() / y.len() as f64;
-        assert!(mean.abs() < 0.05 * std_dev(y), "{}: mean speed {mean}", log.path.display());
+        assert!(
+            mean.abs() < 0.05 * std_dev(y),
+            "{}: mean speed {mean}",
+            log.path.display()
+        );
     }
 }
