@@ -357,7 +357,11 @@ fn odd_multisine_excites_only_its_lines() {
     }
     for k in 0..p / 2 {
         if !ms.excited.contains(&k) {
-            assert!(power(k) < 1e-20 * p0, "harmonic {k} carries power {}", power(k) / p0);
+            assert!(
+                power(k) < 1e-20 * p0,
+                "harmonic {k} carries power {}",
+                power(k) / p0
+            );
         }
     }
     assert!((rms(&ms.signal) - 1.0).abs() < 1e-12);
