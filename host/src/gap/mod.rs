@@ -10,10 +10,13 @@ pub mod fit;
 pub mod locate;
 pub mod modal;
 pub mod optim;
+pub mod place;
 pub mod plant;
 pub mod report;
 pub mod rng;
+pub mod select;
 pub mod simfile;
+pub mod structure;
 
 pub use diagnose::{diagnose, Diagnosis, GapOptions};
 pub use effect::{Effect, EffectKind};
