@@ -665,6 +665,15 @@ pub fn fit_placed(
             );
         }
         EffectKind::StateLimit => return None,
+        EffectKind::Backlash if cand.place == Place::Drivetrain => {
+            let f = super::structure::fit_drivetrain_backlash(
+                td,
+                bases,
+                COARSE_SAMPLES,
+                JOINT_MAX_ITER,
+            )?;
+            return Some(null_guard(td, cand, base0, f));
+        }
         _ => {
             let coarse = td.coarse(COARSE_SAMPLES);
             let mut grid: Vec<Fitted> = Vec::new();
