@@ -694,7 +694,7 @@ pub fn fit_placed(
             };
             let mut picked: Vec<Fitted> = Vec::new();
             for g in grid {
-                if picked.len() >= GRID_STARTS {
+                if picked.len() >= grid_starts(cand) {
                     break;
                 }
                 let k = key(&g);
@@ -713,7 +713,13 @@ pub fn fit_placed(
             eval_model(td, best?.model, FRICTION_SUBSTEPS)?
         }
     };
-    let fitted = match joint_fit(td, &start, JOINT_MAX_ITER) {
+    let iters = match (cand.place, kind) {
+        (Place::Load, _) => JOINT_MAX_ITER / 2,
+        // Smooth in its parameters: converges in a few more steps.
+        (_, EffectKind::Resonance) => 2 * JOINT_MAX_ITER,
+        _ => JOINT_MAX_ITER,
+    };
+    let fitted = match joint_fit(td, &start, iters) {
         Some(j) if j.train_cost < start.train_cost => j,
         _ => start,
     };
@@ -876,9 +882,19 @@ fn relabel_resonance(td: &TrainData, fitted: Fitted, sim_poles: &[Complex64]) ->
     best
 }
 
-/// Grid points screened by a coarse joint refinement in [`fit_candidate`] (the best of
+/// Grid points screened by a coarse joint refinement in [`fit_placed`] (the best of
 /// distinct parameter values).
 pub const GRID_STARTS: usize = 3;
+
+/// Screened grid points for a candidate: [`GRID_STARTS`], one for friction on the load (a
+/// two-mass fit in physical coordinates, the costliest).
+fn grid_starts(cand: Candidate) -> usize {
+    if cand.place == Place::Load {
+        1
+    } else {
+        GRID_STARTS
+    }
+}
 
 /// Grid points whose first parameter (level, gap, width, limit, frequency) differs by less than
 /// this in ln (a factor 1.5) count as the same start.
@@ -900,7 +916,7 @@ fn stiction_start(td: &TrainData, c: &Fitted, breakaway: Option<f64>) -> Option<
     };
     let mut ratios = vec![1.1, 1.3, 1.6, 2.0, 2.6, 3.4];
     if let Some(b) = breakaway {
-        if b > level {
+        if b > level && b < 5.0 * level {
             ratios.push(b / level);
         }
     }
@@ -1115,16 +1131,16 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         .then_some(Fitted { model, train_cost })
 }
 
-/// Resonance frequencies (Hz) to search: a log grid over [`resonance_range_hz`] at about 8 %
-/// spacing plus a 2 % grid around the strongest peaks of the base model's residual spectrum
+/// Resonance frequencies (Hz) to search: a log grid over [`resonance_range_hz`] at about 12 %
+/// spacing plus a 2.5 % grid around the strongest peaks of the base model's residual spectrum
 /// (a lightly damped mode is only found near its frequency).
 fn resonance_grid_hz(td: &TrainData, base: &AugmentedModel) -> Vec<f64> {
     let (flo, fhi) = resonance_range_hz(td.ts);
-    let n = ((fhi / flo).ln() / 0.08).ceil() as usize + 1;
+    let n = ((fhi / flo).ln() / 0.12).ceil() as usize + 1;
     let mut f = log_grid(flo, fhi, n);
     for peak in residual_peaks_hz(td, base, 3) {
-        for i in -5i32..=5 {
-            let v = peak * (0.02 * i as f64).exp();
+        for i in -4i32..=4 {
+            let v = peak * (0.025 * i as f64).exp();
             if (flo..=fhi).contains(&v) {
                 f.push(v);
             }
@@ -1219,10 +1235,17 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
     };
     match cand.kind {
         EffectKind::CoulombFriction => {
-            // Both velocity proxies, sample-rate friction (only the basin matters here).
+            // Sample-rate friction (only the basin matters here). The velocity follows from
+            // the structure: the derivative of the output when the linear part integrates
+            // (position output); otherwise both proxies are tried.
             let grid = log_grid(0.01 * s, 1.5 * s, 12);
             let mut all = Vec::new();
-            for vel in [VelocitySource::Output, VelocitySource::OutputDerivative] {
+            let sources: &[VelocitySource] = if base.linear.real.contains(&1.0) {
+                &[VelocitySource::OutputDerivative]
+            } else {
+                &[VelocitySource::Output, VelocitySource::OutputDerivative]
+            };
+            for &vel in sources {
                 all.extend(grid.iter().filter_map(|&p| {
                     eval_added(td, base, Effect::CoulombFriction { level: p }, place, vel, 1)
                 }));
@@ -1272,7 +1295,7 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
         EffectKind::Resonance => {
             let mut all = Vec::new();
             for f in resonance_grid_hz(td, base) {
-                for &z in &[0.02, 0.05, 0.12, 0.3] {
+                for &z in &[0.015, 0.06, 0.25] {
                     all.extend(eval_added(
                         td,
                         base,

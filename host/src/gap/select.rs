@@ -19,7 +19,8 @@
 //! forward-selection deltas, clipped at zero and normalised to sum to 1.
 use super::effect::{Effect, EffectKind};
 use super::fit::{
-    fit_placed, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
+    fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
+    JOINT_MAX_ITER,
 };
 use super::modal::{nrmse, ModalModel};
 use super::place::{Candidate, Place, PlacedEffect};
@@ -142,8 +143,12 @@ pub struct DwellEvidence {
     pub dwells: usize,
     /// Share of the scored samples spent in dwells.
     pub dwell_share: f64,
-    /// Median |input| at the end of a dwell (the breakaway), input units.
+    /// Breakaway estimate: the 90th percentile over dwells of the largest |input| held without
+    /// moving (at rest the drive balances the friction), input units.
     pub breakaway: f64,
+    /// Median |input| at the first sample after a dwell (an upper bound of the breakaway,
+    /// inflated by the acceleration that follows), input units.
+    pub exit_median: f64,
     /// Median over dwells of the largest |input| held without moving, input units.
     pub hold_max: f64,
     /// Velocity band counted as zero, in velocity units (output units, or output units per
@@ -154,7 +159,7 @@ pub struct DwellEvidence {
 }
 
 /// Shortest run at zero velocity that counts as a dwell, samples.
-pub const MIN_DWELL_SAMPLES: usize = 5;
+pub const MIN_DWELL_SAMPLES: usize = 8;
 
 /// Fewest dwells for [`dwell_evidence`] to report any.
 pub const MIN_DWELLS: usize = 5;
@@ -163,8 +168,8 @@ pub const MIN_DWELLS: usize = 5;
 /// velocity (the output, or its first difference over `ts` for a position output) stays within
 /// a band of zero (four times its noise level, estimated from sample-to-sample differences near
 /// zero; at least 1e-3 and at most 5 % of its RMS) while the median |input| over the run is at
-/// least 5 % of the input RMS. The breakaway estimate is the median |input| at the first
-/// sample after each dwell. `None` with fewer than [`MIN_DWELLS`] dwells or under 1 % of the
+/// least 5 % of the input RMS. The breakaway estimate is the 90th percentile over dwells of the
+/// largest |input| held at rest (the last two samples of each dwell left out). `None` with fewer than [`MIN_DWELLS`] dwells or under 1 % of the
 /// samples in dwells.
 pub fn dwell_evidence(
     u: &[Vec<f64>],
@@ -254,15 +259,16 @@ pub fn dwell_evidence(
     if dwells < MIN_DWELLS || share < 0.01 {
         return None;
     }
-    let median = |mut x: Vec<f64>| {
+    let quantile = |mut x: Vec<f64>, q: f64| {
         x.sort_by(f64::total_cmp);
-        x[x.len() / 2]
+        x[((x.len() - 1) as f64 * q).round() as usize]
     };
     Some(DwellEvidence {
         dwells,
         dwell_share: share,
-        breakaway: median(exits),
-        hold_max: median(holds),
+        breakaway: quantile(holds.clone(), 0.9),
+        exit_median: quantile(exits, 0.5),
+        hold_max: quantile(holds, 0.5),
         band,
         velocity,
     })
@@ -290,11 +296,15 @@ impl Default for SelectOptions {
             margin: 0.10,
             pair_margin: 0.10,
             nested_margin: 0.03,
-            pair_partners: 3,
+            pair_partners: 2,
             candidates: Vec::new(),
         }
     }
 }
+
+/// Pairs are tried only when the best single leaves more than this share of the linear
+/// re-fit's validation NRMSE unexplained: improvement (gap_linear − gap)/gap_linear below it.
+pub const PAIR_WORTH_TRYING: f64 = 0.9;
 
 /// The candidates tried by default: every kind at each place it may act, the two-mass places
 /// only when a structure is known.
@@ -459,11 +469,18 @@ pub fn select_effects(
     let mut order = cands.clone();
     order.sort();
     for c in &order {
-        let use_bases: Vec<AugmentedModel> = bases
-            .iter()
-            .filter(|b| b.two_mass.is_none() || c.place.needs_two_mass())
-            .cloned()
-            .collect();
+        // Inside a two-mass structure: the re-fit mapped to physical coordinates and the
+        // nominal's structure (the nominal in modal form maps to the same plant).
+        let use_bases: Vec<AugmentedModel> = if c.place.needs_two_mass() {
+            bases
+                .iter()
+                .enumerate()
+                .filter(|(i, b)| *i == 0 || b.two_mass.is_some())
+                .map(|(_, b)| b.clone())
+                .collect()
+        } else {
+            bases.iter().filter(|b| b.two_mass.is_none()).cloned().collect()
+        };
         let hint = if c.kind == EffectKind::Stiction && c.place == Place::Motor {
             coulomb.as_ref()
         } else {
@@ -505,17 +522,55 @@ pub fn select_effects(
     }
     // 3. Pairs on top of the selected single.
     let mut pairs: Vec<Scored> = Vec::new();
-    if let Some(first) = selected_models.first().cloned() {
+    let try_pairs = selected_models
+        .first()
+        .is_some_and(|f| f.improvement < PAIR_WORTH_TRYING);
+    if !try_pairs && !selected_models.is_empty() {
+        notes.push(format!(
+            "no pair tried: the best single closes more than {:.0} % of the linear gap",
+            100.0 * PAIR_WORTH_TRYING
+        ));
+    }
+    if let Some(first) = selected_models.first().cloned().filter(|_| try_pairs) {
         let k1 = kind_of(&first);
         let partners: Vec<Candidate> = singles
             .iter()
             .skip(1)
-            .filter(|s| s.improvement > 0.0)
+            .filter(|s| s.improvement >= 0.5 * opts.margin)
             .filter_map(|s| s.effects.first().map(|p| Candidate::new(p.effect.kind(), p.place)))
             .filter(|c| Some(c.kind) != k1 && !(c.kind.is_friction() && k1.is_some_and(|k| k.is_friction())))
             .filter(|c| c.kind != EffectKind::Quantization)
             .take(opts.pair_partners)
             .collect();
+        let mut partners = partners;
+        if dwell.is_some()
+            && !k1.is_some_and(|k| k.is_friction())
+            && !partners.iter().any(|c| c.kind.is_friction())
+        {
+            // Dwells at zero velocity: friction is a partner whatever its single score.
+            partners.push(Candidate::new(EffectKind::CoulombFriction, Place::Motor));
+        }
+        // Polish the single first, so a pair is credited only with what its second effect
+        // adds (not with further iterations on the first).
+        let first = match joint_fit(
+            td,
+            &Fitted {
+                model: first.model.clone(),
+                train_cost: first.train_cost,
+            },
+            JOINT_MAX_ITER,
+        ) {
+            Some(j) if j.train_cost < first.train_cost => {
+                let s = score(j, val_u, val_y, warmup, gap_linear);
+                if s.gap <= first.gap {
+                    selected_models[0] = s.clone();
+                    s
+                } else {
+                    first
+                }
+            }
+            _ => first,
+        };
         let base = first.model.clone();
         for c in partners {
             if c.place.needs_two_mass() && base.two_mass.is_none() && base.motor_friction().is_some() {
@@ -875,6 +930,77 @@ mod cases {
             .unwrap_or(0.0)
     }
 
+    fn more_cases() {
+        use crate::gap::effect::{quantize, saturation, Effect};
+        let n = 16384;
+        let show = |name: &str, c: &Case| {
+            let t0 = cpu_seconds();
+            let s = run(c);
+            eprintln!("{name} ({:.2} s): {}", cpu_seconds() - t0, describe(&s));
+        };
+        // Integrating axis with Coulomb friction.
+        let ax = Plant::axis();
+        let ns = 0.01 * y_rms(&ax, 2.0, 20.0);
+        let e = Effect::CoulombFriction { level: 1.0 };
+        let c = make_case(ax, 2.0, 20.0, n, 21, &|u, k| {
+            simulate(&ax, Some(&e), u, &settings(ns, k)).unwrap()
+        });
+        show("axis coulomb 1.0", &c);
+        // Quantization after noise at 5 % of the RMS, position in metres (tiny scale).
+        let fx = Plant::flexure();
+        let rms = y_rms(&fx, 1.0, 60.0) * 1e-6;
+        let step = 0.05 * rms;
+        let c = make_case(fx, 1.0, 60.0, n, 22, &|u, k| {
+            simulate(&fx, None, u, &settings(0.01 * rms * 1e6, k))
+                .unwrap()
+                .into_iter()
+                .map(|v| quantize(v * 1e-6, step))
+                .collect()
+        });
+        eprintln!("(true step {step:.3e})");
+        show("flexure quantization 5 %", &c);
+        // Sensor clip at 70 % of the peak, DC motor.
+        let dc = Plant::dc_motor();
+        let mut rng = Rng::new(5);
+        let probe = filtered_noise(n, TS, 100.0, 3.0, &mut rng);
+        let pk = simulate(&dc, None, &probe, &settings(0.0, 0))
+            .unwrap()
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+        let lim = 0.6 * pk;
+        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
+        let c = make_case(dc, 1.0, 100.0, n, 23, &|u, k| {
+            simulate(&dc, None, u, &settings(ns, k))
+                .unwrap()
+                .into_iter()
+                .map(|v| saturation(v, lim))
+                .collect()
+        });
+        eprintln!("(true clip {lim:.4})");
+        show("dc sensor clip", &c);
+        // Lightly damped mode at 160 Hz in series, DC motor excited to 200 Hz.
+        let e = Effect::Resonance { freq_hz: 160.0, damping: 0.02 };
+        let ns = 0.01 * y_rms(&dc, 1.0, 200.0);
+        let c = make_case(dc, 1.0, 200.0, n, 24, &|u, k| {
+            simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
+        });
+        show("dc resonance 160 Hz", &c);
+        // Pair: input saturation and Coulomb friction, DC motor.
+        let e = Effect::CoulombFriction { level: 0.3 };
+        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
+        let c = make_case(dc, 1.0, 100.0, n, 25, &|u, k| {
+            let us: Vec<f64> = u.iter().map(|&v| saturation(v, 1.5)).collect();
+            simulate(&dc, Some(&e), &us, &settings(ns, k)).unwrap()
+        });
+        show("dc saturation 1.5 + coulomb 0.3", &c);
+        // Stiction with a stick band on the DC motor.
+        let e = Effect::Stiction { level: 0.2, breakaway: 0.4 };
+        let c = make_case(dc, 1.0, 100.0, n, 26, &|u, k| {
+            simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
+        });
+        show("dc stiction 0.2/0.4", &c);
+    }
+
     /// Study (not a check): prints the selection on a range of cases.
     #[test]
     #[ignore]
@@ -898,6 +1024,10 @@ mod cases {
         if std::env::var_os("GAP_ONLY_DT").is_some() {
             return;
         }
+        if std::env::var_os("GAP_MORE").is_some() {
+            more_cases();
+            return;
+        }
         for (name, e) in [
             ("stiction 1.8x", Effect::Stiction { level: 0.01, breakaway: 0.018 }),
             ("coulomb", Effect::CoulombFriction { level: 0.015 }),
@@ -908,6 +1038,216 @@ mod cases {
             let t0 = cpu_seconds();
             let s = run(&c);
             eprintln!("{name} ({:.2} s): {}", cpu_seconds() - t0, describe(&s));
+        }
+    }
+}
+
+/// Checks of the selection on simulated axes, one per failure shape of issue 9.
+#[cfg(test)]
+mod checks {
+    use super::cases::{make_case, run, settings, y_rms, Case, TS};
+    use super::*;
+    use crate::gap::benchmark::filtered_noise;
+    use crate::gap::effect::{quantize, saturation};
+    use crate::gap::plant::{simulate, simulate_drivetrain_backlash, Plant};
+    use crate::gap::rng::Rng;
+
+    const N: usize = 16384;
+
+    fn rel(a: f64, b: f64) -> f64 {
+        (a - b).abs() / b.abs()
+    }
+
+    fn only(s: &Selection) -> (Effect, Place) {
+        assert_eq!(s.selected.len(), 1, "{:?}", s.selected);
+        (s.selected[0].effect, s.selected[0].place)
+    }
+
+    /// Backlash in the shaft of a two-mass axis (integrated by a different scheme than the
+    /// candidate): the structure is found in the nominal and the verdict is backlash in the
+    /// drivetrain with the play within 10 %.
+    #[test]
+    fn drivetrain_backlash_is_found_in_the_two_mass_structure() {
+        let tm = Plant::two_mass();
+        let Plant::TwoMass(p) = tm else { unreachable!() };
+        let ns = 0.01 * y_rms(&tm, 0.05, 120.0);
+        let c = make_case(tm, 0.05, 120.0, N, 11, &|u, k| {
+            simulate_drivetrain_backlash(&p, 0.003, u, &settings(ns, k)).unwrap()
+        });
+        assert!(c.structure.is_some());
+        let s = run(&c);
+        let (e, place) = only(&s);
+        assert_eq!(place, Place::Drivetrain);
+        let Effect::Backlash { gap } = e else { panic!("{e}") };
+        assert!(rel(gap, 0.003) < 0.1, "gap {gap}");
+        assert!(s.selected[0].gap_after < 0.3 * s.gap_linear);
+    }
+
+    /// Quantization after noise at 5 % of the output RMS on a position output in metres
+    /// (steps of about 4e-5): decided by the lattice although it cannot pass the 10 % margin.
+    #[test]
+    fn quantization_is_decided_by_the_lattice_at_small_scale() {
+        let fx = Plant::flexure();
+        let rms = y_rms(&fx, 1.0, 60.0) * 1e-6;
+        let step = 0.05 * rms;
+        let c = make_case(fx, 1.0, 60.0, N, 22, &|u, k| {
+            simulate(&fx, None, u, &settings(0.01 * rms * 1e6, k))
+                .unwrap()
+                .into_iter()
+                .map(|v| quantize(v * 1e-6, step))
+                .collect()
+        });
+        let s = run(&c);
+        let (e, place) = only(&s);
+        assert_eq!(place, Place::Sensor);
+        let Effect::Quantization { step: got } = e else { panic!("{e}") };
+        assert!(rel(got, step) < 1e-3, "{got} vs {step}");
+        assert!(s.lattice.is_some());
+    }
+
+    /// Karnopp stiction, breakaway 2× the Coulomb level, on the DC motor: stiction with both
+    /// levels within 10 %.
+    #[test]
+    fn stiction_with_a_stick_band_is_told_from_coulomb_friction() {
+        let dc = Plant::dc_motor();
+        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
+        let e = Effect::Stiction {
+            level: 0.2,
+            breakaway: 0.4,
+        };
+        let c = make_case(dc, 1.0, 100.0, N, 26, &|u, k| {
+            simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
+        });
+        let s = run(&c);
+        let (e, place) = only(&s);
+        assert_eq!(place, Place::Motor);
+        let Effect::Stiction { level, breakaway } = e else { panic!("{e}") };
+        assert!(rel(level, 0.2) < 0.1 && rel(breakaway, 0.4) < 0.1, "{e}");
+        assert!(s.dwell.is_some());
+    }
+
+    /// A lightly damped mode at 160 Hz in series with the input: found at its frequency.
+    #[test]
+    fn lightly_damped_mode_above_130_hz_is_found() {
+        let dc = Plant::dc_motor();
+        let e = Effect::Resonance {
+            freq_hz: 160.0,
+            damping: 0.02,
+        };
+        let ns = 0.01 * y_rms(&dc, 1.0, 200.0);
+        let c = make_case(dc, 1.0, 200.0, N, 24, &|u, k| {
+            simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
+        });
+        let s = run(&c);
+        let (e, _) = only(&s);
+        let Effect::Resonance { freq_hz, damping } = e else { panic!("{e}") };
+        assert!(rel(freq_hz, 160.0) < 0.01 && rel(damping, 0.02) < 0.15, "{e}");
+    }
+
+    /// A sensor that clips: saturation at the sensor with the clip level.
+    #[test]
+    fn sensor_clipping_is_saturation_at_the_sensor() {
+        let dc = Plant::dc_motor();
+        let mut rng = Rng::new(5);
+        let probe = filtered_noise(N, TS, 100.0, 3.0, &mut rng);
+        let pk = simulate(&dc, None, &probe, &settings(0.0, 0))
+            .unwrap()
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+        let lim = 0.6 * pk;
+        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
+        let c = make_case(dc, 1.0, 100.0, N, 23, &|u, k| {
+            simulate(&dc, None, u, &settings(ns, k))
+                .unwrap()
+                .into_iter()
+                .map(|v| saturation(v, lim))
+                .collect()
+        });
+        let s = run(&c);
+        let (e, place) = only(&s);
+        assert_eq!(place, Place::Sensor);
+        let Effect::Saturation { limit } = e else { panic!("{e}") };
+        assert!(rel(limit, lim) < 0.01, "{limit} vs {lim}");
+    }
+
+    /// Input saturation and Coulomb friction together: both selected, with shares summing
+    /// to 1.
+    #[test]
+    fn saturation_and_friction_are_selected_as_a_pair() {
+        let dc = Plant::dc_motor();
+        let e = Effect::CoulombFriction { level: 0.3 };
+        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
+        let c = make_case(dc, 1.0, 100.0, N, 25, &|u, k| {
+            let us: Vec<f64> = u.iter().map(|&v| saturation(v, 1.5)).collect();
+            simulate(&dc, Some(&e), &us, &settings(ns, k)).unwrap()
+        });
+        let s = run(&c);
+        let kinds: Vec<(EffectKind, Place)> = s
+            .selected
+            .iter()
+            .map(|x| (x.effect.kind(), x.place))
+            .collect();
+        assert!(kinds.contains(&(EffectKind::Saturation, Place::Drive)), "{kinds:?}");
+        assert!(
+            kinds.iter().any(|(k, p)| k.is_friction() && *p == Place::Motor),
+            "{kinds:?}"
+        );
+        let total: f64 = s.selected.iter().map(|x| x.share).sum();
+        assert!((total - 1.0).abs() < 1e-12);
+        assert!(s.selected.iter().all(|x| x.share > 0.0));
+    }
+
+    fn axis_case(seed: u64, u_scale: f64, y_scale: f64) -> Case {
+        let ax = Plant::axis();
+        let ns = 0.01 * y_rms(&ax, 2.0, 20.0);
+        let e = Effect::CoulombFriction { level: 1.0 };
+        let c = make_case(ax, 2.0, 20.0, N, seed, &|u, k| {
+            let ui: Vec<f64> = u.iter().map(|v| v / u_scale).collect();
+            simulate(&ax, Some(&e), &ui, &settings(ns, k))
+                .unwrap()
+                .into_iter()
+                .map(|v| v * y_scale)
+                .collect()
+        });
+        if u_scale == 1.0 && y_scale == 1.0 {
+            return c;
+        }
+        // Same logs with the input in other units (u·u_scale) and the output scaled: rebuild
+        // the training data and the starts from the scaled signals.
+        c
+    }
+
+    /// Integrating plant (position output, pole at z = 1): friction acts on the derivative of
+    /// the position and is fitted within 2 %.
+    #[test]
+    fn friction_on_an_integrating_axis() {
+        let c = axis_case(21, 1.0, 1.0);
+        assert!(c.starts[0].real.contains(&1.0));
+        let s = run(&c);
+        let (e, place) = only(&s);
+        assert_eq!(place, Place::Motor);
+        let level = match e {
+            Effect::CoulombFriction { level } => level,
+            Effect::Stiction { level, .. } => level,
+            _ => panic!("{e}"),
+        };
+        assert!(rel(level, 1.0) < 0.02, "{e}");
+        assert_eq!(s.model.velocity, VelocitySource::OutputDerivative);
+    }
+
+    /// No candidate ends worse on the training logs than the linear part it extends.
+    #[test]
+    fn candidates_never_score_worse_than_the_linear_model() {
+        let c = axis_case(21, 1.0, 1.0);
+        let s = run(&c);
+        let lin = AugmentedModel::linear(c.starts[0].clone()).cost(&c.td.base, &c.td.u);
+        for x in &s.singles {
+            assert!(
+                x.train_cost <= lin * (1.0 + 1e-9),
+                "{:?}: {} > {lin}",
+                x.effects,
+                x.train_cost
+            );
         }
     }
 }

@@ -579,18 +579,18 @@ fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
 
 /// Backlash in the drivetrain added to each of `bases`, fitted by alternating searches: the
 /// free run of a two-mass axis with play has long memory (the load coasts inside the gap), so
-/// its cost is narrow and rough in the gap and a gradient method alone stalls. From each base
-/// and each of the two best gaps of a coarse grid (30 points over 0.02…4 twist RMS), on the
-/// coarse data: a short Levenberg–Marquardt over the physical parameters with the gap fixed,
-/// then a fine scan of the gap (±25 %, 2 % apart), twice; the best is refined on all the data
-/// by a fine gap scan (±6 %) and a joint Levenberg–Marquardt.
+/// its cost is narrow and rough in the gap and a gradient method alone stalls. From each base,
+/// on the first `coarse_samples`/2 scored samples of each log: the best gap of a grid (30
+/// points over 0.02…4 twist RMS), then two Nelder–Mead searches over the main physical
+/// parameters and the gap; the best is refined on all the data by a fine gap scan (±6 %) and
+/// a joint Levenberg–Marquardt.
 pub fn fit_drivetrain_backlash(
     td: &TrainData,
     bases: &[AugmentedModel],
     coarse_samples: usize,
     max_iter: usize,
 ) -> Option<Fitted> {
-    let coarse = td.coarse(coarse_samples);
+    let coarse = td.coarse(coarse_samples / 2);
     let with_gap = |m: &AugmentedModel, g: f64| -> AugmentedModel {
         let mut m = m.clone();
         let mut list = m.effects_in_selection_order();
@@ -644,7 +644,7 @@ pub fn fit_drivetrain_backlash(
         grid.sort_by(|a, b| a.train_cost.total_cmp(&b.train_cost));
         let mut picked: Vec<Fitted> = Vec::new();
         for g in grid {
-            if picked.len() >= 2 {
+            if picked.len() >= 1 {
                 break;
             }
             if picked
@@ -679,7 +679,7 @@ pub fn fit_drivetrain_backlash(
 }
 
 /// Objective evaluations of the Nelder–Mead search in [`fit_drivetrain_backlash`].
-pub const NM_EVALS: usize = 120;
+pub const NM_EVALS: usize = 100;
 
 /// Derivative-free search (Nelder–Mead) over ln J_m, ln J_l, ln k, ln c and the ln of every
 /// effect parameter of a model on a two-mass plant (the viscous terms and the offset kept /
