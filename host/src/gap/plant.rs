@@ -24,7 +24,9 @@
 //! resolution, a resonance as two extra states in series with the input, and measurement noise
 //! (white, Gaussian) added before the sensor's quantizer. This is deliberately a finer and
 //! differently structured integration than the sample-rate models the diagnosis fits.
-use super::effect::{deadzone, quantize, resonance_mode, saturation, Effect, Play, StickSlip};
+use super::effect::{
+    deadzone, quantize, resonance_mode, saturation, Effect, Play, RateLimiter, StickSlip,
+};
 use super::rng::Rng;
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
@@ -282,6 +284,11 @@ pub fn simulate(
     }
     if let Some(e) = effect {
         e.validate()?;
+        if let Effect::StateLimit { .. } = e {
+            return Err(Error::InvalidArgument(
+                "plant simulation: state_limit is not simulated by the benchmark plants".into(),
+            ));
+        }
     }
     let phys = plant.physical()?;
     let n0 = phys.sys.n_states();
@@ -345,9 +352,14 @@ pub fn simulate(
         Some(Effect::Backlash { gap }) => Some(Play::new(*gap)),
         _ => None,
     };
+    let mut rate = match effect {
+        Some(Effect::SlewRate { rate }) => Some(RateLimiter::new(rate * s.ts)),
+        _ => None,
+    };
     let cmd: Vec<f64> = u
         .iter()
         .map(|&uk| match effect {
+            Some(Effect::SlewRate { .. }) => rate.as_mut().map_or(uk, |r| r.apply(uk)),
             Some(Effect::Deadzone { width }) => deadzone(uk, *width),
             Some(Effect::Saturation { limit }) => saturation(uk, *limit),
             Some(Effect::Backlash { .. }) => play.as_mut().map_or(uk, |p| p.apply(uk)),
