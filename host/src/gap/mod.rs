@@ -5,10 +5,12 @@
 pub mod benchmark;
 pub mod diagnose;
 pub mod effect;
+pub mod evidence;
 pub mod figures;
 pub mod fit;
 pub mod locate;
 pub mod modal;
+pub mod noise;
 pub mod optim;
 pub mod place;
 pub mod plant;
