@@ -413,6 +413,12 @@ pub fn resonance_mode(freq_hz: f64, damping: f64) -> Result<StateSpace> {
     StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0)
 }
 
+/// Natural frequency, in cycles per sample, at or above which [`resonance_filter`] passes its
+/// input unchanged: such a mode settles within 1e-3 of a sample period, below the resolution
+/// of a sampled model. Fits stay below 0.45 cycles per sample; this is the null of the
+/// `resonance` candidate (a model with it reproduces the model without it).
+pub const NULL_RESONANCE_CYCLES_PER_SAMPLE: f64 = 1e3;
+
 /// Filters `u` (held over each sample period of `ts` seconds, as a DAC holds it) through
 /// [`resonance_mode`] and returns, per sample period, the mean of the mode's continuous output
 /// over that period — the held input that best represents it to a linear part discretised by
@@ -420,6 +426,10 @@ pub fn resonance_mode(freq_hz: f64, damping: f64) -> Result<StateSpace> {
 /// delay to the cascade.) Exact: the period integral is the ZOH discretisation of the mode
 /// augmented with an integrator of its output.
 pub fn resonance_filter(u: &[f64], ts: f64, freq_hz: f64, damping: f64) -> Result<Vec<f64>> {
+    if freq_hz * ts >= NULL_RESONANCE_CYCLES_PER_SAMPLE {
+        // Settles within a tiny fraction of a sample: the identity (the null resonance).
+        return Ok(u.to_vec());
+    }
     let m = resonance_mode(freq_hz, damping)?;
     // Augmented state (x0, x1, z) with z' = x0.
     let a = Mat::from_fn(3, 3, |i, j| match (i, j) {

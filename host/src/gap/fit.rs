@@ -16,7 +16,7 @@
 //! derivative (position-output plants) and keeps the better ([`VelocitySource`]). Quantization is estimated from the lattice of the measured outputs.
 use super::effect::{
     deadzone, delay_signal, quantize, resonance_filter, saturation, Effect, EffectKind, Play,
-    RateLimiter, StickSlip,
+    RateLimiter, StickSlip, NULL_RESONANCE_CYCLES_PER_SAMPLE,
 };
 use super::modal::{FitSet, ModalModel};
 use super::optim::levenberg_marquardt_steps;
@@ -571,6 +571,9 @@ pub const COARSE_SAMPLES: usize = 4096;
 /// Iteration cap of the joint Levenberg–Marquardt refinement.
 pub const JOINT_MAX_ITER: usize = 12;
 
+/// Iteration cap of the coarse screening refinements (they only rank the starts).
+pub const SCREEN_MAX_ITER: usize = 6;
+
 /// Hints that seed or bound a candidate fit (evidence read off the data before fitting).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct FitHints {
@@ -704,7 +707,7 @@ pub fn fit_placed(
             }
             let mut best: Option<Fitted> = None;
             for p in picked {
-                let refined = match joint_fit(&coarse, &p, JOINT_MAX_ITER) {
+                let refined = match joint_fit(&coarse, &p, SCREEN_MAX_ITER) {
                     Some(j) if j.train_cost < p.train_cost => j,
                     _ => p,
                 };
@@ -732,7 +735,8 @@ pub fn fit_placed(
 }
 
 /// The effect of `kind` at its null parameter: a model with it reproduces the model without it
-/// (to 1e-12 of the data's scales). `None` for a resonance (no null inside its range).
+/// (to 1e-12 of the data's scales; a resonance far above the sample rate, see
+/// [`NULL_RESONANCE_CYCLES_PER_SAMPLE`]). `None` never, kept for kinds without a null.
 pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Effect> {
     let s = td.u_rms.max(1e-300);
     let y_peak = td
@@ -765,7 +769,10 @@ pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Eff
         EffectKind::StateLimit => Effect::StateLimit {
             limit: 1e12 * y_peak,
         },
-        EffectKind::Resonance => return None,
+        EffectKind::Resonance => Effect::Resonance {
+            freq_hz: NULL_RESONANCE_CYCLES_PER_SAMPLE / td.ts,
+            damping: MAX_RESONANCE_DAMPING,
+        },
     })
 }
 
@@ -886,13 +893,14 @@ fn relabel_resonance(td: &TrainData, fitted: Fitted, sim_poles: &[Complex64]) ->
 /// distinct parameter values).
 pub const GRID_STARTS: usize = 3;
 
-/// Screened grid points for a candidate: [`GRID_STARTS`], one for friction on the load (a
-/// two-mass fit in physical coordinates, the costliest).
+/// Screened grid points for a candidate: [`GRID_STARTS`]; two for motor friction, one for
+/// friction on the load (a two-mass fit in physical coordinates, the costliest).
 fn grid_starts(cand: Candidate) -> usize {
-    if cand.place == Place::Load {
-        1
-    } else {
-        GRID_STARTS
+    match (cand.place, cand.kind) {
+        (Place::Load, _) => 1,
+        // The friction loop is the costliest simulation: two screened starts.
+        (_, EffectKind::CoulombFriction) => 2,
+        _ => GRID_STARTS,
     }
 }
 
@@ -1295,7 +1303,7 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
         EffectKind::Resonance => {
             let mut all = Vec::new();
             for f in resonance_grid_hz(td, base) {
-                for &z in &[0.015, 0.06, 0.25] {
+                for &z in &[0.02, 0.1] {
                     all.extend(eval_added(
                         td,
                         base,

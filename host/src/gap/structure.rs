@@ -865,14 +865,18 @@ mod tests {
 }
 
 #[cfg(test)]
-mod study {
+mod against_the_plant {
     use super::*;
     use crate::gap::plant::{simulate_drivetrain_backlash, Plant, SimSettings};
 
+    /// The piecewise-linear two-mass model with play against the benchmark plant's
+    /// Heun-integrated drivetrain (8 sub-steps, a different scheme): within 1 % NRMSE for no
+    /// play and plays of about 0.2 and 0.5 twist RMS, where the linear model is 30–60 % off.
     #[test]
-    #[ignore]
-    fn piecewise_model_vs_heun_plant() {
-        let Plant::TwoMass(p) = Plant::two_mass() else { unreachable!() };
+    fn piecewise_model_matches_the_heun_plant() {
+        let Plant::TwoMass(p) = Plant::two_mass() else {
+            unreachable!()
+        };
         let mut rng = crate::gap::rng::Rng::new(3);
         let u = crate::gap::benchmark::filtered_noise(8000, 1e-3, 120.0, 0.15, &mut rng);
         let m = TwoMassModel {
@@ -886,53 +890,26 @@ mod study {
             output: TwoMassOutput::MotorSpeed,
             offset: 0.0,
         };
-        for gap in [0.0, 0.003, 0.008] {
-            let s = SimSettings { ts: 1e-3, substeps: 8, noise_std: 0.0, seed: 0 };
+        let s = SimSettings {
+            ts: 1e-3,
+            substeps: 8,
+            noise_std: 0.0,
+            seed: 0,
+        };
+        for (gap, lin_off) in [(0.0, 0.0), (0.003, 0.25), (0.008, 0.5)] {
             let yt = simulate_drivetrain_backlash(&p, gap, &u, &s).unwrap();
-            let pe = PlacedEffect { effect: Effect::Backlash { gap: gap.max(1e-12) }, place: Place::Drivetrain };
-            let (ym, tw) = m.simulate_states(&u, &[pe]).unwrap();
+            let pe = PlacedEffect {
+                effect: Effect::Backlash {
+                    gap: f64::max(gap, 1e-12),
+                },
+                place: Place::Drivetrain,
+            };
+            let ym = m.simulate(&u, &[pe]).unwrap();
             let y0 = m.simulate(&u, &[]).unwrap();
-            eprintln!(
-                "gap {gap}: model vs plant {:.4}, linear vs plant {:.4}, twist rms {tw:.4}",
-                crate::gap::modal::nrmse(&yt, &ym, 0),
-                crate::gap::modal::nrmse(&yt, &y0, 0)
-            );
-        }
-    }
-}
-
-#[cfg(test)]
-mod study2 {
-    use super::*;
-    use crate::gap::fit::{fit_placed, FitHints};
-    use crate::gap::plant::{simulate_drivetrain_backlash, Plant, SimSettings};
-
-    #[test]
-    #[ignore]
-    fn drivetrain_fit_path() {
-        let Plant::TwoMass(p) = Plant::two_mass() else { unreachable!() };
-        let mut rng = crate::gap::rng::Rng::new(3);
-        let gap = 0.008;
-        let u1 = crate::gap::benchmark::filtered_noise(16384, 1e-3, 120.0, 0.05, &mut rng);
-        let u2 = crate::gap::benchmark::filtered_noise(16384, 1e-3, 120.0, 0.15, &mut rng);
-        let s = SimSettings { ts: 1e-3, substeps: 8, noise_std: 0.01, seed: 1 };
-        let y1 = simulate_drivetrain_backlash(&p, gap, &u1, &s).unwrap();
-        let y2 = simulate_drivetrain_backlash(&p, gap, &u2, &s).unwrap();
-        let td = TrainData::new(1e-3, vec![u1, u2], vec![y1, y2], 200).unwrap();
-        let truth = TwoMassModel { ts: 1e-3, jm: p.jm, jl: p.jl, k: p.k, c: p.c, bm: p.bm, bl: p.bl, output: TwoMassOutput::MotorSpeed, offset: 0.0 };
-        let pe = PlacedEffect { effect: Effect::Backlash { gap }, place: Place::Drivetrain };
-        let lin = crate::gap::modal::ModalModel::from_poles(1e-3, &truth.continuous().unwrap().c2d_zoh(1e-3).unwrap().poles().unwrap(), false).unwrap();
-        let mut m = AugmentedModel::linear(lin.clone());
-        m.two_mass = Some(truth.clone());
-        let m = m.with_added(pe);
-        eprintln!("cost at truth {:.5}", eval_two_mass(&td, m.clone()).unwrap().train_cost);
-        for rel in [0.0, 0.05, 0.15] {
-            let mut t = truth.clone();
-            t.jm *= 1.0 + rel; t.jl *= 1.0 - rel; t.k *= 1.0 + rel; t.c *= 1.0 - rel;
-            let mut b = AugmentedModel::linear(lin.clone());
-            b.two_mass = Some(t);
-            let f = fit_placed(Candidate::new(EffectKind::Backlash, Place::Drivetrain), &td, &[b], None, &[], &FitHints::default()).unwrap();
-            eprintln!("start off {rel}: cost {:.5} effects {:?} tm {:?}", f.train_cost, f.model.effects(), f.model.two_mass);
+            let e = crate::gap::modal::nrmse(&yt, &ym, 0);
+            let e0 = crate::gap::modal::nrmse(&yt, &y0, 0);
+            assert!(e < 0.01, "gap {gap}: model vs plant {e}");
+            assert!(e0 >= lin_off, "gap {gap}: linear vs plant {e0}");
         }
     }
 }
