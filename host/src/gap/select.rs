@@ -22,6 +22,7 @@ use super::fit::{
     fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
     JOINT_MAX_ITER,
 };
+use super::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD};
 use super::modal::{nrmse, ModalModel};
 use super::place::{Candidate, Place, PlacedEffect};
 use super::structure::TwoMassStructure;
@@ -288,7 +289,18 @@ pub struct SelectOptions {
     pub pair_partners: usize,
     /// Candidates (an empty list means [`default_candidates`]).
     pub candidates: Vec<Candidate>,
+    /// The measured training outputs as logged, before any averaging (the lattice of a
+    /// quantizing sensor is only in the raw values: averaging over periods fills it in).
+    /// Empty: the outputs of the training data.
+    pub raw_outputs: Vec<Vec<f64>>,
+    /// Validation NRMSE a perfect model would still leave (the noise floor), when known: no
+    /// pair is tried once the selected single is within [`PAIR_FLOOR_FACTOR`] of it.
+    pub noise_floor: Option<f64>,
 }
+
+/// A second effect is not sought once the best single's validation NRMSE is within this
+/// factor of the noise floor.
+pub const PAIR_FLOOR_FACTOR: f64 = 2.0;
 
 impl Default for SelectOptions {
     fn default() -> Self {
@@ -298,6 +310,8 @@ impl Default for SelectOptions {
             nested_margin: 0.03,
             pair_partners: 2,
             candidates: Vec::new(),
+            raw_outputs: Vec::new(),
+            noise_floor: None,
         }
     }
 }
@@ -452,7 +466,11 @@ pub fn select_effects(
     let mut notes = Vec::new();
     let linear = AugmentedModel::linear(lin.clone());
     let gap_linear = nrmse(val_y, &linear.simulate(val_u)?, warmup);
-    let lattice = lattice_evidence(&td.base.y);
+    let lattice = if opts.raw_outputs.is_empty() {
+        lattice_evidence(&td.base.y)
+    } else {
+        lattice_evidence(&opts.raw_outputs)
+    };
     let position_output = lin.real.iter().any(|&p| p >= 1.0 - 1e-9);
     let vel = if position_output {
         VelocitySource::OutputDerivative
@@ -520,8 +538,22 @@ pub fn select_effects(
         }
     }
     singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+    // Friction on the load wins: its stiction variant, started from it.
+    if singles.first().and_then(|s| s.effects.first()).is_some_and(|p| {
+        p.place == Place::Load && p.effect.kind() == EffectKind::CoulombFriction
+    }) {
+        let c = Fitted {
+            model: singles[0].model.clone(),
+            train_cost: singles[0].train_cost,
+        };
+        let cand = Candidate::new(EffectKind::Stiction, Place::Load);
+        if let Some(f) = fit_placed(cand, td, &[c.model.clone()], Some(&c), sim_poles, &hints) {
+            singles.push(score(f, val_u, val_y, warmup, gap_linear));
+            singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+        }
+    }
     // Nested: stiction vs Coulomb friction at the same place.
-    resolve_nested(&mut singles, dwell.as_ref(), opts.nested_margin, &mut notes);
+    resolve_nested(&mut singles, td, dwell.as_ref(), opts.nested_margin, &mut notes);
     // 2. Best single.
     let mut selected_models: Vec<Scored> = Vec::new();
     if let Some(best) = singles.first() {
@@ -540,12 +572,16 @@ pub fn select_effects(
     }
     // 3. Pairs on top of the selected single.
     let mut pairs: Vec<Scored> = Vec::new();
-    let try_pairs = selected_models
-        .first()
-        .is_some_and(|f| f.improvement < PAIR_WORTH_TRYING);
+    let try_pairs = selected_models.first().is_some_and(|f| {
+        f.improvement < PAIR_WORTH_TRYING
+            && opts
+                .noise_floor
+                .is_none_or(|fl| !(f.gap <= PAIR_FLOOR_FACTOR * fl))
+    });
     if !try_pairs && !selected_models.is_empty() {
         notes.push(format!(
-            "no pair tried: the best single closes more than {:.0} % of the linear gap",
+            "no pair tried: the best single closes more than {:.0} % of the linear gap or \
+             is within {PAIR_FLOOR_FACTOR}x the noise floor",
             100.0 * PAIR_WORTH_TRYING
         ));
     }
@@ -699,18 +735,32 @@ fn shares(steps: &[Scored], gap_linear: f64) -> Vec<SelectedEffect> {
     out
 }
 
-/// Orders stiction against Coulomb friction (nested: stiction with breakaway = level is
-/// Coulomb friction). Stiction ranks first when dwell evidence shows a breakaway at least 1.2
-/// times its sliding level and its fitted breakaway is at least 1.3 times that level, while
-/// its validation NRMSE is within the nested margin of Coulomb's; or without such evidence
-/// when it lowers the validation NRMSE by the nested margin. Otherwise Coulomb ranks first.
+/// Orders stiction against Coulomb friction at the place of the better-ranked one (nested:
+/// stiction with breakaway = level is Coulomb friction). Stiction ranks first when its
+/// validation NRMSE is within the nested margin of Coulomb's and either dwell evidence shows a
+/// held input at least 1.2 times its sliding level with a fitted breakaway at least 1.3 times
+/// that level, or the training likelihood ratio over Coulomb friction exceeds
+/// [`NESTED_LR_THRESHOLD`] (see [`nested_likelihood_ratio`]); or, without either, when it
+/// lowers the validation NRMSE by the nested margin.
 fn resolve_nested(
     singles: &mut [Scored],
+    td: &TrainData,
     dwell: Option<&DwellEvidence>,
     nested_margin: f64,
     notes: &mut Vec<String>,
 ) {
-    let pos = |k: EffectKind, s: &[Scored]| s.iter().position(|x| kind_of(x) == Some(k));
+    let first_friction = singles
+        .iter()
+        .find_map(|x| x.effects.first().filter(|p| p.effect.kind().is_friction()))
+        .map(|p| p.place);
+    let Some(place) = first_friction else { return };
+    let pos = |k: EffectKind, s: &[Scored]| {
+        s.iter().position(|x| {
+            x.effects
+                .first()
+                .is_some_and(|p| p.effect.kind() == k && p.place == place)
+        })
+    };
     let (Some(is), Some(ic)) = (
         pos(EffectKind::Stiction, singles),
         pos(EffectKind::CoulombFriction, singles),
@@ -722,12 +772,21 @@ fn resolve_nested(
         Some(Effect::Stiction { level, breakaway }) => (breakaway / level, level),
         _ => (1.0, f64::NAN),
     };
+    let lr = nested_likelihood_ratio(
+        &singles[ic].model,
+        &singles[is].model,
+        &td.u,
+        &td.base.y,
+        td.base.warmup,
+    )
+    .unwrap_or(0.0);
     let dwell_says = dwell.is_some_and(|d| d.breakaway >= 1.2 * ratio.1) && ratio.0 >= 1.3;
-    let stiction_wins = (dwell_says && gs <= gc * (1.0 + nested_margin))
-        || gs < gc * (1.0 - nested_margin);
+    let evidence = dwell_says || (lr > NESTED_LR_THRESHOLD && ratio.0 >= 1.3);
+    let stiction_wins =
+        (evidence && gs <= gc * (1.0 + nested_margin)) || gs < gc * (1.0 - nested_margin);
     notes.push(format!(
-        "stiction vs coulomb_friction: validation NRMSE {gs:.4} vs {gc:.4}, fitted breakaway \
-         ratio {:.2}, dwell breakaway {}",
+        "stiction vs coulomb_friction at {place}: validation NRMSE {gs:.4} vs {gc:.4}, fitted \
+         breakaway ratio {:.2}, training likelihood ratio {lr:.1}, dwell breakaway {}",
         ratio.0,
         dwell.map_or("none".to_string(), |d| format!("{:.4} ({} dwells)", d.breakaway, d.dwells))
     ));
