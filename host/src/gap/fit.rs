@@ -780,7 +780,7 @@ pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Eff
 /// `base` with the candidate's effect at its null parameter (see [`fit_placed`]).
 fn null_guard(td: &TrainData, cand: Candidate, base: &AugmentedModel, fitted: Fitted) -> Fitted {
     let base_cost = base.cost(&td.base, &td.u);
-    if !(fitted.train_cost > base_cost) {
+    if fitted.train_cost.partial_cmp(&base_cost) != Some(std::cmp::Ordering::Greater) {
         return fitted;
     }
     let Some(e) = null_effect(cand.kind, cand.place, td) else {

@@ -465,7 +465,7 @@ pub fn simulate_drivetrain_backlash(
     u: &[f64],
     s: &SimSettings,
 ) -> Result<Vec<f64>> {
-    if !(s.ts.is_finite() && s.ts > 0.0) || s.substeps == 0 || !(gap >= 0.0) {
+    if !(s.ts.is_finite() && s.ts > 0.0) || s.substeps == 0 || gap.partial_cmp(&0.0).is_none_or(|o| o == std::cmp::Ordering::Less) {
         return Err(Error::InvalidArgument(format!(
             "drivetrain backlash simulation needs ts > 0, substeps >= 1 and gap >= 0 (got {} s, \
              {}, {gap})",

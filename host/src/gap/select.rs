@@ -70,7 +70,7 @@ pub fn lattice_evidence(y: &[Vec<f64>]) -> Option<LatticeEvidence> {
     let mut v = all.clone();
     v.sort_by(f64::total_cmp);
     let range = v[total - 1] - v[0];
-    if !(range > 0.0) {
+    if range.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let merge = 1e-9 * range;
@@ -86,7 +86,7 @@ pub fn lattice_evidence(y: &[Vec<f64>]) -> Option<LatticeEvidence> {
     let mut gaps: Vec<f64> = distinct.windows(2).map(|w| w[1] - w[0]).collect();
     gaps.sort_by(f64::total_cmp);
     let s0 = gaps[gaps.len() / 2];
-    if !(s0 > 0.0) {
+    if s0.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     // Refine: least squares of the distinct values on their level indices (near-lattice ones).
@@ -200,7 +200,7 @@ pub fn dwell_evidence(
         return None;
     }
     let rms = (all.iter().map(|x| x * x).sum::<f64>() / all.len() as f64).sqrt();
-    if !(rms > 0.0) {
+    if rms.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let mut near: Vec<f64> = Vec::new();
@@ -547,7 +547,7 @@ pub fn select_effects(
             train_cost: singles[0].train_cost,
         };
         let cand = Candidate::new(EffectKind::Stiction, Place::Load);
-        if let Some(f) = fit_placed(cand, td, &[c.model.clone()], Some(&c), sim_poles, &hints) {
+        if let Some(f) = fit_placed(cand, td, std::slice::from_ref(&c.model), Some(&c), sim_poles, &hints) {
             singles.push(score(f, val_u, val_y, warmup, gap_linear));
             singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
         }
@@ -576,7 +576,7 @@ pub fn select_effects(
         f.improvement < PAIR_WORTH_TRYING
             && opts
                 .noise_floor
-                .is_none_or(|fl| !(f.gap <= PAIR_FLOOR_FACTOR * fl))
+                .is_none_or(|fl| f.gap.partial_cmp(&(PAIR_FLOOR_FACTOR * fl)) != Some(std::cmp::Ordering::Less) && f.gap != PAIR_FLOOR_FACTOR * fl)
     });
     if !try_pairs && !selected_models.is_empty() {
         notes.push(format!(
@@ -831,7 +831,7 @@ mod tests {
                     format!("{q:.8e}").parse::<f64>().unwrap()
                 })
                 .collect();
-            let l = lattice_evidence(&[y.clone()]).expect("lattice");
+            let l = lattice_evidence(std::slice::from_ref(&y)).expect("lattice");
             assert!(
                 (l.step - step).abs() < 1e-6 * step,
                 "scale {scale} rel {rel}: step {} vs {step}",
@@ -1088,7 +1088,6 @@ mod cases {
         let tm = Plant::two_mass();
         let crate::gap::plant::Plant::TwoMass(tmp) = tm else { unreachable!() };
         let ns = 0.01 * y_rms(&tm, 0.05, 120.0);
-        let t0 = std::time::Instant::now();
         for gap in [0.003, 0.008] {
             let c = make_case(tm, 0.05, 120.0, n, 11, &|u, k| {
                 simulate_drivetrain_backlash(&tmp, gap, u, &settings(ns, k)).unwrap()

@@ -354,7 +354,7 @@ impl TwoMassModel {
             (c, a1 * jl - c, e2 - c)
         };
         for _ in 0..50 {
-            if !(jl > 0.0) {
+            if jl.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return None;
             }
             let (c, bl, bm) = parts(jl);
@@ -388,7 +388,7 @@ impl TwoMassModel {
     /// The two-mass form of a discrete modal model (its offset kept), or `None`.
     pub fn from_modal(lin: &ModalModel) -> Option<Self> {
         let ss = lin.to_state_space().ok()?;
-        let c = if lin.real.iter().any(|&p| p == 1.0) {
+        let c = if lin.real.contains(&1.0) {
             integrator_d2c(&ss)?
         } else {
             ss.d2c_zoh().ok()?
@@ -542,7 +542,7 @@ pub fn initial_search_two_mass(cand: Candidate, td: &TrainData, base: &Augmented
             let Ok((_, tw)) = tm.simulate_states(&w, &[]) else {
                 return Vec::new();
             };
-            if !(tw > 0.0) {
+            if tw.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return Vec::new();
             }
             log_grid(0.02 * tw, 4.0 * tw, 14)
@@ -630,7 +630,7 @@ pub fn fit_drivetrain_backlash(
         let Some(tm) = b.two_mass.clone() else { continue };
         let Ok(w) = b.drive_input(&coarse.u[0]) else { continue };
         let Ok((_, tw)) = tm.simulate_states(&w, &[]) else { continue };
-        if !(tw > 0.0) {
+        if tw.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
         let base = b.with_added(PlacedEffect {
@@ -644,7 +644,7 @@ pub fn fit_drivetrain_backlash(
         grid.sort_by(|a, b| a.train_cost.total_cmp(&b.train_cost));
         let mut picked: Vec<Fitted> = Vec::new();
         for g in grid {
-            if picked.len() >= 1 {
+            if !picked.is_empty() {
                 break;
             }
             if picked
