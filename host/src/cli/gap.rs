@@ -2,14 +2,16 @@
 //! disagree, which unmodelled effect explains it, and how far the gap shrinks once the effect is
 //! added (see [`crate::gap`]).
 //!
-//! Exit status: 0 when the diagnosis ran (whatever the verdict), 1 when `--expect` names an
-//! effect (or `none`) and the verdict differs.
+//! Exit status: 0 when the diagnosis ran (whatever the verdict), 1 when `--expect` names a
+//! verdict and the diagnosis differs, 2 usage error, 3 input data error (a sim whose response
+//! is identically zero, a constant log, ...), 4 numerical failure.
 use super::frf::LogArgs;
 use super::output;
 use super::ExitCode;
 use crate::error::{Error, Result};
 use crate::gap::simfile::{discretise_for_logs, load_sim};
 use crate::gap::{diagnose, EffectKind, GapOptions};
+use crate::preprocess::{preprocess, Step};
 use std::path::PathBuf;
 
 /// Arguments of `ferrosid gap`.
@@ -33,7 +35,15 @@ different excitation) only for ranking. Every effect is fitted as an augmentatio
 re-fit: coulomb_friction {level}, stiction {level, breakaway}, backlash {gap}, deadzone {width},
 saturation {limit} (input units), time_delay {seconds}, resonance {freq_hz, damping},
 quantization {step} (output units). The verdict is the effect with the lowest validation NRMSE
-if it improves on the linear re-fit by at least --margin (relative), else `none`.
+if it improves on the linear re-fit by at least --margin (relative) and removes at least half
+of the re-fit's excess over the noise floor; else `none` when the linear re-fit is within twice
+the noise floor (estimated from the data: period-to-period scatter of a repeating excitation,
+else the residual spectrum where the input has no power), else `unexplained`, with the
+evidence of a nonlinearity (amplitude dependence and mode shifts, distortion on non-excited
+multisine lines, residual concentration) in the report.
+
+A sim with integrators (poles at z = 1 / s = 0, e.g. a position output) is accepted; other
+poles on or outside the unit circle are refused.
 
 --figures DIR writes gap_frequency.svg (multiplicative error of the sim vs frequency, residual
 spectra of the nominal sim, the linear re-fit and the verdict model on the validation log) and
@@ -81,9 +91,15 @@ pub struct Args {
     /// Candidate effects to fit, comma separated (default: all).
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub effects: Vec<String>,
-    /// Expected verdict (an effect name or `none`): exit 1 if the diagnosis disagrees.
+    /// Expected verdict (an effect name, `a+b` for a pair, `none` or `unexplained`): exit 1 if
+    /// the diagnosis disagrees.
     #[arg(long, value_name = "EFFECT")]
     pub expect: Option<String>,
+    /// Anti-aliased decimation of every log by this integer factor before the diagnosis (as
+    /// `identify --decimate`; the sim must then be continuous or discrete at the decimated
+    /// sample time).
+    #[arg(long, value_name = "Q")]
+    pub decimate: Option<usize>,
 }
 
 fn parse_kind(s: &str) -> Result<EffectKind> {
@@ -126,8 +142,17 @@ impl Args {
                 .collect::<Result<Vec<_>>>()?
         };
         if let Some(e) = &self.expect {
-            if e != "none" {
-                parse_kind(e)?;
+            if e != "none" && e != "unexplained" {
+                for part in e.split('+') {
+                    parse_kind(part)?;
+                }
+            }
+        }
+        if let Some(q) = self.decimate {
+            if q < 2 {
+                return Err(Error::InvalidArgument(format!(
+                    "--decimate must be an integer >= 2, got {q}"
+                )));
             }
         }
         Ok(GapOptions {
@@ -146,11 +171,17 @@ impl Args {
 pub fn run(args: &Args) -> Result<ExitCode> {
     let opts = args.options()?;
     let sim = load_sim(&args.sim)?;
-    let train = args.select.read_all(&args.real)?;
-    let validate = args
+    let mut train = args.select.read_all(&args.real)?;
+    let mut validate = args
         .select
         .read_all(std::slice::from_ref(&args.validate))?
         .remove(0);
+    if let Some(factor) = args.decimate {
+        let steps = [Step::Decimate { factor }];
+        for log in train.iter_mut().chain(std::iter::once(&mut validate)) {
+            *log = preprocess(log, &steps)?.0;
+        }
+    }
     let sim_d = discretise_for_logs(&sim, validate.ts, &args.sim)?;
     let spinner = output::spinner("diagnosing the sim-to-real gap");
     let d = diagnose(&sim_d, &train, &validate, &opts);

@@ -1,9 +1,14 @@
 //! The diagnosis itself: linear re-fit, candidate effects, ranking, verdict, shrink.
 use super::effect::{Effect, EffectKind};
+use super::evidence::{self, Evidence};
 use super::fit::{fit_candidate, AugmentedModel, Fitted, TrainData};
 use super::locate::{locate, Where};
 use super::modal::{nrmse, FitSet, ModalModel};
-use super::report::{BandError, EffectReport, GapReport, LinearReport, Settings};
+use super::noise::{self, NoiseFloor};
+use super::report::{
+    BandError, EffectReport, GapReport, LinearReport, Settings, VerdictEffect,
+};
+use super::simfile::is_integrator_pole;
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
@@ -22,10 +27,131 @@ pub const DEFAULT_MARGIN: f64 = 0.10;
 /// 1-parameter effect it contains (stiction over Coulomb friction) to rank above it.
 pub const DEFAULT_NESTED_MARGIN: f64 = 0.03;
 
+/// Default noise factor: the verdict is `none` only when the linear re-fit's validation NRMSE
+/// is at most this multiple of the noise floor (see [`VerdictRule`]).
+pub const DEFAULT_NOISE_FACTOR: f64 = 2.0;
+
+/// Default share of the linear re-fit's excess over the noise floor, gap_linear − floor, that
+/// an effect must remove to be the verdict (see [`VerdictRule`]).
+pub const DEFAULT_MIN_EXCESS_CLOSED: f64 = 0.5;
+
+/// What the verdict rule decided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decision {
+    /// The best candidate (or combination) is the verdict.
+    Effect,
+    /// The linear re-fit reaches the noise floor: no unmodelled effect.
+    None,
+    /// A gap above the noise floor that no candidate closes.
+    Unexplained,
+}
+
+/// The verdict rule (docs/gap.md, "Verdict"). With `floor` the noise-floor NRMSE on the
+/// validation log and `best` the best candidate's validation NRMSE:
+/// 1. **effect** when the candidate improves on the linear re-fit by at least `margin`
+///    (relative) *and* removes at least `min_excess_closed` of the excess
+///    gap_linear − floor (floor taken as 0 when it could not be estimated);
+/// 2. else **none** when gap_linear ≤ `noise_factor`·floor;
+/// 3. else, when the floor could not be estimated, **none** unless the evidence shows a
+///    nonlinearity (amplitude dependence, nonlinear distortion, residual concentration);
+/// 4. else **unexplained**.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerdictRule {
+    /// Relative improvement over the linear re-fit an effect needs.
+    pub margin: f64,
+    /// gap_linear ≤ noise_factor·floor means "at the noise floor".
+    pub noise_factor: f64,
+    /// Share of the excess above the floor an effect must remove.
+    pub min_excess_closed: f64,
+}
+
+impl VerdictRule {
+    /// Decides (see the type docs). `has_candidate`: whether `best` belongs to a fitted effect.
+    pub fn decide(
+        &self,
+        gap_linear: f64,
+        best: f64,
+        has_candidate: bool,
+        floor: &NoiseFloor,
+        evidence: &Evidence,
+    ) -> Decision {
+        let f = if floor.available() { floor.nrmse } else { 0.0 };
+        if has_candidate
+            && best.is_finite()
+            && (gap_linear - best) >= self.margin * gap_linear
+            && (gap_linear - best) >= self.min_excess_closed * (gap_linear - f)
+        {
+            return Decision::Effect;
+        }
+        if floor.available() {
+            if gap_linear <= self.noise_factor * floor.nrmse {
+                Decision::None
+            } else {
+                Decision::Unexplained
+            }
+        } else if evidence.nonlinear() {
+            Decision::Unexplained
+        } else {
+            Decision::None
+        }
+    }
+
+    /// A one-line reason for notes (why not an effect, why none/unexplained).
+    pub fn explain(
+        &self,
+        gap_linear: f64,
+        best: f64,
+        floor: &NoiseFloor,
+        d: Decision,
+    ) -> Option<String> {
+        let fl = floor.nrmse;
+        match d {
+            Decision::Effect => None,
+            Decision::None if floor.available() => Some(format!(
+                "verdict none: the linear re-fit ({gap_linear:.4}) is within {}x the noise floor \
+                 ({fl:.4}, {})",
+                self.noise_factor, floor.method
+            )),
+            Decision::None => Some(format!(
+                "verdict none: no noise floor could be estimated (no repeating input, no \
+                 off-band bins) and no evidence of a nonlinearity; the linear re-fit leaves \
+                 {gap_linear:.4}"
+            )),
+            Decision::Unexplained => Some(format!(
+                "verdict unexplained: the linear re-fit leaves {gap_linear:.4}{}, and the best \
+                 candidate ({best:.4}) does not improve on it by {:.0}% while removing {:.0}% of \
+                 the excess over the floor",
+                if floor.available() {
+                    format!(" against a noise floor of {fl:.4}")
+                } else {
+                    String::new()
+                },
+                100.0 * self.margin,
+                100.0 * self.min_excess_closed
+            )),
+        }
+    }
+}
+
+/// The place an effect of this kind is reported at by the single-effect candidate loop (the
+/// place vocabulary of docs/gap.md): friction acts on the driven mass (`motor`), quantization
+/// at the `sensor`, everything else in the command path (`drive`).
+pub fn default_place(kind: EffectKind) -> &'static str {
+    match kind {
+        EffectKind::CoulombFriction | EffectKind::Stiction => "motor",
+        EffectKind::Quantization => "sensor",
+        _ => "drive",
+    }
+}
+
 /// Likelihood-ratio threshold for the nested pair (stiction over Coulomb friction) when the
 /// validation log cannot separate them: the χ² quantile with one degree of freedom (the extra
 /// breakaway parameter) at p = 0.001. See [`nested_likelihood_ratio`].
 pub const NESTED_LR_THRESHOLD: f64 = 10.83;
+
+/// Scored samples per log on which every start of the linear re-fit is refined before the best
+/// one is refined on all the data.
+pub const REFIT_SCREEN_SAMPLES: usize = 8192;
 
 /// Longest lag of the residual autocorrelation used by [`effective_samples`], samples.
 pub const MAX_CORRELATION_LAG: usize = 2000;
@@ -120,6 +246,11 @@ pub struct GapOptions {
     pub nperseg: Option<usize>,
     /// Candidate effects to fit (default: all eight).
     pub candidates: Vec<EffectKind>,
+    /// Noise factor of the verdict rule, default [`DEFAULT_NOISE_FACTOR`].
+    pub noise_factor: f64,
+    /// Share of the excess over the noise floor an effect must remove, default
+    /// [`DEFAULT_MIN_EXCESS_CLOSED`].
+    pub min_excess_closed: f64,
 }
 
 impl Default for GapOptions {
@@ -133,6 +264,8 @@ impl Default for GapOptions {
             warmup: None,
             nperseg: None,
             candidates: EffectKind::ALL.to_vec(),
+            noise_factor: DEFAULT_NOISE_FACTOR,
+            min_excess_closed: DEFAULT_MIN_EXCESS_CLOSED,
         }
     }
 }
@@ -146,6 +279,9 @@ pub struct Diagnosis {
     pub nominal: StateSpace,
     /// The linear re-fit.
     pub linear: AugmentedModel,
+    /// The model of the verdict (the linear model when the verdict is `none` or
+    /// `unexplained`).
+    pub verdict_model: AugmentedModel,
     /// Every fitted candidate, ranked best first (same order as `report.effects`).
     pub candidates: Vec<AugmentedModel>,
     /// Validation input and output.
@@ -155,13 +291,10 @@ pub struct Diagnosis {
 }
 
 impl Diagnosis {
-    /// The model of the verdict (the linear re-fit when the verdict is `none`).
+    /// The model of the verdict (the linear model when the verdict is `none` or
+    /// `unexplained`).
     pub fn verdict_model(&self) -> &AugmentedModel {
-        if self.report.verdict == "none" {
-            &self.linear
-        } else {
-            &self.candidates[0]
-        }
+        &self.verdict_model
     }
 }
 
@@ -199,6 +332,18 @@ fn siso(log: &Log, role: &str) -> Result<(Vec<f64>, Vec<f64>)> {
             msg: format!("non-finite sample at index {}", k % u.len()),
         });
     }
+    for (sig, what) in [(u, "input"), (y, "output")] {
+        if sig.iter().all(|&v| v == sig[0]) {
+            return Err(Error::Data {
+                file: log.path.clone(),
+                msg: format!(
+                    "{role} log's {what} is constant (every sample equals {}): there is no \
+                     response to compare (NRMSE undefined)",
+                    sig[0]
+                ),
+            });
+        }
+    }
     Ok((u.to_vec(), y.to_vec()))
 }
 
@@ -220,19 +365,23 @@ fn scaled_poles(poles: &[Complex64], ts: f64, alpha: f64) -> Vec<Complex64> {
 /// sim's order on each training log; keeps the lowest training cost.
 fn linear_refit(
     td: &TrainData,
-    sim: &StateSpace,
+    poles: &[Complex64],
+    use_d: bool,
+    nominal: Option<&ModalModel>,
     notes: &mut Vec<String>,
 ) -> Result<(ModalModel, f64)> {
     let ts = td.ts;
-    let use_d = sim.d[(0, 0)] != 0.0;
-    let poles = sim.poles()?;
     let n = poles.len();
     let mut starts: Vec<(ModalModel, &'static str)> = Vec::new();
+    // The nominal's own poles, unscaled (the scan below need not hit a factor of exactly 1).
+    if let Some(m) = nominal {
+        starts.push((m.clone(), "nominal"));
+    }
     // Frequency-scale scan from the sim.
     let mut best_scan: Option<(ModalModel, f64)> = None;
     for i in 0..=20 {
         let alpha = 0.6 * (1.6f64 / 0.6).powf(i as f64 / 20.0);
-        let Ok(mut m) = ModalModel::from_poles(ts, &scaled_poles(&poles, ts, alpha), use_d) else {
+        let Ok(mut m) = ModalModel::from_poles(ts, &scaled_poles(poles, ts, alpha), use_d) else {
             continue;
         };
         if let Some(c) = m.fit_linear_params(&td.base) {
@@ -260,17 +409,31 @@ fn linear_refit(
             Err(e) => notes.push(format!("N4SID start on training log {l} skipped: {e}")),
         }
     }
+    // Every start is refined on the first REFIT_SCREEN_SAMPLES scored samples of each log;
+    // the best is refined on all the data (the whole data when the logs are that short).
+    let coarse = td.coarse(REFIT_SCREEN_SAMPLES);
     let mut best: Option<(ModalModel, f64)> = None;
     for (mut m, _) in starts {
-        if let Some(c) = m.fit_output_error(&td.base, 60) {
+        if let Some(c) = m.fit_output_error(&coarse.base, 60) {
             if best.as_ref().is_none_or(|(_, b)| c < *b) {
                 best = Some((m, c));
             }
         }
     }
-    best.ok_or_else(|| {
+    let (mut m, c) = best.ok_or_else(|| {
         Error::Numerical("linear re-fit failed from every start (singular regressors)".into())
-    })
+    })?;
+    if coarse.base.y.iter().zip(&td.base.y).all(|(a, b)| a.len() == b.len()) {
+        return Ok((m, c));
+    }
+    let before = m.clone();
+    match m.fit_output_error(&td.base, 60) {
+        Some(c) => Ok((m, c)),
+        None => {
+            let c = before.cost(&td.base);
+            Ok((before, c))
+        }
+    }
 }
 
 /// Runs the gap diagnosis of the discrete nominal model `sim` (SISO, sample time equal to the
@@ -321,52 +484,115 @@ pub fn diagnose(
         ty.push(y);
     }
     let (vu, vy) = siso(validate, "validation")?;
+    if let Some(msg) = super::simfile::zero_response(sim) {
+        return Err(Error::InvalidArgument(msg));
+    }
     let shortest = tu.iter().map(Vec::len).chain([vu.len()]).min().unwrap_or(0);
-    let poles = sim.poles()?;
-    let warmup = opts.warmup.unwrap_or_else(|| {
-        let slowest = poles.iter().map(|p| p.norm()).fold(0.0f64, f64::max);
-        let tau = if slowest > 0.0 {
-            -1.0 / slowest.ln()
-        } else {
-            0.0
-        };
-        ((5.0 * tau).ceil() as usize).min(shortest / 10)
-    });
+    let sim_poles = sim.poles()?;
+    if let Some(p) = sim_poles
+        .iter()
+        .find(|p| p.norm() >= 1.0 - 1e-9 && !is_integrator_pole(**p))
+    {
+        return Err(Error::InvalidArgument(format!(
+            "the sim has a pole on or outside the unit circle other than an integrator: z = {p:.6}"
+        )));
+    }
+    let poles = modal_stand_in(&sim_poles);
+    let warmup = opts.warmup.unwrap_or_else(|| default_warmup(&sim_poles, shortest));
     if warmup >= shortest / 2 {
         return Err(Error::InvalidArgument(format!(
             "warm-up of {warmup} samples leaves too little of the shortest log ({shortest})"
         )));
     }
     let mut notes = Vec::new();
-    let td = TrainData::new(ts, tu.clone(), ty.clone(), warmup)?;
+    if sim_poles.iter().any(|p| is_integrator_pole(*p)) {
+        notes.push(format!(
+            "the sim has an integrator (pole at z = 1); its modal form uses z = 1 − {INTEGRATOR_STAND_IN:e} \
+             (a time constant far beyond the logs) and the warm-up follows the slowest stable pole"
+        ));
+    }
+    // Fitting data: periodic training logs averaged over their periods (module docs of
+    // `period_average`); the raw logs serve everything else.
+    let mut fu = Vec::with_capacity(tu.len());
+    let mut fy = Vec::with_capacity(tu.len());
+    for (log, (u, y)) in train.iter().zip(tu.iter().zip(&ty)) {
+        match period_average(u, y, warmup) {
+            Some((ua, ya, p, m)) => {
+                notes.push(format!(
+                    "{}: input repeats every {p} samples; the fits use the average of {m} \
+                     periods (repeated to cover the warm-up)",
+                    log.path.display()
+                ));
+                fu.push(ua);
+                fy.push(ya);
+            }
+            None => {
+                fu.push(u.clone());
+                fy.push(y.clone());
+            }
+        }
+    }
+    let td = TrainData::new(ts, fu.clone(), fy, warmup)?;
+    let profile = std::env::var_os("GAP_PROFILE").is_some();
+    let t_start = std::time::Instant::now();
 
     // HOW FAR (before): the nominal sim on the validation log.
     let y_nom = sim.simulate_siso(&vu, None)?;
     let gap_before = nrmse(&vy, &y_nom, warmup);
 
-    // Linear re-fit.
-    let t0 = std::time::Instant::now();
-    let (lin, lin_cost) = linear_refit(&td, sim, &mut notes)?;
-    if std::env::var_os("GAP_PROFILE").is_some() {
-        eprintln!("profile: linear refit {:.3} s", t0.elapsed().as_secs_f64());
+    // The nominal sim in modal form (residues fitted to its own noise-free response on the
+    // training inputs): a start of the re-fit and of every candidate, and the fallback linear
+    // model.
+    let use_d = sim.d[(0, 0)] != 0.0;
+    let nominal_modal: Option<ModalModel> = (|| {
+        let mut nominal = ModalModel::from_poles(ts, &poles, use_d).ok()?;
+        let y_sim: Vec<Vec<f64>> = fu
+            .iter()
+            .map(|u| sim.simulate_siso(u, None))
+            .collect::<Result<_>>()
+            .ok()?;
+        let set = FitSet::new(fu.clone(), y_sim, warmup).ok()?;
+        nominal.fit_linear_params(&set)?;
+        Some(nominal)
+    })();
+
+    // Linear re-fit, guarded by the nominal (see LinearReport::source).
+    let (refit, refit_cost) =
+        linear_refit(&td, &poles, use_d, nominal_modal.as_ref(), &mut notes)?;
+    if profile {
+        eprintln!("profile: linear refit {:.3} s", t_start.elapsed().as_secs_f64());
     }
+    let gap_refit = nrmse(&vy, &refit.simulate(&vu), warmup);
+    let (lin, lin_cost, linear_source) = match &nominal_modal {
+        Some(nom) if !(gap_refit <= gap_before) => {
+            // The nominal with its offset set on the training logs (its residues fixed), or
+            // as it is, whichever the training logs prefer; as it is when that one is not
+            // above the nominal on validation either.
+            let mut with_offset = nom.clone();
+            with_offset.offset = mean_offset(&td, nom);
+            let (c0, c1) = (nom.cost(&td.base), with_offset.cost(&td.base));
+            let mut pick = if c1 < c0 { with_offset } else { nom.clone() };
+            if !(nrmse(&vy, &pick.simulate(&vu), warmup) <= gap_before) {
+                pick = nom.clone();
+            }
+            notes.push(format!(
+                "the output-error re-fit ({gap_refit:.4}) does worse than the nominal sim \
+                 ({gap_before:.4}) on the validation log: the linear model is the nominal in \
+                 modal form"
+            ));
+            let c = pick.cost(&td.base);
+            (pick, c, "nominal")
+        }
+        _ => (refit.clone(), refit_cost, "refit"),
+    };
     let linear = AugmentedModel::linear(lin.clone());
     let gap_linear = nrmse(&vy, &linear.simulate(&vu)?, warmup);
 
-    // WHICH: every candidate, from the linear re-fit and from the nominal sim in modal form
-    // (residues fitted to the sim's own noise-free response on the training inputs).
-    let mut starts = vec![lin.clone()];
-    if let Ok(mut nominal) = ModalModel::from_poles(ts, &poles, lin.use_d) {
-        let y_sim: Vec<Vec<f64>> = tu
-            .iter()
-            .map(|u| sim.simulate_siso(u, None))
-            .collect::<Result<_>>()?;
-        if let Ok(set) = FitSet::new(tu.clone(), y_sim, warmup) {
-            if nominal.fit_linear_params(&set).is_some() {
-                nominal.offset = lin.offset;
-                starts.push(nominal);
-            }
-        }
+    // WHICH: every candidate, from the re-fit and from the nominal sim in modal form.
+    let mut starts = vec![refit.clone()];
+    if let Some(mut nominal) = nominal_modal.clone() {
+        nominal.offset = lin.offset;
+        starts.push(nominal);
     }
     let mut fitted: Vec<Fitted> = Vec::new();
     let mut coulomb: Option<Fitted> = None;
@@ -383,7 +609,7 @@ pub fn diagnose(
         };
         let t0 = std::time::Instant::now();
         let fc = fit_candidate(kind, &td, &starts, hint.as_ref(), &poles);
-        if std::env::var_os("GAP_PROFILE").is_some() {
+        if profile {
             eprintln!("profile: {kind} {:.3} s", t0.elapsed().as_secs_f64());
         }
         match fc {
@@ -435,20 +661,100 @@ pub fn diagnose(
             scored.swap(is, ic);
         }
     }
+    if profile {
+        eprintln!("profile: candidates done {:.3} s", t_start.elapsed().as_secs_f64());
+    }
+
+    // Residuals of the linear model (training and validation) and of the nominal (training).
+    let resid = |y: &[f64], yh: &[f64]| -> Vec<f64> { y.iter().zip(yh).map(|(a, b)| a - b).collect() };
+    let y_lin_train: Vec<Vec<f64>> = tu
+        .iter()
+        .map(|u| linear.simulate(u))
+        .collect::<Result<_>>()?;
+    let train_resid_lin: Vec<Vec<f64>> =
+        ty.iter().zip(&y_lin_train).map(|(y, yh)| resid(y, yh)).collect();
+    let y_lin_val = linear.simulate(&vu)?;
+    let val_resid_lin = resid(&vy, &y_lin_val);
+    let train_resid_nom: Vec<Vec<f64>> = tu
+        .iter()
+        .zip(&ty)
+        .map(|(u, y)| Ok(resid(y, &sim.simulate_siso(u, None)?)))
+        .collect::<Result<_>>()?;
+
+    // NOISE FLOOR.
+    let noise_floor = noise::noise_floor(
+        (&vu, &vy),
+        &val_resid_lin,
+        &tu.iter().zip(&ty).map(|(u, y)| (u.as_slice(), y.as_slice())).collect::<Vec<_>>(),
+        &train_resid_lin.iter().map(Vec::as_slice).collect::<Vec<_>>(),
+        warmup,
+        1.0 / ts,
+    )?;
+
+    // WHERE, and the evidence.
+    let paths: Vec<PathBuf> = train.iter().map(|l| l.path.clone()).collect();
+    let mut where_: Where = locate(
+        sim,
+        &tu,
+        &ty,
+        &y_lin_train,
+        &train_resid_lin,
+        &train_resid_nom,
+        warmup,
+        ts,
+        opts,
+        &paths,
+    )?;
+    let amplitude = evidence::amplitude_evidence(
+        &tu,
+        &ty,
+        &lin,
+        warmup,
+        ts,
+        where_.nperseg,
+        opts.coherence_min,
+        opts.amplitude_tol,
+    )?;
+    where_.amplitude_dependent = amplitude.amplitude_dependent;
+    let mut dist_logs: Vec<(String, &[f64], &[f64])> = train
+        .iter()
+        .zip(tu.iter().zip(&ty))
+        .map(|(l, (u, y))| (l.path.display().to_string(), u.as_slice(), y.as_slice()))
+        .collect();
+    dist_logs.push((validate.path.display().to_string(), &vu, &vy));
+    let nonlinear_distortion = evidence::distortion(&dist_logs, warmup, ts);
+    let evidence = Evidence {
+        amplitude,
+        nonlinear_distortion,
+        residual_regions: where_.residual_regions.clone(),
+    };
+    if profile {
+        eprintln!("profile: evidence done {:.3} s", t_start.elapsed().as_secs_f64());
+    }
+
+    // VERDICT.
     let best_gap = scored.first().map_or(f64::INFINITY, |s| s.1);
     let improvement = |g: f64| (gap_linear - g) / gap_linear;
-    let verdict = match scored.first() {
-        Some((f, g)) if improvement(*g) >= opts.margin => f
-            .model
-            .effect
-            .map_or("none".to_string(), |e| e.kind().name().to_string()),
-        _ => "none".to_string(),
+    let best_name = scored
+        .first()
+        .and_then(|(f, _)| f.model.effect)
+        .map(|e| e.kind().name().to_string());
+    let rule = VerdictRule {
+        margin: opts.margin,
+        noise_factor: opts.noise_factor,
+        min_excess_closed: opts.min_excess_closed,
     };
-    let gap_after = if verdict == "none" {
-        gap_linear
-    } else {
-        best_gap
+    let decision = rule.decide(gap_linear, best_gap, best_name.is_some(), &noise_floor, &evidence);
+    let verdict = match decision {
+        Decision::Effect => best_name.clone().unwrap_or_else(|| "none".into()),
+        Decision::None => "none".into(),
+        Decision::Unexplained => "unexplained".into(),
     };
+    if let Some(reason) = rule.explain(gap_linear, best_gap, &noise_floor, decision) {
+        notes.push(reason);
+    }
+    let has_effect = decision == Decision::Effect;
+    let gap_after = if has_effect { best_gap } else { gap_linear };
 
     let effects: Vec<EffectReport> = scored
         .iter()
@@ -456,6 +762,7 @@ pub fn diagnose(
             let e: Effect = f.model.effect?;
             Some(EffectReport {
                 effect: e.kind().name().to_string(),
+                place: default_place(e.kind()).to_string(),
                 params: e
                     .params()
                     .into_iter()
@@ -472,42 +779,29 @@ pub fn diagnose(
             })
         })
         .collect();
-    let candidates: Vec<AugmentedModel> = scored.into_iter().map(|(f, _)| f.model).collect();
-    let best_model = if verdict == "none" {
-        &linear
+    let verdict_effects: Vec<VerdictEffect> = if has_effect {
+        effects
+            .first()
+            .map(|e| VerdictEffect {
+                effect: e.effect.clone(),
+                place: e.place.clone(),
+                params: e.params.clone(),
+                share: 1.0,
+            })
+            .into_iter()
+            .collect()
     } else {
-        &candidates[0]
+        Vec::new()
+    };
+    let candidates: Vec<AugmentedModel> = scored.into_iter().map(|(f, _)| f.model).collect();
+    let verdict_model = if has_effect {
+        candidates[0].clone()
+    } else {
+        linear.clone()
     };
 
-    // WHERE, and the frequency-domain error in the worst band.
-    let train_resid_lin: Vec<Vec<f64>> = tu
-        .iter()
-        .zip(&ty)
-        .map(|(u, y)| {
-            let yh = linear.simulate(u)?;
-            Ok(y.iter().zip(&yh).map(|(a, b)| a - b).collect())
-        })
-        .collect::<Result<_>>()?;
-    let y_lin_train: Vec<Vec<f64>> = tu
-        .iter()
-        .map(|u| linear.simulate(u))
-        .collect::<Result<_>>()?;
-    let where_: Where = locate(
-        sim,
-        &tu,
-        &ty,
-        &y_lin_train,
-        &train_resid_lin,
-        warmup,
-        ts,
-        opts,
-        &train
-            .iter()
-            .map(|l| l.path.clone())
-            .collect::<Vec<PathBuf>>(),
-    )?;
-    let y_lin_val = linear.simulate(&vu)?;
-    let y_best_val = best_model.simulate(&vu)?;
+    // The frequency-domain error in the worst band.
+    let y_best_val = verdict_model.simulate(&vu)?;
     let band_error = BandError::compute(
         where_.worst_band_hz,
         &vy,
@@ -520,6 +814,9 @@ pub fn diagnose(
     let lin_ss = lin.to_state_space()?;
     let report = GapReport {
         verdict,
+        verdict_effects,
+        noise_floor,
+        evidence,
         where_,
         gap_before,
         gap_linear,
@@ -529,6 +826,8 @@ pub fn diagnose(
         linear: LinearReport {
             model: StateSpaceData::from(&lin_ss),
             offset: lin.offset,
+            source: linear_source.into(),
+            gap_refit,
             poles_hz: lin
                 .poles()
                 .iter()
@@ -549,20 +848,122 @@ pub fn diagnose(
             warmup_samples: warmup,
             margin: opts.margin,
             nested_margin: opts.nested_margin,
+            noise_factor: opts.noise_factor,
+            min_excess_closed: opts.min_excess_closed,
             threshold: opts.threshold,
             coherence_min: opts.coherence_min,
             amplitude_tol: opts.amplitude_tol,
         },
         notes,
     };
+    if profile {
+        eprintln!("profile: total {:.3} s", t_start.elapsed().as_secs_f64());
+    }
     Ok(Diagnosis {
         report,
         nominal: sim.clone(),
         linear,
+        verdict_model,
         candidates,
         validation: (vu, vy),
         warmup,
     })
+}
+
+/// Period averaging of a training log for the fits: when the input repeats with period P
+/// ([`noise::detect_period`]) and at least two whole periods follow the warm-up (rounded up to
+/// whole periods, at least one period skipped when three or more exist), the input and output
+/// are averaged over those periods and the average is repeated ⌈warm-up/P⌉ + 1 times, so the
+/// fit sees the same periodic steady state after the same warm-up from rest, with the noise
+/// divided by the number of periods and the cost cut by the same factor (standard practice in
+/// periodic identification; a nonlinear plant's periodic steady state is kept exactly).
+/// Returns (u, y, P, periods averaged), `None` for a non-periodic log.
+pub fn period_average(
+    u: &[f64],
+    y: &[f64],
+    warmup: usize,
+) -> Option<(Vec<f64>, Vec<f64>, usize, usize)> {
+    let p = noise::detect_period(u)?;
+    let total = u.len() / p;
+    let mut skip = warmup.div_ceil(p);
+    if total >= 3 {
+        skip = skip.max(1);
+    }
+    let m = total.checked_sub(skip)?;
+    if m < 2 {
+        return None;
+    }
+    let avg = |x: &[f64]| -> Vec<f64> {
+        let mut a = vec![0.0; p];
+        for q in skip..skip + m {
+            for (v, s) in a.iter_mut().zip(&x[q * p..(q + 1) * p]) {
+                *v += s / m as f64;
+            }
+        }
+        a
+    };
+    let (ua, ya) = (avg(u), avg(y));
+    let copies = warmup.div_ceil(p) + 1;
+    let rep = |a: &[f64]| -> Vec<f64> { (0..copies).flat_map(|_| a.iter().copied()).collect() };
+    // Only worth it when it shortens the log.
+    if copies * p >= u.len() {
+        return None;
+    }
+    Some((rep(&ua), rep(&ya), p, m))
+}
+
+/// Offset (output units) that best fits the training logs with `m`'s residues fixed: the
+/// weighted mean of its residual.
+fn mean_offset(td: &TrainData, m: &ModalModel) -> f64 {
+    let mut zero = m.clone();
+    zero.offset = 0.0;
+    let (mut num, mut den) = (0.0, 0.0);
+    for ((u, y), &w) in td.base.w.iter().zip(&td.base.y).zip(&td.base.weight) {
+        let yh = zero.simulate(u);
+        for (a, b) in y.iter().zip(&yh).skip(td.base.warmup) {
+            num += w * (a - b);
+            den += w;
+        }
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}
+
+/// Stand-in for an integrator in the modal form, which needs |z| < 1: z = 1 − this (a time
+/// constant of 10⁷ samples, far beyond any log).
+pub const INTEGRATOR_STAND_IN: f64 = 1e-7;
+
+/// The poles with every integrator (z ≈ 1) replaced by z = 1 − [`INTEGRATOR_STAND_IN`].
+pub fn modal_stand_in(poles: &[Complex64]) -> Vec<Complex64> {
+    poles
+        .iter()
+        .map(|&p| {
+            if is_integrator_pole(p) {
+                Complex64::new(1.0 - INTEGRATOR_STAND_IN, 0.0)
+            } else {
+                p
+            }
+        })
+        .collect()
+}
+
+/// Default warm-up: five time constants of the slowest *stable* pole (integrators do not decay
+/// and are left out), at most a tenth of the shortest log.
+pub fn default_warmup(poles: &[Complex64], shortest: usize) -> usize {
+    let slowest = poles
+        .iter()
+        .filter(|p| !is_integrator_pole(**p) && p.norm() < 1.0)
+        .map(|p| p.norm())
+        .fold(0.0f64, f64::max);
+    let tau = if slowest > 0.0 {
+        -1.0 / slowest.ln()
+    } else {
+        0.0
+    };
+    ((5.0 * tau).ceil() as usize).min(shortest / 10)
 }
 
 /// NRMSE of a model on one log's samples (helper for callers and tests).

@@ -13,6 +13,13 @@
 //! | `time_delay` | `seconds` | pure delay of the input |
 //! | `resonance` | `freq_hz` (Hz), `damping` (ratio) | extra mode in series with the input, ω²/(s² + 2ζωs + ω²), unit DC gain |
 //! | `quantization` | `step` (output units) | sensor rounding y = step·round(y/step) |
+//! | `slew_rate` | `rate` (input units per second) | rate limit on the command: w changes by at most `rate`·ts per sample |
+//! | `state_limit` | `limit` (output units) | a level that saturates inside the plant (see [`crate::gap::fit`]) |
+//!
+//! The same kind may act at several places ([`crate::gap::place`]): `saturation` at the sensor
+//! clips the output (`limit` then in output units), `backlash` in the drivetrain of a two-mass
+//! structure is a dead zone on the shaft twist (`gap` then in the structure's position units,
+//! see [`crate::gap::structure`]), friction on the load acts on the second inertia.
 //!
 //! Friction parameters are in input units: the input that balances the friction force in steady
 //! state (for a voltage-driven DC motor, friction torque × R / k_t).
@@ -40,11 +47,15 @@ pub enum EffectKind {
     Resonance,
     /// Output quantization (sensor resolution).
     Quantization,
+    /// Rate limit in the command path.
+    SlewRate,
+    /// Saturating level inside the plant.
+    StateLimit,
 }
 
 impl EffectKind {
     /// Every kind, in report order.
-    pub const ALL: [EffectKind; 8] = [
+    pub const ALL: [EffectKind; 9] = [
         EffectKind::CoulombFriction,
         EffectKind::Stiction,
         EffectKind::Backlash,
@@ -53,6 +64,7 @@ impl EffectKind {
         EffectKind::TimeDelay,
         EffectKind::Resonance,
         EffectKind::Quantization,
+        EffectKind::SlewRate,
     ];
 
     /// The name used in reports and JSON (`coulomb_friction`, ...).
@@ -66,12 +78,23 @@ impl EffectKind {
             EffectKind::TimeDelay => "time_delay",
             EffectKind::Resonance => "resonance",
             EffectKind::Quantization => "quantization",
+            EffectKind::SlewRate => "slew_rate",
+            EffectKind::StateLimit => "state_limit",
         }
     }
 
     /// Parses a report name back into a kind.
     pub fn from_name(s: &str) -> Option<Self> {
-        Self::ALL.iter().copied().find(|k| k.name() == s)
+        Self::ALL
+            .iter()
+            .copied()
+            .chain([EffectKind::StateLimit])
+            .find(|k| k.name() == s)
+    }
+
+    /// Whether the kind is friction (Coulomb or stiction).
+    pub fn is_friction(self) -> bool {
+        matches!(self, EffectKind::CoulombFriction | EffectKind::Stiction)
     }
 
     /// Number of parameters.
@@ -136,6 +159,16 @@ pub enum Effect {
         /// Step, output units.
         step: f64,
     },
+    /// Command rate limit.
+    SlewRate {
+        /// Largest change of the command per second, input units/s.
+        rate: f64,
+    },
+    /// Saturating level inside the plant.
+    StateLimit {
+        /// Level, output units.
+        limit: f64,
+    },
 }
 
 impl Effect {
@@ -150,6 +183,8 @@ impl Effect {
             Effect::TimeDelay { .. } => EffectKind::TimeDelay,
             Effect::Resonance { .. } => EffectKind::Resonance,
             Effect::Quantization { .. } => EffectKind::Quantization,
+            Effect::SlewRate { .. } => EffectKind::SlewRate,
+            Effect::StateLimit { .. } => EffectKind::StateLimit,
         }
     }
 
@@ -168,6 +203,8 @@ impl Effect {
                 vec![("freq_hz", freq_hz), ("damping", damping)]
             }
             Effect::Quantization { step } => vec![("step", step)],
+            Effect::SlewRate { rate } => vec![("rate", rate)],
+            Effect::StateLimit { limit } => vec![("limit", limit)],
         }
     }
 
@@ -193,6 +230,8 @@ impl Effect {
                 bad("need freq_hz > 0 and damping > 0")
             }
             Effect::Quantization { step } if step <= 0.0 => bad("step must be > 0"),
+            Effect::SlewRate { rate } if rate <= 0.0 => bad("rate must be > 0"),
+            Effect::StateLimit { limit } if limit <= 0.0 => bad("limit must be > 0"),
             _ => Ok(()),
         }
     }
@@ -233,6 +272,27 @@ pub fn saturation(u: f64, limit: f64) -> f64 {
 #[inline]
 pub fn quantize(y: f64, step: f64) -> f64 {
     step * (y / step).round()
+}
+
+/// Rate limiter: the output moves toward the input by at most `max_step` per sample, starting
+/// at 0.
+#[derive(Debug, Clone, Copy)]
+pub struct RateLimiter {
+    max_step: f64,
+    out: f64,
+}
+
+impl RateLimiter {
+    /// Limiter with the largest change per sample `max_step` (>= 0) and output 0.
+    pub fn new(max_step: f64) -> Self {
+        Self { max_step, out: 0.0 }
+    }
+    /// Next output for input `u`.
+    #[inline]
+    pub fn apply(&mut self, u: f64) -> f64 {
+        self.out += (u - self.out).clamp(-self.max_step, self.max_step);
+        self.out
+    }
 }
 
 /// Play (backlash) operator with total play `gap`, starting engaged at 0: the output follows
@@ -353,6 +413,12 @@ pub fn resonance_mode(freq_hz: f64, damping: f64) -> Result<StateSpace> {
     StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0)
 }
 
+/// Natural frequency, in cycles per sample, at or above which [`resonance_filter`] passes its
+/// input unchanged: such a mode settles within 1e-3 of a sample period, below the resolution
+/// of a sampled model. Fits stay below 0.45 cycles per sample; this is the null of the
+/// `resonance` candidate (a model with it reproduces the model without it).
+pub const NULL_RESONANCE_CYCLES_PER_SAMPLE: f64 = 1e3;
+
 /// Filters `u` (held over each sample period of `ts` seconds, as a DAC holds it) through
 /// [`resonance_mode`] and returns, per sample period, the mean of the mode's continuous output
 /// over that period — the held input that best represents it to a linear part discretised by
@@ -360,6 +426,10 @@ pub fn resonance_mode(freq_hz: f64, damping: f64) -> Result<StateSpace> {
 /// delay to the cascade.) Exact: the period integral is the ZOH discretisation of the mode
 /// augmented with an integrator of its output.
 pub fn resonance_filter(u: &[f64], ts: f64, freq_hz: f64, damping: f64) -> Result<Vec<f64>> {
+    if freq_hz * ts >= NULL_RESONANCE_CYCLES_PER_SAMPLE {
+        // Settles within a tiny fraction of a sample: the identity (the null resonance).
+        return Ok(u.to_vec());
+    }
     let m = resonance_mode(freq_hz, damping)?;
     // Augmented state (x0, x1, z) with z' = x0.
     let a = Mat::from_fn(3, 3, |i, j| match (i, j) {
@@ -428,6 +498,15 @@ mod tests {
         // Need 0.5 <= level: sticks.
         assert!((f.force(0.05, g) - 0.5).abs() < 1e-12);
         assert!(f.is_stuck());
+    }
+
+    #[test]
+    fn rate_limiter_moves_at_most_one_step() {
+        let mut r = RateLimiter::new(0.5);
+        assert_eq!(r.apply(2.0), 0.5);
+        assert_eq!(r.apply(2.0), 1.0);
+        assert_eq!(r.apply(1.2), 1.2);
+        assert_eq!(r.apply(-5.0), 0.7);
     }
 
     #[test]

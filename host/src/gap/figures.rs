@@ -13,8 +13,8 @@ use crate::report::plot::{colors, render, Band, Kind, LegendAt, Panel, RefLine, 
 use crate::spectral::Welch;
 
 fn verdict_label(d: &Diagnosis) -> String {
-    if d.report.verdict == "none" {
-        "linear re-fit (verdict none)".into()
+    if d.report.verdict_effects.is_empty() {
+        format!("linear model (verdict {})", d.report.verdict)
     } else {
         format!("linear + {}", d.report.verdict)
     }

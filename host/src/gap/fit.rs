@@ -16,11 +16,14 @@
 //! derivative (position-output plants) and keeps the better ([`VelocitySource`]). Quantization is estimated from the lattice of the measured outputs.
 use super::effect::{
     deadzone, delay_signal, quantize, resonance_filter, saturation, Effect, EffectKind, Play,
-    StickSlip,
+    RateLimiter, StickSlip, NULL_RESONANCE_CYCLES_PER_SAMPLE,
 };
 use super::modal::{FitSet, ModalModel};
 use super::optim::levenberg_marquardt_steps;
-use crate::error::Result;
+use super::place::{default_place, Candidate, Place, PlacedEffect};
+use super::select::lattice_evidence;
+use super::structure::TwoMassModel;
+use crate::error::{Error, Result};
 use num_complex::Complex64;
 
 /// Sub-steps per sample of the friction loop (friction switches within a sample period).
@@ -48,15 +51,27 @@ impl VelocitySource {
     }
 }
 
-/// A linear part with at most one effect.
+/// A linear part with one or more effects.
+///
+/// The first effect is `effect` at `place` (kept as its own field: most models carry one);
+/// further effects of a selected combination are in `extra`. [`Self::effects`] lists them all in
+/// signal order: drive → plant (motor / drivetrain / load / state) → sensor. When an effect sits
+/// inside a two-mass structure (drivetrain backlash, load friction) the plant is `two_mass`
+/// (physical coordinates, [`crate::gap::structure`]) instead of `linear`.
 #[derive(Debug, Clone)]
 pub struct AugmentedModel {
     /// Linear part (discrete, modal form).
     pub linear: ModalModel,
-    /// The effect, if any.
+    /// The (first) effect, if any.
     pub effect: Option<Effect>,
-    /// Velocity proxy used by friction effects.
+    /// Where `effect` acts.
+    pub place: Place,
+    /// Further effects, each with its place (pairs).
+    pub extra: Vec<PlacedEffect>,
+    /// Velocity proxy used by friction effects on the modal linear part.
     pub velocity: VelocitySource,
+    /// Physical two-mass plant used instead of `linear` when an effect acts inside it.
+    pub two_mass: Option<TwoMassModel>,
 }
 
 /// The input of the linear part for an input-side effect, `None` for the others.
@@ -70,8 +85,39 @@ pub fn input_transform(effect: &Effect, u: &[f64], ts: f64) -> Result<Option<Vec
         }
         Effect::TimeDelay { seconds } => Some(delay_signal(u, seconds / ts)),
         Effect::Resonance { freq_hz, damping } => Some(resonance_filter(u, ts, freq_hz, damping)?),
+        Effect::SlewRate { rate } => {
+            let mut r = RateLimiter::new(rate * ts);
+            Some(u.iter().map(|&v| r.apply(v)).collect())
+        }
         _ => None,
     })
+}
+
+/// Applies a sensor-side effect to a simulated output in place (no-op for other effects).
+pub fn sensor_transform(effect: &Effect, y: &mut [f64]) {
+    match *effect {
+        Effect::Quantization { step } => y.iter_mut().for_each(|v| *v = quantize(*v, step)),
+        Effect::Saturation { limit } => y.iter_mut().for_each(|v| *v = saturation(*v, limit)),
+        _ => {}
+    }
+}
+
+/// Whether a placed effect is friction acting on the modal linear part's input.
+fn is_motor_friction(pe: &PlacedEffect) -> bool {
+    pe.place == Place::Motor
+        && matches!(
+            pe.effect,
+            Effect::CoulombFriction { .. } | Effect::Stiction { .. }
+        )
+}
+
+/// (level, breakaway) of a friction effect.
+pub fn friction_levels(e: &Effect) -> Option<(f64, f64)> {
+    match *e {
+        Effect::CoulombFriction { level } => Some((level, level)),
+        Effect::Stiction { level, breakaway } => Some((level, breakaway)),
+        _ => None,
+    }
 }
 
 impl AugmentedModel {
@@ -80,8 +126,63 @@ impl AugmentedModel {
         Self {
             linear,
             effect: None,
+            place: Place::Drive,
+            extra: Vec::new(),
             velocity: VelocitySource::Output,
+            two_mass: None,
         }
+    }
+
+    /// Every effect with its place, in signal order (drive, plant, sensor; selection order
+    /// within a stage).
+    pub fn effects(&self) -> Vec<PlacedEffect> {
+        let mut v: Vec<PlacedEffect> = self
+            .effect
+            .map(|effect| PlacedEffect {
+                effect,
+                place: self.place,
+            })
+            .into_iter()
+            .chain(self.extra.iter().copied())
+            .collect();
+        v.sort_by_key(|p| p.place.order());
+        v
+    }
+
+    /// Every effect in the order they were added (first `effect`, then `extra`).
+    pub fn effects_in_selection_order(&self) -> Vec<PlacedEffect> {
+        self.effect
+            .map(|effect| PlacedEffect {
+                effect,
+                place: self.place,
+            })
+            .into_iter()
+            .chain(self.extra.iter().copied())
+            .collect()
+    }
+
+    /// Replaces the effects (same count and order as [`Self::effects_in_selection_order`]).
+    pub fn set_effects_in_selection_order(&mut self, list: &[PlacedEffect]) {
+        let mut it = list.iter();
+        if self.effect.is_some() {
+            if let Some(p) = it.next() {
+                self.effect = Some(p.effect);
+                self.place = p.place;
+            }
+        }
+        self.extra = it.copied().collect();
+    }
+
+    /// A copy with `pe` added (as the first effect when there is none).
+    pub fn with_added(&self, pe: PlacedEffect) -> Self {
+        let mut m = self.clone();
+        if m.effect.is_none() {
+            m.effect = Some(pe.effect);
+            m.place = pe.place;
+        } else {
+            m.extra.push(pe);
+        }
+        m
     }
 
     /// Free-run output for input `u` from rest.
@@ -89,29 +190,51 @@ impl AugmentedModel {
         Ok(self.simulate_with_input(u)?.0)
     }
 
-    /// Free-run output and the signal that entered the linear part.
-    pub fn simulate_with_input(&self, u: &[f64]) -> Result<(Vec<f64>, Vec<f64>)> {
-        let lin = &self.linear;
-        match self.effect {
-            None => Ok((lin.simulate(u), u.to_vec())),
-            Some(Effect::Quantization { step }) => Ok((
-                lin.simulate(u)
-                    .into_iter()
-                    .map(|v| quantize(v, step))
-                    .collect(),
-                u.to_vec(),
-            )),
-            Some(Effect::CoulombFriction { level }) => Ok(self.friction_loop(u, level, level)),
-            Some(Effect::Stiction { level, breakaway }) => {
-                Ok(self.friction_loop(u, level, breakaway))
-            }
-            Some(ref e) => {
-                let w = input_transform(e, u, lin.ts)?.unwrap_or_else(|| u.to_vec());
-                Ok((lin.simulate(&w), w))
+    /// The input after every drive-side effect.
+    pub fn drive_input(&self, u: &[f64]) -> Result<Vec<f64>> {
+        let mut w = u.to_vec();
+        for pe in self.effects() {
+            if pe.place == Place::Drive {
+                if let Some(t) = input_transform(&pe.effect, &w, self.linear.ts)? {
+                    w = t;
+                }
             }
         }
+        Ok(w)
     }
 
+    /// Motor friction (level, breakaway) acting on the modal linear part, if any.
+    pub fn motor_friction(&self) -> Option<(f64, f64)> {
+        self.effects()
+            .iter()
+            .find(|p| is_motor_friction(p))
+            .and_then(|p| friction_levels(&p.effect))
+    }
+
+    /// Free-run output and the signal that entered the linear part.
+    pub fn simulate_with_input(&self, u: &[f64]) -> Result<(Vec<f64>, Vec<f64>)> {
+        let effects = self.effects();
+        if let Some(pe) = effects.iter().find(|p| p.effect.kind() == EffectKind::StateLimit) {
+            return Err(Error::InvalidArgument(format!(
+                "{}: a state limit is not realised by the modal model",
+                pe.effect
+            )));
+        }
+        let w = self.drive_input(u)?;
+        let (mut y, w) = if let Some(tm) = &self.two_mass {
+            (tm.simulate(&w, &effects)?, w)
+        } else if let Some((level, breakaway)) = self.motor_friction() {
+            self.friction_loop(&w, level, breakaway)
+        } else {
+            (self.linear.simulate(&w), w)
+        };
+        for pe in &effects {
+            if pe.place == Place::Sensor {
+                sensor_transform(&pe.effect, &mut y);
+            }
+        }
+        Ok((y, w))
+    }
     /// Closed loop of the linear part with stick-slip friction at its input, integrated in
     /// [`FRICTION_SUBSTEPS`] sub-steps per sample (see [`Self::friction_loop_m`]).
     fn friction_loop(&self, u: &[f64], level: f64, breakaway: f64) -> (Vec<f64>, Vec<f64>) {
@@ -266,6 +389,19 @@ impl TrainData {
 }
 
 impl TrainData {
+    /// Largest per-log standard deviation of the measured output (output units).
+    pub fn y_std(&self) -> f64 {
+        self.base
+            .y
+            .iter()
+            .map(|y| {
+                let m = y.iter().sum::<f64>() / y.len() as f64;
+                (y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / y.len() as f64).sqrt()
+            })
+            .fold(0.0f64, f64::max)
+            .max(1e-300)
+    }
+
     /// A copy keeping the warm-up and at most `scored` further samples of each log.
     pub fn coarse(&self, scored: usize) -> TrainData {
         let keep = self.base.warmup + scored;
@@ -301,66 +437,98 @@ fn eval_fixed_poles(
     effect: Effect,
     velocity: VelocitySource,
 ) -> Option<Fitted> {
-    eval_fixed_poles_m(td, lin, effect, velocity, FRICTION_SUBSTEPS)
+    let mut m = AugmentedModel::linear(lin.clone()).with_added(PlacedEffect::at_default(effect));
+    m.velocity = velocity;
+    eval_model(td, m, FRICTION_SUBSTEPS)
 }
 
-/// [`eval_fixed_poles`] with `m` friction sub-steps (1 in the coarse grid, where only the
-/// basin matters).
-fn eval_fixed_poles_m(
+/// Fraction of a sensor limit beyond which measured samples are left out of the linear
+/// least-squares step (they carry the clip, not the linear part).
+const CLIP_MASK_FRACTION: f64 = 0.98;
+
+/// With the poles and every effect of `model` fixed, re-fits residues, feedthrough and offset
+/// (variable projection: exact least squares when the linear part's input does not depend on
+/// them; one simulate-then-refit step for motor friction, whose force depends on the model;
+/// samples at a sensor clip left out) and returns the model with its training cost. Models on a
+/// two-mass plant are only evaluated (their parameters are physical, see
+/// [`crate::gap::structure`]). `m`: friction sub-steps.
+pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option<Fitted> {
+    if model.two_mass.is_some() {
+        return super::structure::eval_two_mass(td, model);
+    }
+    let effects = model.effects();
+    let clip = effects.iter().find_map(|p| match (p.place, p.effect) {
+        (Place::Sensor, Effect::Saturation { limit }) => Some(limit),
+        _ => None,
+    });
+    let only_drive = effects.iter().all(|p| p.place == Place::Drive);
+    let mut w = Vec::with_capacity(td.u.len());
+    for u in &td.u {
+        let wd = model.drive_input(u).ok()?;
+        w.push(match model.motor_friction() {
+            Some((level, breakaway)) => model.friction_loop_m(&wd, level, breakaway, m).1,
+            None => wd,
+        });
+    }
+    let set = td.base.with_input(w);
+    let cost = match clip {
+        Some(limit) => {
+            let mask: Vec<Vec<bool>> = td
+                .base
+                .y
+                .iter()
+                .map(|y| y.iter().map(|v| v.abs() < CLIP_MASK_FRACTION * limit).collect())
+                .collect();
+            model.linear.fit_linear_params_masked(&set, Some(&mask))?
+        }
+        None => model.linear.fit_linear_params(&set)?,
+    };
+    if only_drive {
+        return cost.is_finite().then_some(Fitted {
+            model,
+            train_cost: cost,
+        });
+    }
+    let mut c = 0.0;
+    for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
+        let yh = match model.motor_friction() {
+            Some((level, breakaway)) if m != FRICTION_SUBSTEPS => {
+                let wd = model.drive_input(u).ok()?;
+                let mut yh = model.friction_loop_m(&wd, level, breakaway, m).0;
+                for p in &effects {
+                    if p.place == Place::Sensor {
+                        sensor_transform(&p.effect, &mut yh);
+                    }
+                }
+                yh
+            }
+            _ => model.simulate(u).ok()?,
+        };
+        c += wt
+            * y.iter()
+                .zip(&yh)
+                .skip(td.base.warmup)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>();
+    }
+    c.is_finite().then_some(Fitted {
+        model,
+        train_cost: c,
+    })
+}
+
+/// [`eval_model`] of `base` with `effect` added at `place` and the given velocity proxy.
+fn eval_added(
     td: &TrainData,
-    lin: &ModalModel,
+    base: &AugmentedModel,
     effect: Effect,
+    place: Place,
     velocity: VelocitySource,
     m: usize,
 ) -> Option<Fitted> {
-    let mut model = AugmentedModel {
-        linear: lin.clone(),
-        effect: Some(effect),
-        velocity,
-    };
-    match effect {
-        Effect::Quantization { .. } => {}
-        Effect::CoulombFriction { level } | Effect::Stiction { level, .. } => {
-            let breakaway = match effect {
-                Effect::Stiction { breakaway, .. } => breakaway,
-                _ => level,
-            };
-            let mut w = Vec::with_capacity(td.u.len());
-            for u in &td.u {
-                w.push(model.friction_loop_m(u, level, breakaway, m).1);
-            }
-            model.linear.fit_linear_params(&td.base.with_input(w))?;
-            let mut c = 0.0;
-            for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
-                let yh = model.friction_loop_m(u, level, breakaway, m).0;
-                c += wt
-                    * y.iter()
-                        .zip(&yh)
-                        .skip(td.base.warmup)
-                        .map(|(a, b)| (a - b).powi(2))
-                        .sum::<f64>();
-            }
-            return c.is_finite().then_some(Fitted {
-                model,
-                train_cost: c,
-            });
-        }
-        ref e => {
-            let mut w = Vec::with_capacity(td.u.len());
-            for u in &td.u {
-                w.push(input_transform(e, u, td.ts).ok()??);
-            }
-            let cost = model.linear.fit_linear_params(&td.base.with_input(w))?;
-            return Some(Fitted {
-                model,
-                train_cost: cost,
-            });
-        }
-    }
-    let train_cost = model.cost(&td.base, &td.u);
-    train_cost
-        .is_finite()
-        .then_some(Fitted { model, train_cost })
+    let mut model = base.with_added(PlacedEffect { effect, place });
+    model.velocity = velocity;
+    eval_model(td, model, m)
 }
 
 fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
@@ -391,37 +559,10 @@ pub const MAX_RESONANCE_DAMPING: f64 = 0.3;
 /// Longest delay searched, in samples.
 pub const MAX_DELAY_SAMPLES: f64 = 32.0;
 
-/// Estimates the output quantization step from the lattice of measured values: the smallest
-/// gap between distinct values, refined over the full range, accepted only if at least 99 % of
-/// the distinct values lie within 1e-6 steps of that lattice and there are at most half as many
-/// distinct values as samples. `None` when the outputs do not sit on a lattice.
+/// The output quantization step read off the lattice of measured values (see
+/// [`crate::gap::select::lattice_evidence`]), `None` when the outputs do not sit on a lattice.
 pub fn lattice_step(y: &[Vec<f64>]) -> Option<f64> {
-    let mut v: Vec<f64> = y.iter().flat_map(|l| l.iter().copied()).collect();
-    let total = v.len();
-    v.sort_by(f64::total_cmp);
-    v.dedup();
-    if v.len() < 3 || v.len() * 2 > total {
-        return None;
-    }
-    let range = v[v.len() - 1] - v[0];
-    let dmin = v
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|&d| d > 1e-12 * range)
-        .fold(f64::INFINITY, f64::min);
-    if !dmin.is_finite() {
-        return None;
-    }
-    let levels = (range / dmin).round();
-    let step = range / levels;
-    let on = v
-        .iter()
-        .filter(|&&x| {
-            let q = (x - v[0]) / step;
-            (q - q.round()).abs() <= 1e-6 * (1.0 + q.abs() * 1e-3)
-        })
-        .count();
-    (on as f64 >= 0.99 * v.len() as f64).then_some(step)
+    lattice_evidence(y).map(|l| l.step)
 }
 
 /// Samples per training log (after the warm-up) used by the coarse grid stage.
@@ -430,16 +571,21 @@ pub const COARSE_SAMPLES: usize = 4096;
 /// Iteration cap of the joint Levenberg–Marquardt refinement.
 pub const JOINT_MAX_ITER: usize = 12;
 
-/// Fits one candidate effect to the training data. `starts` are linear parts to start from
-/// (the linear re-fit and the nominal sim in modal form); `coulomb` is the fitted Coulomb
-/// candidate (the stiction fit starts from it).
-///
-/// Stage 1 searches the effect parameters on a grid over a coarse copy of the training data
-/// (the first [`COARSE_SAMPLES`] scored samples of each log) from every start, with the poles
-/// fixed; stage 2 refines the best point jointly by Levenberg–Marquardt on all the data (see
-/// [`joint_fit`]). Between the two, the [`GRID_STARTS`] best grid points of distinct parameter
-/// values are screened by a joint refinement on the coarse data, because the fixed-pole cost
-/// misleads when the linear start's poles are off.
+/// Iteration cap of the coarse screening refinements (they only rank the starts).
+pub const SCREEN_MAX_ITER: usize = 6;
+
+/// Hints that seed or bound a candidate fit (evidence read off the data before fitting).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FitHints {
+    /// Quantization step from the lattice of the measured outputs.
+    pub lattice_step: Option<f64>,
+    /// Breakaway level (input units) from dwells at zero velocity.
+    pub breakaway: Option<f64>,
+}
+
+/// Fits one candidate effect (at its default place) to the training data. `starts` are linear
+/// parts to start from (the linear re-fit and the nominal sim in modal form); `coulomb` is the
+/// fitted Coulomb candidate (the stiction fit starts from it). See [`fit_placed`].
 pub fn fit_candidate(
     kind: EffectKind,
     td: &TrainData,
@@ -447,34 +593,102 @@ pub fn fit_candidate(
     coulomb: Option<&Fitted>,
     sim_poles: &[Complex64],
 ) -> Option<Fitted> {
+    let bases: Vec<AugmentedModel> = starts
+        .iter()
+        .map(|l| AugmentedModel::linear(l.clone()))
+        .collect();
+    let hints = FitHints {
+        lattice_step: lattice_step(&td.base.y),
+        breakaway: None,
+    };
+    fit_placed(
+        Candidate::new(kind, default_place(kind)),
+        td,
+        &bases,
+        coulomb,
+        sim_poles,
+        &hints,
+    )
+}
+
+/// Fits `cand` on top of each model in `bases` (linear parts for single effects; the selected
+/// model for a second effect) and keeps the best.
+///
+/// Stage 1 searches the new effect's parameters on a grid over a coarse copy of the training
+/// data (the first [`COARSE_SAMPLES`] scored samples of each log) from every base, with the
+/// poles and the base's effects fixed; the [`GRID_STARTS`] best grid points of distinct
+/// parameter values are screened by a joint refinement on the coarse data (the fixed-pole cost
+/// misleads when the base's poles are off); stage 2 refines the winner jointly by
+/// Levenberg–Marquardt on all the data ([`joint_fit`]). Stiction starts from the Coulomb fit
+/// (`coulomb`, or fitted here) with the breakaway ratio scanned (and seeded by
+/// `hints.breakaway`); quantization takes its step from `hints.lattice_step`.
+///
+/// A candidate never ends worse on the training data than the first base it extends: if the
+/// fit does not beat it, the base is returned with the effect at its null parameter (a
+/// negligible gap, width, level or delay; a limit far beyond the data), which reproduces the
+/// base.
+pub fn fit_placed(
+    cand: Candidate,
+    td: &TrainData,
+    bases: &[AugmentedModel],
+    coulomb: Option<&Fitted>,
+    sim_poles: &[Complex64],
+    hints: &FitHints,
+) -> Option<Fitted> {
+    let kind = cand.kind;
+    let base0 = bases.first()?;
     let start = match kind {
-        EffectKind::Stiction => stiction_start(td, coulomb?)?,
+        EffectKind::Stiction => {
+            let own;
+            let c = match coulomb {
+                Some(c) => c,
+                None => {
+                    own = fit_placed(
+                        Candidate::new(EffectKind::CoulombFriction, cand.place),
+                        td,
+                        bases,
+                        None,
+                        sim_poles,
+                        hints,
+                    )?;
+                    &own
+                }
+            };
+            stiction_start(td, c, hints.breakaway)?
+        }
         EffectKind::Quantization => {
-            let step = lattice_step(&td.base.y)?;
-            let lin = starts.first()?;
-            return eval_fixed_poles(
+            let step = hints.lattice_step?;
+            return eval_added(
                 td,
-                lin,
+                base0,
                 Effect::Quantization { step },
-                VelocitySource::Output,
+                cand.place,
+                base0.velocity,
+                FRICTION_SUBSTEPS,
             );
         }
+        EffectKind::StateLimit => return None,
+        EffectKind::Backlash if cand.place == Place::Drivetrain => {
+            let f = super::structure::fit_drivetrain_backlash(
+                td,
+                bases,
+                COARSE_SAMPLES,
+                JOINT_MAX_ITER,
+            )?;
+            return Some(null_guard(td, cand, base0, f));
+        }
         _ => {
-            // The cost with the poles fixed is a poor guide when the linear start's poles are
-            // off (a stuck mass or an added mode shifts the re-fit's resonance; the re-fit may
-            // even take over the added mode): screen the best grid points of GRID_STARTS
-            // distinct parameter values by a joint refinement on the coarse data, then refine
-            // the winner on all the data.
             let coarse = td.coarse(COARSE_SAMPLES);
             let mut grid: Vec<Fitted> = Vec::new();
-            for lin in starts {
-                grid.extend(initial_search(kind, &coarse, lin));
+            for b in bases {
+                grid.extend(initial_search(cand, &coarse, b));
             }
             grid.sort_by(|a, b| a.train_cost.total_cmp(&b.train_cost));
             let key = |f: &Fitted| {
                 f.model
-                    .effect
-                    .map_or(f64::NAN, |e| effect_to_coords(&e, td.ts)[0])
+                    .effects_in_selection_order()
+                    .last()
+                    .map_or(f64::NAN, |e| effect_to_coords(&e.effect, td.ts)[0])
             };
             let min_sep = if kind == EffectKind::TimeDelay {
                 DISTINCT_DELAY_SAMPLES
@@ -483,7 +697,7 @@ pub fn fit_candidate(
             };
             let mut picked: Vec<Fitted> = Vec::new();
             for g in grid {
-                if picked.len() >= GRID_STARTS {
+                if picked.len() >= grid_starts(cand) {
                     break;
                 }
                 let k = key(&g);
@@ -493,25 +707,98 @@ pub fn fit_candidate(
             }
             let mut best: Option<Fitted> = None;
             for p in picked {
-                let refined = match joint_fit(&coarse, &p, JOINT_MAX_ITER) {
+                let refined = match joint_fit(&coarse, &p, SCREEN_MAX_ITER) {
                     Some(j) if j.train_cost < p.train_cost => j,
                     _ => p,
                 };
                 keep_best(&mut best, Some(refined));
             }
-            let b = best?;
-            eval_fixed_poles(td, &b.model.linear, b.model.effect?, b.model.velocity)?
+            eval_model(td, best?.model, FRICTION_SUBSTEPS)?
         }
     };
-    let fitted = match joint_fit(td, &start, JOINT_MAX_ITER) {
+    let iters = match (cand.place, kind) {
+        (Place::Load, _) => JOINT_MAX_ITER / 2,
+        // Smooth in its parameters: converges in a few more steps.
+        (_, EffectKind::Resonance) => 2 * JOINT_MAX_ITER,
+        _ => JOINT_MAX_ITER,
+    };
+    let fitted = match joint_fit(td, &start, iters) {
         Some(j) if j.train_cost < start.train_cost => j,
         _ => start,
     };
-    Some(if kind == EffectKind::Resonance {
+    let fitted = if kind == EffectKind::Resonance && base0.effect.is_none() {
         relabel_resonance(td, fitted, sim_poles)
     } else {
         fitted
+    };
+    Some(null_guard(td, cand, base0, fitted))
+}
+
+/// The effect of `kind` at its null parameter: a model with it reproduces the model without it
+/// (to 1e-12 of the data's scales; a resonance far above the sample rate, see
+/// [`NULL_RESONANCE_CYCLES_PER_SAMPLE`]). `None` never, kept for kinds without a null.
+pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Effect> {
+    let s = td.u_rms.max(1e-300);
+    let y_peak = td
+        .base
+        .y
+        .iter()
+        .flat_map(|y| y.iter())
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(1e-300);
+    let tiny = 1e-12 * s;
+    Some(match kind {
+        EffectKind::CoulombFriction => Effect::CoulombFriction { level: tiny },
+        EffectKind::Stiction => Effect::Stiction {
+            level: tiny,
+            breakaway: tiny,
+        },
+        EffectKind::Backlash => Effect::Backlash { gap: tiny },
+        EffectKind::Deadzone => Effect::Deadzone { width: tiny },
+        EffectKind::Saturation if place == Place::Sensor => Effect::Saturation {
+            limit: 1e12 * y_peak,
+        },
+        EffectKind::Saturation => Effect::Saturation {
+            limit: 1e12 * td.u_peak.max(s),
+        },
+        EffectKind::TimeDelay => Effect::TimeDelay { seconds: 0.0 },
+        EffectKind::SlewRate => Effect::SlewRate {
+            rate: 1e12 * td.u_peak.max(s) / td.ts,
+        },
+        EffectKind::Quantization => Effect::Quantization { step: 1e-12 * y_peak },
+        EffectKind::StateLimit => Effect::StateLimit {
+            limit: 1e12 * y_peak,
+        },
+        EffectKind::Resonance => Effect::Resonance {
+            freq_hz: NULL_RESONANCE_CYCLES_PER_SAMPLE / td.ts,
+            damping: MAX_RESONANCE_DAMPING,
+        },
     })
+}
+
+/// Keeps `fitted` if it is at least as good as `base` on the training data, else returns
+/// `base` with the candidate's effect at its null parameter (see [`fit_placed`]).
+fn null_guard(td: &TrainData, cand: Candidate, base: &AugmentedModel, fitted: Fitted) -> Fitted {
+    let base_cost = base.cost(&td.base, &td.u);
+    if fitted.train_cost.partial_cmp(&base_cost) != Some(std::cmp::Ordering::Greater) {
+        return fitted;
+    }
+    let Some(e) = null_effect(cand.kind, cand.place, td) else {
+        return fitted;
+    };
+    let mut model = base.with_added(PlacedEffect {
+        effect: e,
+        place: cand.place,
+    });
+    if cand.kind.is_friction() {
+        model.velocity = fitted.model.velocity;
+    }
+    let train_cost = model.cost(&td.base, &td.u);
+    if train_cost <= fitted.train_cost {
+        Fitted { model, train_cost }
+    } else {
+        fitted
+    }
 }
 
 /// Largest relative training-cost increase at which a relabelled resonance model counts as
@@ -602,9 +889,20 @@ fn relabel_resonance(td: &TrainData, fitted: Fitted, sim_poles: &[Complex64]) ->
     best
 }
 
-/// Grid points screened by a coarse joint refinement in [`fit_candidate`] (the best of
+/// Grid points screened by a coarse joint refinement in [`fit_placed`] (the best of
 /// distinct parameter values).
 pub const GRID_STARTS: usize = 3;
+
+/// Screened grid points for a candidate: [`GRID_STARTS`]; two for motor friction, one for
+/// friction on the load (a two-mass fit in physical coordinates, the costliest).
+fn grid_starts(cand: Candidate) -> usize {
+    match (cand.place, cand.kind) {
+        (Place::Load, _) => 1,
+        // The friction loop is the costliest simulation: two screened starts.
+        (_, EffectKind::CoulombFriction) => 2,
+        _ => GRID_STARTS,
+    }
+}
 
 /// Grid points whose first parameter (level, gap, width, limit, frequency) differs by less than
 /// this in ln (a factor 1.5) count as the same start.
@@ -614,18 +912,31 @@ const DISTINCT_LN: f64 = 0.405;
 const DISTINCT_DELAY_SAMPLES: f64 = 1.0;
 
 /// The stiction start: the fitted Coulomb model with the breakaway ratio giving the lowest
-/// training cost among 1.1 … 3.4.
-fn stiction_start(td: &TrainData, c: &Fitted) -> Option<Fitted> {
-    let Some(Effect::CoulombFriction { level }) = c.model.effect else {
+/// training cost among 1.1 … 3.4 (and the ratio `breakaway`/level from dwell evidence, when
+/// given).
+fn stiction_start(td: &TrainData, c: &Fitted, breakaway: Option<f64>) -> Option<Fitted> {
+    let list = c.model.effects_in_selection_order();
+    let idx = list
+        .iter()
+        .rposition(|p| p.effect.kind() == EffectKind::CoulombFriction)?;
+    let Effect::CoulombFriction { level } = list[idx].effect else {
         return None;
     };
+    let mut ratios = vec![1.1, 1.3, 1.6, 2.0, 2.6, 3.4];
+    if let Some(b) = breakaway {
+        if b > level && b < 5.0 * level {
+            ratios.push(b / level);
+        }
+    }
     let mut best: Option<Fitted> = None;
-    for &ratio in &[1.1, 1.3, 1.6, 2.0, 2.6, 3.4] {
+    for ratio in ratios {
         let mut m = c.model.clone();
-        m.effect = Some(Effect::Stiction {
+        let mut l = list.clone();
+        l[idx].effect = Effect::Stiction {
             level,
             breakaway: level * ratio,
-        });
+        };
+        m.set_effects_in_selection_order(&l);
         let cost = m.cost(&td.base, &td.u);
         keep_best(
             &mut best,
@@ -651,6 +962,8 @@ fn effect_to_coords(e: &Effect, ts: f64) -> Vec<f64> {
         Effect::TimeDelay { seconds } => vec![seconds / ts],
         Effect::Resonance { freq_hz, damping } => vec![freq_hz.ln(), damping.ln()],
         Effect::Quantization { step } => vec![step.ln()],
+        Effect::SlewRate { rate } => vec![rate.ln()],
+        Effect::StateLimit { limit } => vec![limit.ln()],
     }
 }
 
@@ -682,6 +995,8 @@ fn effect_from_coords(kind: EffectKind, c: &[f64], ts: f64) -> Option<Effect> {
             }
         }
         EffectKind::Quantization => Effect::Quantization { step: c[0].exp() },
+        EffectKind::SlewRate => Effect::SlewRate { rate: c[0].exp() },
+        EffectKind::StateLimit => Effect::StateLimit { limit: c[0].exp() },
     };
     e.validate().ok().map(|_| e)
 }
@@ -696,31 +1011,53 @@ fn effect_coord_step(kind: EffectKind) -> f64 {
     }
 }
 
-/// Stage 2 of [`fit_candidate`]: Levenberg–Marquardt on the simulated error over all
-/// parameters at once, from `start`. For the input-side effects the coordinates are the pole
-/// parameters and the effect parameters, with residues, feedthrough and offset eliminated by
-/// variable projection (exact for these structures). For friction, whose force depends on the
-/// model output, residues, feedthrough and offset are coordinates too. (Alternating between
-/// the linear part and the effect stalls: a linear part fitted to a wrongly distorted input is
-/// self-consistent.)
+/// Whether the LM refinement moves this effect's parameters (the quantization step is read
+/// off the data's lattice and stays fixed).
+fn is_free(kind: EffectKind) -> bool {
+    kind != EffectKind::Quantization
+}
+
+/// Stage 2 of [`fit_placed`]: Levenberg–Marquardt on the simulated error over all parameters
+/// at once, from `start`. When the linear part's input does not depend on the model (effects
+/// in the drive, quantization at the sensor), the coordinates are the pole parameters and the
+/// effect parameters, with residues, feedthrough and offset eliminated by variable projection
+/// (exact for these structures). Otherwise (motor friction, whose force depends on the model
+/// output; a sensor clip) residues, feedthrough and offset are coordinates too. Models on a
+/// two-mass plant are refined in physical coordinates by [`crate::gap::structure`].
+/// (Alternating between the linear part and the effect stalls: a linear part fitted to a
+/// wrongly distorted input is self-consistent.)
 pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitted> {
     let m0 = &start.model;
-    let e0 = m0.effect?;
-    let kind = e0.kind();
-    if kind == EffectKind::Quantization {
+    if m0.two_mass.is_some() {
+        return super::structure::joint_fit_two_mass(td, start, max_iter);
+    }
+    let list0 = m0.effects_in_selection_order();
+    if list0.is_empty() || !list0.iter().any(|p| is_free(p.effect.kind())) {
         return None;
     }
     let lin0 = &m0.linear;
     let n = lin0.n_states();
     let ts = td.ts;
-    let eff0 = effect_to_coords(&e0, ts);
-    let ne = eff0.len();
-    let friction = matches!(kind, EffectKind::CoulombFriction | EffectKind::Stiction);
+    let projectable = list0.iter().all(|p| {
+        p.place == Place::Drive
+            || (p.place == Place::Sensor && p.effect.kind() == EffectKind::Quantization)
+    });
     let mut theta0 = lin0.pole_params();
     let mut steps: Vec<f64> = theta0.iter().map(|t| 1e-6 * t.abs().max(1.0)).collect();
-    theta0.extend(&eff0);
-    steps.extend(std::iter::repeat_n(effect_coord_step(kind), ne));
-    // Friction: linear coordinates, scaled to O(1).
+    let mut spans: Vec<(usize, usize)> = Vec::new();
+    for p in &list0 {
+        let k = p.effect.kind();
+        if is_free(k) {
+            let c = effect_to_coords(&p.effect, ts);
+            spans.push((theta0.len(), c.len()));
+            steps.extend(std::iter::repeat_n(effect_coord_step(k), c.len()));
+            theta0.extend(c);
+        } else {
+            spans.push((theta0.len(), 0));
+        }
+    }
+    let n_eff_end = theta0.len();
+    // Linear coordinates (when not projectable), scaled to O(1).
     let cmax = lin0
         .residues
         .iter()
@@ -731,19 +1068,10 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         .iter()
         .map(|c| c.abs().max(1e-3 * cmax))
         .collect();
-    let ystd = td
-        .base
-        .y
-        .iter()
-        .map(|y| {
-            let m = y.iter().sum::<f64>() / y.len() as f64;
-            (y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / y.len() as f64).sqrt()
-        })
-        .fold(0.0f64, f64::max)
-        .max(1e-300);
+    let ystd = td.y_std();
     let dscale = lin0.d.abs().max(1e-3 * ystd / td.u_rms.max(1e-300));
     let use_d = lin0.use_d;
-    if friction {
+    if !projectable {
         let extra = n + usize::from(use_d) + 1;
         theta0.extend(std::iter::repeat_n(0.0, extra));
         steps.extend(std::iter::repeat_n(1e-6, extra));
@@ -751,9 +1079,14 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
     let build = |th: &[f64]| -> Option<AugmentedModel> {
         let mut lin = lin0.clone();
         lin.set_pole_params(&th[..n]);
-        let effect = effect_from_coords(kind, &th[n..n + ne], ts)?;
-        if friction {
-            let mut k = n + ne;
+        let mut list = list0.clone();
+        for (p, &(at, len)) in list.iter_mut().zip(&spans) {
+            if len > 0 {
+                p.effect = effect_from_coords(p.effect.kind(), &th[at..at + len], ts)?;
+            }
+        }
+        if !projectable {
+            let mut k = n_eff_end;
             for i in 0..n {
                 lin.residues[i] = lin0.residues[i] + cscale[i] * th[k + i];
             }
@@ -764,43 +1097,39 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
             }
             lin.offset = lin0.offset + ystd * th[k];
         }
-        Some(AugmentedModel {
-            linear: lin,
-            effect: Some(effect),
-            velocity: m0.velocity,
-        })
+        let mut m = m0.clone();
+        m.linear = lin;
+        m.set_effects_in_selection_order(&list);
+        Some(m)
     };
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
-        if friction {
-            let mut r = Vec::new();
-            for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
-                let yh = model.simulate(u).ok()?;
-                let sw = wt.sqrt();
-                r.extend(
-                    y.iter()
-                        .zip(&yh)
-                        .skip(td.base.warmup)
-                        .map(|(a, b)| sw * (a - b)),
-                );
-            }
-            r.iter().all(|v| v.is_finite()).then_some(r)
-        } else {
-            let e = model.effect?;
+        if projectable {
             let mut w = Vec::with_capacity(td.u.len());
             for u in &td.u {
-                w.push(input_transform(&e, u, ts).ok()??);
+                w.push(model.drive_input(u).ok()?);
             }
-            model.linear.projected_residuals(&td.base.with_input(w))
+            model.linear.fit_linear_params(&td.base.with_input(w))?;
         }
+        let mut r = Vec::new();
+        for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
+            let yh = model.simulate(u).ok()?;
+            let sw = wt.sqrt();
+            r.extend(
+                y.iter()
+                    .zip(&yh)
+                    .skip(td.base.warmup)
+                    .map(|(a, b)| sw * (a - b)),
+            );
+        }
+        r.iter().all(|v| v.is_finite()).then_some(r)
     };
     let (theta, _) = levenberg_marquardt_steps(residuals, &theta0, &steps, max_iter, 1e-6);
     let mut model = build(&theta)?;
-    if !friction {
-        let e = model.effect?;
+    if projectable {
         let mut w = Vec::with_capacity(td.u.len());
         for u in &td.u {
-            w.push(input_transform(&e, u, ts).ok()??);
+            w.push(model.drive_input(u).ok()?);
         }
         model.linear.fit_linear_params(&td.base.with_input(w))?;
     }
@@ -810,66 +1139,187 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         .then_some(Fitted { model, train_cost })
 }
 
-/// Stage 1 of [`fit_candidate`]: every point of the grid of effect parameters with the poles
-/// of `lin` fixed (the residues re-fitted at every point), on the (coarse) data `td`.
-fn initial_search(kind: EffectKind, td: &TrainData, lin: &ModalModel) -> Vec<Fitted> {
+/// Resonance frequencies (Hz) to search: a log grid over [`resonance_range_hz`] at about 12 %
+/// spacing plus a 2.5 % grid around the strongest peaks of the base model's residual spectrum
+/// (a lightly damped mode is only found near its frequency).
+fn resonance_grid_hz(td: &TrainData, base: &AugmentedModel) -> Vec<f64> {
+    let (flo, fhi) = resonance_range_hz(td.ts);
+    let n = ((fhi / flo).ln() / 0.12).ceil() as usize + 1;
+    let mut f = log_grid(flo, fhi, n);
+    for peak in residual_peaks_hz(td, base, 3) {
+        for i in -4i32..=4 {
+            let v = peak * (0.025 * i as f64).exp();
+            if (flo..=fhi).contains(&v) {
+                f.push(v);
+            }
+        }
+    }
+    f.sort_by(f64::total_cmp);
+    f
+}
+
+/// The `k` frequencies (Hz) where the residual of `base` on the training logs has the largest
+/// power relative to the output's, from a DFT at 4 % log spacing over the resonance range.
+fn residual_peaks_hz(td: &TrainData, base: &AugmentedModel, k: usize) -> Vec<f64> {
+    let (flo, fhi) = resonance_range_hz(td.ts);
+    let n = ((fhi / flo).ln() / 0.04).ceil() as usize + 1;
+    let freqs = log_grid(flo.max(2.0 / (td.ts * COARSE_SAMPLES as f64)), fhi, n);
+    let mut score = vec![0.0; freqs.len()];
+    for (u, y) in td.u.iter().zip(&td.base.y) {
+        let Ok(yh) = base.simulate(u) else {
+            return Vec::new();
+        };
+        let w0 = td.base.warmup;
+        let r: Vec<f64> = y.iter().zip(&yh).skip(w0).map(|(a, b)| a - b).collect();
+        let yy: Vec<f64> = y[w0..].to_vec();
+        for (i, &f) in freqs.iter().enumerate() {
+            let pr = dft_power(&r, f * td.ts);
+            let py = dft_power(&yy, f * td.ts);
+            if py > 0.0 {
+                score[i] += pr / py;
+            }
+        }
+    }
+    let mut idx: Vec<usize> = (0..freqs.len()).collect();
+    idx.sort_by(|&a, &b| score[b].total_cmp(&score[a]));
+    let mut out: Vec<f64> = Vec::new();
+    for i in idx {
+        if out.len() >= k {
+            break;
+        }
+        if out.iter().all(|&o| (freqs[i] / o).ln().abs() > 0.1) {
+            out.push(freqs[i]);
+        }
+    }
+    out
+}
+
+/// |Σ x_t e^{−j2πνt}|² with a Hann window over a band of ±2 % of ν (cycles per sample),
+/// averaged over 5 frequencies so a line between grid points is not missed.
+fn dft_power(x: &[f64], nu: f64) -> f64 {
+    let n = x.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let step = (n / 8192).max(1);
+    let mut acc = 0.0;
+    for j in -2i32..=2 {
+        let f = nu * (1.0 + 0.01 * j as f64);
+        let (mut re, mut im) = (0.0, 0.0);
+        let w = 2.0 * std::f64::consts::PI * f;
+        let (s, c) = w.sin_cos();
+        let (mut cr, mut ci) = (1.0f64, 0.0f64);
+        for (t, &v) in x.iter().enumerate().take(step * (n / step)) {
+            if t % step == 0 {
+                let hann = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * t as f64 / n as f64).cos();
+                re += hann * v * cr;
+                im -= hann * v * ci;
+            }
+            let nr = cr * c - ci * s;
+            ci = cr * s + ci * c;
+            cr = nr;
+        }
+        acc += re * re + im * im;
+    }
+    acc
+}
+
+/// Stage 1 of [`fit_placed`]: every point of the grid of the candidate's parameters added to
+/// `base` with its poles and effects fixed (the residues re-fitted at every point), on the
+/// (coarse) data `td`.
+fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec<Fitted> {
+    if cand.place.needs_two_mass() || base.two_mass.is_some() {
+        return super::structure::initial_search_two_mass(cand, td, base);
+    }
     let s = td.u_rms.max(1e-300);
     let ts = td.ts;
-    let out = VelocitySource::Output;
-    let on_grid = |grid: &[f64], make: &dyn Fn(f64) -> Option<Fitted>| -> Vec<Fitted> {
-        grid.iter().filter_map(|&p| make(p)).collect()
+    let out = base.velocity;
+    let m = FRICTION_SUBSTEPS;
+    let place = cand.place;
+    let on_grid = |grid: &[f64], make: &dyn Fn(f64) -> Effect| -> Vec<Fitted> {
+        grid.iter()
+            .filter_map(|&p| eval_added(td, base, make(p), place, out, m))
+            .collect()
     };
-    match kind {
+    match cand.kind {
         EffectKind::CoulombFriction => {
-            // Both velocity proxies, sample-rate friction (only the basin matters here).
+            // Sample-rate friction (only the basin matters here). The velocity follows from
+            // the structure: the derivative of the output when the linear part integrates
+            // (position output); otherwise both proxies are tried.
             let grid = log_grid(0.01 * s, 1.5 * s, 12);
             let mut all = Vec::new();
-            for vel in [VelocitySource::Output, VelocitySource::OutputDerivative] {
-                all.extend(on_grid(&grid, &|p| {
-                    eval_fixed_poles_m(td, lin, Effect::CoulombFriction { level: p }, vel, 1)
+            let sources: &[VelocitySource] = if base.linear.real.contains(&1.0) {
+                &[VelocitySource::OutputDerivative]
+            } else {
+                &[VelocitySource::Output, VelocitySource::OutputDerivative]
+            };
+            for &vel in sources {
+                all.extend(grid.iter().filter_map(|&p| {
+                    eval_added(td, base, Effect::CoulombFriction { level: p }, place, vel, 1)
                 }));
             }
             all
         }
         EffectKind::Backlash => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
-            eval_fixed_poles(td, lin, Effect::Backlash { gap: p }, out)
+            Effect::Backlash { gap: p }
         }),
         EffectKind::Deadzone => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
-            eval_fixed_poles(td, lin, Effect::Deadzone { width: p }, out)
+            Effect::Deadzone { width: p }
         }),
+        EffectKind::Saturation if place == Place::Sensor => {
+            let y_peak = td
+                .base
+                .y
+                .iter()
+                .flat_map(|y| y.iter())
+                .fold(0.0f64, |a, v| a.max(v.abs()));
+            on_grid(&log_grid(0.6 * y_peak, 1.02 * y_peak, 12), &|p| {
+                Effect::Saturation { limit: p }
+            })
+        }
         EffectKind::Saturation => {
             let hi = td.u_peak.max(0.25 * s);
-            on_grid(&log_grid(0.2 * s, hi, 16), &|p| {
-                eval_fixed_poles(td, lin, Effect::Saturation { limit: p }, out)
-            })
+            on_grid(&log_grid(0.2 * s, hi, 16), &|p| Effect::Saturation { limit: p })
         }
         EffectKind::TimeDelay => {
             let grid: Vec<f64> = (0..=(2.0 * MAX_DELAY_SAMPLES) as usize)
                 .map(|i| 0.5 * i as f64 * ts)
                 .collect();
-            on_grid(&grid, &|p| {
-                eval_fixed_poles(td, lin, Effect::TimeDelay { seconds: p }, out)
+            on_grid(&grid, &|p| Effect::TimeDelay { seconds: p })
+        }
+        EffectKind::SlewRate => {
+            let dmax = td
+                .u
+                .iter()
+                .flat_map(|u| u.windows(2).map(|w| (w[1] - w[0]).abs()))
+                .fold(0.0f64, f64::max);
+            if dmax <= 0.0 {
+                return Vec::new();
+            }
+            on_grid(&log_grid(0.03 * dmax / ts, dmax / ts, 12), &|p| {
+                Effect::SlewRate { rate: p }
             })
         }
         EffectKind::Resonance => {
-            let (flo, fhi) = resonance_range_hz(ts);
             let mut all = Vec::new();
-            for &f in &log_grid(flo, fhi, 40) {
-                for &z in &[0.02, 0.05, 0.12, 0.3] {
-                    all.extend(eval_fixed_poles(
+            for f in resonance_grid_hz(td, base) {
+                for &z in &[0.02, 0.1] {
+                    all.extend(eval_added(
                         td,
-                        lin,
+                        base,
                         Effect::Resonance {
                             freq_hz: f,
                             damping: z,
                         },
+                        place,
                         out,
+                        m,
                     ));
                 }
             }
             all
         }
-        EffectKind::Stiction | EffectKind::Quantization => Vec::new(),
+        EffectKind::Stiction | EffectKind::Quantization | EffectKind::StateLimit => Vec::new(),
     }
 }
 
@@ -909,11 +1359,9 @@ mod tests {
         let y_lin = simulate(&plant, None, &u, &s).unwrap();
         let effect = Effect::Stiction { level, breakaway };
         let y_true = simulate(&plant, Some(&effect), &u, &s).unwrap();
-        let m = AugmentedModel {
-            linear: exact_modal(&plant, ts, &u, &y_lin),
-            effect: Some(effect),
-            velocity: vel,
-        };
+        let mut m = AugmentedModel::linear(exact_modal(&plant, ts, &u, &y_lin))
+            .with_added(PlacedEffect::at_default(effect));
+        m.velocity = vel;
         let y = m.simulate(&u).unwrap();
         let s1 = SimSettings { substeps: 1, ..s };
         let y_true1 = simulate(&plant, Some(&effect), &u, &s1).unwrap();

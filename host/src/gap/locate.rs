@@ -44,9 +44,150 @@ pub struct Region {
     pub concentrates: bool,
 }
 
+/// Input PSD within this fraction of its peak (−20 dB) counts as "the input has power here".
+pub use super::evidence::EXCITED_REL;
+
+/// At most this many ranked bands / time regions are reported.
+pub const MAX_RANKED: usize = 5;
+
+/// A band whose share of the residual power is below this is not reported.
+pub const MIN_BAND_SHARE: f64 = 0.02;
+
+/// A band grows from its peak bin while the residual PSD stays above this fraction of the peak
+/// (−10 dB).
+pub const BAND_EDGE_REL: f64 = 0.1;
+
+/// Time windows per log for the ranked time regions.
+pub const TIME_WINDOWS: usize = 16;
+
+/// One frequency band of the residual, with its share of the residual power.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandShare {
+    /// Lower edge, Hz.
+    pub lo_hz: f64,
+    /// Upper edge, Hz.
+    pub hi_hz: f64,
+    /// Frequency of the band's peak residual density, Hz.
+    pub peak_hz: f64,
+    /// Share of the residual power on the bins where the input has power.
+    pub share: f64,
+}
+
+/// One time window of a log, with its share of the residual energy over all training logs.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimeShare {
+    /// The log (file name as given).
+    pub log: String,
+    /// Window start, s from the log's first sample.
+    pub t_start_s: f64,
+    /// Window end, s.
+    pub t_end_s: f64,
+    /// Share of the residual energy (a uniform residual gives 1/(windows·logs)).
+    pub share: f64,
+}
+
+/// Bands of the residual PSD `srr` over the bins where the input has power (`powered`), ranked
+/// by their share of that power: repeatedly the highest unassigned bin, grown over neighbouring
+/// powered bins while the density stays above [`BAND_EDGE_REL`] of that peak; at most
+/// [`MAX_RANKED`] bands of share >= [`MIN_BAND_SHARE`]. Returns the bands and the share of the
+/// residual power (all bins above DC) that lies where the input has no power.
+pub fn ranked_bands(freq: &[f64], srr: &[f64], powered: &[bool]) -> (Vec<BandShare>, f64) {
+    let n = freq.len().min(srr.len()).min(powered.len());
+    if n < 2 {
+        return (Vec::new(), f64::NAN);
+    }
+    let df = freq[1] - freq[0];
+    let ok = |k: usize| k >= 1 && powered[k] && srr[k].is_finite();
+    let total: f64 = (1..n).filter(|&k| ok(k)).map(|k| srr[k]).sum();
+    let all: f64 = (1..n).filter(|&k| srr[k].is_finite()).map(|k| srr[k]).sum();
+    let outside = if all > 0.0 { 1.0 - total / all } else { f64::NAN };
+    if !(total > 0.0) {
+        return (Vec::new(), outside);
+    }
+    let mut taken = vec![false; n];
+    let mut out = Vec::new();
+    while out.len() < MAX_RANKED {
+        let Some(k) = (1..n)
+            .filter(|&k| ok(k) && !taken[k])
+            .max_by(|&a, &b| srr[a].total_cmp(&srr[b]))
+        else {
+            break;
+        };
+        let edge = BAND_EDGE_REL * srr[k];
+        let (mut a, mut b) = (k, k);
+        while a > 1 && ok(a - 1) && !taken[a - 1] && srr[a - 1] >= edge {
+            a -= 1;
+        }
+        while b + 1 < n && ok(b + 1) && !taken[b + 1] && srr[b + 1] >= edge {
+            b += 1;
+        }
+        let p: f64 = (a..=b).map(|i| srr[i]).sum();
+        for t in taken.iter_mut().take(b + 1).skip(a) {
+            *t = true;
+        }
+        let share = p / total;
+        if share < MIN_BAND_SHARE {
+            break;
+        }
+        out.push(BandShare {
+            lo_hz: (freq[a] - 0.5 * df).max(0.0),
+            hi_hz: freq[b] + 0.5 * df,
+            peak_hz: freq[k],
+            share,
+        });
+    }
+    (out, outside)
+}
+
+/// The [`TIME_WINDOWS`] windows of every log after `warmup` ranked by their share of the
+/// residual energy over all logs; the top [`MAX_RANKED`].
+pub fn ranked_time_regions(
+    resid: &[Vec<f64>],
+    paths: &[PathBuf],
+    warmup: usize,
+    ts: f64,
+) -> Vec<TimeShare> {
+    let total: f64 = resid
+        .iter()
+        .map(|r| r.iter().skip(warmup).map(|v| v * v).sum::<f64>())
+        .sum();
+    if !(total > 0.0) {
+        return Vec::new();
+    }
+    let mut all = Vec::new();
+    for (l, r) in resid.iter().enumerate() {
+        let n = r.len().saturating_sub(warmup);
+        if n < TIME_WINDOWS {
+            continue;
+        }
+        for w in 0..TIME_WINDOWS {
+            let (a, b) = (warmup + w * n / TIME_WINDOWS, warmup + (w + 1) * n / TIME_WINDOWS);
+            let e: f64 = r[a..b].iter().map(|v| v * v).sum();
+            all.push(TimeShare {
+                log: paths
+                    .get(l)
+                    .map_or_else(|| format!("log {l}"), |p| p.display().to_string()),
+                t_start_s: a as f64 * ts,
+                t_end_s: b as f64 * ts,
+                share: e / total,
+            });
+        }
+    }
+    all.sort_by(|a, b| b.share.total_cmp(&a.share));
+    all.truncate(MAX_RANKED);
+    all
+}
+
 /// The "where" part of the report (see the module docs for each field's definition).
 #[derive(Debug, Clone, Serialize)]
 pub struct Where {
+    /// Frequency bands ranked by their share of the nominal sim's residual power on the
+    /// training logs (bins where the input has power only); see [`ranked_bands`].
+    pub bands: Vec<BandShare>,
+    /// Share of that residual power where the input has no power (not in `bands`).
+    pub residual_share_outside_input_band: f64,
+    /// Time windows ranked by their share of the nominal sim's residual energy.
+    pub time_regions: Vec<TimeShare>,
     /// Bands (Hz) where the multiplicative error exceeds the threshold.
     pub bands_hz: Vec<[f64; 2]>,
     /// Frequency of the largest multiplicative error, Hz (null when no bin is usable).
@@ -135,6 +276,7 @@ pub fn locate(
     y: &[Vec<f64>],
     y_lin: &[Vec<f64>],
     resid_lin: &[Vec<f64>],
+    resid_nom: &[Vec<f64>],
     warmup: usize,
     ts: f64,
     opts: &GapOptions,
@@ -173,22 +315,29 @@ pub fn locate(
     let to_hz = |r: &[(usize, usize)]| -> Vec<[f64; 2]> {
         r.iter().map(|&(a, b)| [freq[a], freq[b]]).collect()
     };
+    // Where the input has power (pooled input PSD within EXCITED_REL of its peak).
+    let top_uu = pooled.suu.iter().cloned().fold(0.0, f64::max);
+    let powered: Vec<bool> = pooled
+        .suu
+        .iter()
+        .map(|&p| top_uu > 0.0 && p >= EXCITED_REL * top_uu)
+        .collect();
     let bands_hz = to_hz(&runs(
         freq.len(),
-        |k| used(k) && mult[k] > opts.threshold,
-        0,
+        |k| used(k) && powered[k] && mult[k] > opts.threshold,
+        2,
     ));
     let worst = (1..freq.len())
-        .filter(|&k| used(k))
+        .filter(|&k| used(k) && powered[k])
         .max_by(|&a, &b| mult[a].total_cmp(&mult[b]));
     let (worst_hz, worst_error, worst_band_hz) = match worst {
         Some(k) => {
             let half = 0.5 * mult[k];
             let (mut a, mut b) = (k, k);
-            while a > 1 && used(a - 1) && mult[a - 1] > half {
+            while a > 1 && used(a - 1) && powered[a - 1] && mult[a - 1] > half {
                 a -= 1;
             }
-            while b + 1 < freq.len() && used(b + 1) && mult[b + 1] > half {
+            while b + 1 < freq.len() && used(b + 1) && powered[b + 1] && mult[b + 1] > half {
                 b += 1;
             }
             (freq[k], mult[k], [freq[a], freq[b]])
@@ -210,35 +359,7 @@ pub fn locate(
         }
     }
 
-    // Amplitude dependence: smallest vs largest input RMS.
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
-    let (amplitude_dependent, amplitude_change) = if u.len() >= 2 {
-        let order: Vec<usize> = {
-            let mut o: Vec<usize> = (0..u.len()).collect();
-            o.sort_by(|&a, &b| rms(&u[a]).total_cmp(&rms(&u[b])));
-            o
-        };
-        let (lo, hi) = (order[0], order[order.len() - 1]);
-        let sl = pooled_etfe(&recs[lo..=lo], nperseg, ts)?;
-        let sh = pooled_etfe(&recs[hi..=hi], nperseg, ts)?;
-        let (gl, gh) = (&sl.h, &sh.h);
-        let (cl, ch) = (sl.gate(opts.coherence_min), sh.gate(opts.coherence_min));
-        let mut d: Vec<f64> = (1..freq.len())
-            .filter(|&k| cl[k] && ch[k])
-            .map(|k| ((gl[k] - gh[k]) / gh[k]).norm())
-            .filter(|v| v.is_finite())
-            .collect();
-        if d.is_empty() {
-            (false, f64::NAN)
-        } else {
-            d.sort_by(f64::total_cmp);
-            let med = d[d.len() / 2];
-            (med > opts.amplitude_tol, med)
-        }
-    } else {
-        (false, f64::NAN)
-    };
-
     // Residual regions on the pooled training samples after the warm-up.
     let mut r_all = Vec::new();
     let mut yabs = Vec::new();
@@ -283,14 +404,26 @@ pub fn locate(
         region("input_extremes", &|i| uabs[i] >= t_ux),
         region("near_zero_input", &|i| uabs[i] <= t_u0),
     ];
+    // Ranked bands and time regions of the nominal sim's residual.
+    let mut acc = Welch::new(nperseg).accumulator(1.0 / ts)?;
+    for (ul, rl) in u.iter().zip(resid_nom) {
+        acc.add(&ul[warmup..], &rl[warmup..])?;
+    }
+    let rspec = acc.finish()?;
+    let (bands, residual_share_outside_input_band) =
+        ranked_bands(&freq, &rspec.syy, &powered);
+    let time_regions = ranked_time_regions(resid_nom, paths, warmup, ts);
     Ok(Where {
+        bands,
+        residual_share_outside_input_band,
+        time_regions,
         bands_hz,
         worst_hz,
         worst_error,
         worst_band_hz,
         coherence_drops_hz,
-        amplitude_dependent,
-        amplitude_change,
+        amplitude_dependent: false,
+        amplitude_change: f64::NAN,
         residual_regions,
         nperseg,
         freq_hz: freq,

@@ -5,15 +5,20 @@
 pub mod benchmark;
 pub mod diagnose;
 pub mod effect;
+pub mod evidence;
 pub mod figures;
 pub mod fit;
 pub mod locate;
 pub mod modal;
+pub mod noise;
 pub mod optim;
+pub mod place;
 pub mod plant;
 pub mod report;
 pub mod rng;
+pub mod select;
 pub mod simfile;
+pub mod structure;
 
 pub use diagnose::{diagnose, Diagnosis, GapOptions};
 pub use effect::{Effect, EffectKind};

@@ -24,12 +24,16 @@ use crate::lti::{solve_square, StateSpace};
 use faer::Mat;
 use num_complex::Complex64;
 
-/// Stable SISO discrete-time model in real modal form (see the module docs).
+/// Distance from z = 1 within which a pole is taken as an integrator (an exact pole at 1).
+pub const INTEGRATOR_TOL: f64 = 1e-9;
+
+/// Stable SISO discrete-time model in real modal form (see the module docs), possibly with one
+/// integrator (a real pole exactly at z = 1, fixed in every fit).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalModel {
     /// Sample time in seconds (> 0).
     pub ts: f64,
-    /// Real poles, each strictly inside (−1, 1).
+    /// Real poles, each strictly inside (−1, 1), or exactly 1 (an integrator).
     pub real: Vec<f64>,
     /// Complex pairs (r, φ): poles r·e^{±jφ}, 0 < r < 1, 0 < φ < π (rad per sample).
     pub pairs: Vec<(f64, f64)>,
@@ -291,7 +295,15 @@ impl ModalModel {
             .real
             .iter()
             .zip(&real)
-            .map(|(&p, &ph)| if m == 1 { 1.0 } else { (ph - 1.0) / (p - 1.0) })
+            .map(|(&p, &ph)| {
+                if m == 1 {
+                    1.0
+                } else if p == 1.0 {
+                    inv // integrator: each sub-step adds w/m
+                } else {
+                    (ph - 1.0) / (p - 1.0)
+                }
+            })
             .collect();
         let ts = self.ts;
         // Continuous-time equivalent of each mode (the model is taken as a ZOH
@@ -301,6 +313,11 @@ impl ModalModel {
         let mut dc = vec![0.0; self.n_states()];
         let mut dcb = 0.0;
         for (i, &p) in self.real.iter().enumerate() {
+            if p == 1.0 {
+                // x' = w/ts: the output derivative depends on the input only.
+                dcb += self.residues[i] / ts;
+                continue;
+            }
             let sp = p.ln() / ts;
             dc[i] = self.residues[i] * sp;
             dcb += self.residues[i] * sp / (p - 1.0);
@@ -339,9 +356,10 @@ impl ModalModel {
     }
 
     /// A model with the given poles (conjugate pairs: pass either or both members; real poles
-    /// have |Im| <= 1e-9·|p|), zero residues and offset. Errors for a pole on or outside the
-    /// unit circle (the diagnosis compares free-run simulations, which need a stable model) or
-    /// a non-positive `ts`. Repeated poles are separated by a relative 1e-6 so their modes stay
+    /// have |Im| <= 1e-9·|p|), zero residues and offset. One pole within [`INTEGRATOR_TOL`] of
+    /// z = 1 is an integrator, kept exactly at 1 (and fixed by the fits). Errors for any other
+    /// pole on or outside the unit circle (the diagnosis compares free-run simulations, which
+    /// need a stable model) or a non-positive `ts`. Repeated poles are separated by a relative 1e-6 so their modes stay
     /// independent.
     pub fn from_poles(ts: f64, poles: &[Complex64], use_d: bool) -> Result<Self> {
         if !(ts.is_finite() && ts > 0.0) {
@@ -353,6 +371,13 @@ impl ModalModel {
         let mut pairs: Vec<(f64, f64)> = Vec::new();
         for &p in poles {
             let r = p.norm();
+            if (p - Complex64::new(1.0, 0.0)).norm() <= INTEGRATOR_TOL {
+                // An integrator (position output of a moving mass): kept exactly at z = 1.
+                if !real.contains(&1.0) {
+                    real.push(1.0);
+                    continue;
+                }
+            }
             if r.is_nan() || r >= 1.0 {
                 return Err(Error::Numerical(format!(
                     "unstable or marginally stable pole z = {p:.6} (|z| = {r:.6} >= 1)"
@@ -413,10 +438,14 @@ impl ModalModel {
         v
     }
 
-    /// Sets the poles from unconstrained parameters (signs of real poles are kept).
+    /// Sets the poles from unconstrained parameters (signs of real poles are kept; an
+    /// integrator stays at z = 1).
     pub fn set_pole_params(&mut self, theta: &[f64]) {
         let nr = self.real.len();
         for (i, p) in self.real.iter_mut().enumerate() {
+            if *p == 1.0 {
+                continue; // integrators stay put
+            }
             let mag = (-theta[i].exp()).exp();
             *p = if *p < 0.0 { -mag } else { mag };
         }
@@ -540,19 +569,30 @@ impl ModalModel {
     /// the weighted least-squares optimum on `set` and returns the cost Σ NRMSE². `None` when
     /// the normal equations are singular or the result is not finite.
     pub fn fit_linear_params(&mut self, set: &FitSet) -> Option<f64> {
+        self.fit_linear_params_masked(set, None)
+    }
+
+    /// [`Self::fit_linear_params`] using only the samples where `mask` (one flag per sample
+    /// and log) is true; the returned cost is over those samples (same weights).
+    pub fn fit_linear_params_masked(
+        &mut self,
+        set: &FitSet,
+        mask: Option<&[Vec<bool>]>,
+    ) -> Option<f64> {
         let k = self.n_regressors();
         let mut g = Mat::<f64>::zeros(k, k);
         let mut h = Mat::<f64>::zeros(k, 1);
         let mut yy = 0.0;
         let mut phi = vec![0.0; k];
         let st = self.stepper();
-        for ((w, y), &wt) in set.w.iter().zip(&set.y).zip(&set.weight) {
+        for (l, ((w, y), &wt)) in set.w.iter().zip(&set.y).zip(&set.weight).enumerate() {
             let mut x = self.zero_state();
             let mut gl = vec![0.0; k * k];
             let mut hl = vec![0.0; k];
             let mut yl = 0.0;
+            let keep = mask.and_then(|m| m.get(l));
             for (t, (&wk, &yk)) in w.iter().zip(y).enumerate() {
-                if t >= set.warmup {
+                if t >= set.warmup && keep.is_none_or(|m| m.get(t).copied().unwrap_or(true)) {
                     self.regressors(&x, wk, &mut phi);
                     for i in 0..k {
                         let pi = phi[i];
@@ -793,7 +833,57 @@ mod tests {
 
     #[test]
     fn unstable_pole_is_an_error() {
-        let e = ModalModel::from_poles(0.01, &[Complex64::new(1.0, 0.0)], false).unwrap_err();
+        let e = ModalModel::from_poles(0.01, &[Complex64::new(1.001, 0.0)], false).unwrap_err();
         assert!(e.to_string().contains("unstable"), "{e}");
+        // One integrator is a model; a second pole at z = 1 is not.
+        let one = Complex64::new(1.0, 0.0);
+        let m = ModalModel::from_poles(0.01, &[one], false).unwrap();
+        assert_eq!(m.real, vec![1.0]);
+        assert!(ModalModel::from_poles(0.01, &[one, one], false).is_err());
+    }
+
+    /// Position output of a mass with viscous friction (poles 1 and e^{−(c/m)·ts}): the modal
+    /// model with an exact integrator reproduces the plant's ZOH simulation, keeps the
+    /// integrator through a pole update, and its output derivative is the velocity.
+    #[test]
+    fn integrator_reproduces_a_position_output_axis() {
+        let (m, c) = (0.4, 1.3);
+        let a = faer::Mat::from_fn(2, 2, |i, j| match (i, j) {
+            (0, 1) => 1.0,
+            (1, 1) => -c / m,
+            _ => 0.0,
+        });
+        let b = faer::Mat::from_fn(2, 1, |i, _| if i == 1 { 1.0 / m } else { 0.0 });
+        let pos = faer::Mat::from_fn(1, 2, |_, j| if j == 0 { 1.0 } else { 0.0 });
+        let vel = faer::Mat::from_fn(1, 2, |_, j| if j == 1 { 1.0 } else { 0.0 });
+        let cont = StateSpace::new(a.clone(), b.clone(), pos, faer::Mat::zeros(1, 1), 0.0).unwrap();
+        let ts = 1e-3;
+        let disc = cont.c2d_zoh(ts).unwrap();
+        let vdisc = StateSpace::new(a, b, vel, faer::Mat::zeros(1, 1), 0.0)
+            .unwrap()
+            .c2d_zoh(ts)
+            .unwrap();
+        let u: Vec<f64> = lcg_noise(3000, 11);
+        let y = disc.simulate_siso(&u, None).unwrap();
+        let v = vdisc.simulate_siso(&u, None).unwrap();
+        let mut mm = ModalModel::from_poles(ts, &disc.poles().unwrap(), false).unwrap();
+        assert!(mm.real.contains(&1.0), "{:?}", mm.real);
+        let set = FitSet::new(vec![u.clone()], vec![y.clone()], 0).unwrap();
+        let cost = mm.fit_output_error(&set, 20).unwrap();
+        assert!(cost < 1e-14, "cost {cost}");
+        assert!(mm.real.contains(&1.0), "integrator moved: {:?}", mm.real);
+        let sub = mm.substepper(4).unwrap();
+        let mut x = mm.zero_state();
+        for (k, &uk) in u.iter().enumerate() {
+            let w_prev = if k == 0 { 0.0 } else { u[k - 1] };
+            if k % 4 == 0 {
+                // Full-step rate at the sample instant (4 sub-steps per sample below).
+                let r = sub.rate(&x, w_prev);
+                assert!((r - v[k]).abs() < 1e-6 * (1.0 + v[k].abs()), "k {k}: {r} vs {}", v[k]);
+            }
+            for _ in 0..4 {
+                sub.step(&mut x, uk);
+            }
+        }
     }
 }

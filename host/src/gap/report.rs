@@ -1,5 +1,7 @@
 //! The gap report: JSON schema (serde) and the human-readable table.
+use super::evidence::Evidence;
 use super::locate::Where;
+use super::noise::NoiseFloor;
 use crate::error::Result;
 use crate::lti::StateSpaceData;
 use serde::Serialize;
@@ -11,6 +13,8 @@ use std::fmt::Write as _;
 pub struct EffectReport {
     /// Effect name (`coulomb_friction`, ...).
     pub effect: String,
+    /// Where the effect sits: `drive`, `motor`, `drivetrain`, `load`, `state` or `sensor`.
+    pub place: String,
     /// Fitted parameters (units: see [`crate::gap::effect`]).
     pub params: BTreeMap<String, f64>,
     /// Validation NRMSE of the linear part augmented with this effect.
@@ -25,13 +29,32 @@ pub struct EffectReport {
     pub velocity_from: Option<String>,
 }
 
-/// The linear re-fit.
+/// One effect of the verdict.
+#[derive(Debug, Clone, Serialize)]
+pub struct VerdictEffect {
+    /// Effect name.
+    pub effect: String,
+    /// Where it sits (see [`EffectReport::place`]).
+    pub place: String,
+    /// Fitted parameters.
+    pub params: BTreeMap<String, f64>,
+    /// Its own part of the shrink gap_linear − gap_after (forward-selection deltas; the shares
+    /// of the verdict's effects sum to 1).
+    pub share: f64,
+}
+
+/// The linear model the effects are compared with.
 #[derive(Debug, Clone, Serialize)]
 pub struct LinearReport {
     /// Discrete model (modal realisation) at the logs' sample time.
     pub model: StateSpaceData,
     /// Output offset fitted with it (output units).
     pub offset: f64,
+    /// `refit` (the output-error re-fit) or `nominal` (the nominal sim in modal form, used when
+    /// the re-fit does worse than the nominal on the validation log).
+    pub source: String,
+    /// Validation NRMSE of the output-error re-fit (= gap_linear when `source` is `refit`).
+    pub gap_refit: f64,
     /// Continuous-equivalent poles as (natural frequency Hz, damping ratio), one per real pole
     /// or complex pair.
     pub poles_hz: Vec<(f64, f64)>,
@@ -50,6 +73,10 @@ pub struct Settings {
     pub margin: f64,
     /// Parsimony margin for stiction over Coulomb friction.
     pub nested_margin: f64,
+    /// `none` needs gap_linear <= noise_factor × noise floor.
+    pub noise_factor: f64,
+    /// Share of the excess over the noise floor an effect must remove.
+    pub min_excess_closed: f64,
     /// Multiplicative-error threshold of the "where" bands.
     pub threshold: f64,
     /// Coherence gate.
@@ -76,8 +103,15 @@ pub struct BandError {
 /// The full report (`ferrosid gap --json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct GapReport {
-    /// Top effect, or `none`.
+    /// `none`, `unexplained`, an effect name, or effect names joined by `+` (selection order).
     pub verdict: String,
+    /// The verdict's effects with place, parameters and share (empty for `none` and
+    /// `unexplained`).
+    pub verdict_effects: Vec<VerdictEffect>,
+    /// NRMSE a perfect model would still leave on the validation log.
+    pub noise_floor: NoiseFloor,
+    /// What makes the gap nonlinear (computed whatever the verdict).
+    pub evidence: Evidence,
     /// Where the sim and the plant disagree.
     #[serde(rename = "where")]
     pub where_: Where,
@@ -122,8 +156,58 @@ impl GapReport {
         let w = &self.where_;
         let pct = |v: f64| format!("{:+.0}%", -100.0 * v);
         let _ = writeln!(s, "Sim-to-real gap diagnosis — verdict: {}", self.verdict);
+        for e in &self.verdict_effects {
+            let p: Vec<String> = e.params.iter().map(|(k, v)| format!("{k}={v:.4e}")).collect();
+            let _ = writeln!(
+                s,
+                "  {} at {} ({}), {:.0}% of the shrink",
+                e.effect,
+                e.place,
+                p.join(", "),
+                100.0 * e.share
+            );
+        }
         let _ = writeln!(s);
         let _ = writeln!(s, "WHERE (training logs vs nominal sim)");
+        if w.bands.is_empty() {
+            let _ = writeln!(s, "  residual bands: none (no residual where the input has power)");
+        } else {
+            let _ = writeln!(
+                s,
+                "  residual power by band (where the input has power; {:.0}% of it lies \
+                 outside):",
+                100.0 * w.residual_share_outside_input_band
+            );
+            for b in &w.bands {
+                let _ = writeln!(
+                    s,
+                    "    {:>9.3}–{:<9.3} Hz  peak {:>9.3} Hz  {:>5.1}%",
+                    b.lo_hz,
+                    b.hi_hz,
+                    b.peak_hz,
+                    100.0 * b.share
+                );
+            }
+        }
+        if let Some(t) = w.time_regions.first() {
+            let windows = super::locate::TIME_WINDOWS;
+            let _ = writeln!(
+                s,
+                "  residual energy by time window ({windows} per log; top {}):",
+                w.time_regions.len()
+            );
+            for t in &w.time_regions {
+                let _ = writeln!(
+                    s,
+                    "    {} {:.3}–{:.3} s  {:>5.1}%",
+                    t.log,
+                    t.t_start_s,
+                    t.t_end_s,
+                    100.0 * t.share
+                );
+            }
+            let _ = t;
+        }
         let _ = writeln!(
             s,
             "  multiplicative error > {:.0}%: {}",
@@ -143,26 +227,80 @@ impl GapReport {
             self.settings.coherence_min,
             bands(&w.coherence_drops_hz)
         );
-        if w.amplitude_change.is_finite() {
+        let _ = writeln!(s);
+        let ev = &self.evidence;
+        let a = &ev.amplitude;
+        let _ = writeln!(s, "EVIDENCE of a nonlinearity");
+        match &a.not_assessed {
+            Some(why) if !a.amplitude_change.is_finite() => {
+                let _ = writeln!(s, "  amplitude dependent: not assessed ({why})");
+            }
+            _ => {
+                let _ = writeln!(
+                    s,
+                    "  amplitude dependent: {} (low vs high response: {:.1}% median, {} near \
+                     resonances; tolerance {:.0}%)",
+                    if a.amplitude_dependent { "yes" } else { "no" },
+                    100.0 * a.amplitude_change,
+                    if a.resonance_change.is_finite() {
+                        format!(
+                            "{:.1}% at {:.3} Hz",
+                            100.0 * a.resonance_change,
+                            a.resonance_change_hz
+                        )
+                    } else {
+                        "no lightly damped mode in band".into()
+                    },
+                    100.0 * self.settings.amplitude_tol
+                );
+            }
+        }
+        for m in &a.mode_shifts {
             let _ = writeln!(
                 s,
-                "  amplitude dependent: {} (low vs high response differ by {:.1}% median, \
-                 tolerance {:.0}%)",
-                if w.amplitude_dependent { "yes" } else { "no" },
-                100.0 * w.amplitude_change,
-                100.0 * self.settings.amplitude_tol
-            );
-        } else {
-            let _ = writeln!(
-                s,
-                "  amplitude dependent: not assessed (needs two training logs of different \
-                 amplitude with coherent bins in common)"
+                "    mode {:>9.3} → {:<9.3} Hz ({:+.2}%), damping {:.4} → {:.4}{}",
+                m.freq_low_hz,
+                m.freq_high_hz,
+                100.0 * m.freq_shift_rel,
+                m.damping_low,
+                m.damping_high,
+                if m.significant {
+                    "  <- shifts"
+                } else if !m.in_band {
+                    "  (outside the excited band)"
+                } else {
+                    ""
+                }
             );
         }
-        for r in &w.residual_regions {
+        let nd = &ev.nonlinear_distortion;
+        if let Some(why) = &nd.absent {
+            let _ = writeln!(s, "  nonlinear distortion: not assessed ({why})");
+        }
+        for d in &nd.logs {
             let _ = writeln!(
                 s,
-                "  residual of the linear re-fit, {:<24} x{:.2} of its overall RMS{}",
+                "  nonlinear distortion, {} ({} grid, {} lines {:.3}–{:.3} Hz, {} periods): \
+                 non-excited lines hold {:.3}% (odd {:.3}%, even {:.3}%, noise {:.3}%) → no \
+                 linear model below NRMSE {:.4}{}",
+                d.log,
+                d.grid,
+                d.excited_lines,
+                d.excited_band_hz[0],
+                d.excited_band_hz[1],
+                d.periods,
+                100.0 * (d.odd_share + d.even_share),
+                100.0 * d.odd_share,
+                100.0 * d.even_share,
+                100.0 * d.noise_share,
+                d.nrmse_bound,
+                if d.significant { "  <- significant" } else { "" }
+            );
+        }
+        for r in &ev.residual_regions {
+            let _ = writeln!(
+                s,
+                "  residual of the linear model, {:<24} x{:.2} of its overall RMS{}",
                 r.region,
                 r.rms_ratio,
                 if r.concentrates {
@@ -174,14 +312,42 @@ impl GapReport {
         }
         let _ = writeln!(s);
         let _ = writeln!(s, "HOW FAR (free-run NRMSE on the validation log)");
+        let nf = &self.noise_floor;
+        if nf.available() {
+            let _ = writeln!(
+                s,
+                "  noise floor      {:.4}  ({} on the {} log{})",
+                nf.nrmse,
+                nf.method,
+                nf.source,
+                nf.period_samples
+                    .map(|p| format!(", period {p} samples"))
+                    .unwrap_or_default()
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "  noise floor      not estimable (no repeating input, no off-band bins)"
+            );
+        }
         let _ = writeln!(s, "  nominal sim      {:.4}", self.gap_before);
         let _ = writeln!(
             s,
-            "  linear re-fit    {:.4}  ({} vs nominal)",
+            "  linear {:<9} {:.4}  ({} vs nominal{})",
+            if self.linear.source == "refit" {
+                "re-fit"
+            } else {
+                "(nominal)"
+            },
             self.gap_linear,
-            pct((self.gap_before - self.gap_linear) / self.gap_before)
+            pct((self.gap_before - self.gap_linear) / self.gap_before),
+            if self.linear.source == "refit" {
+                String::new()
+            } else {
+                format!("; the re-fit left {:.4}", self.linear.gap_refit)
+            }
         );
-        if self.verdict != "none" {
+        if !self.verdict_effects.is_empty() {
             let _ = writeln!(
                 s,
                 "  + {:<14} {:.4}  ({} vs linear)",
@@ -202,14 +368,17 @@ impl GapReport {
         let _ = writeln!(s);
         let _ = writeln!(
             s,
-            "WHICH (ranked on the validation log; verdict needs >= {:.0}% over the linear \
-             re-fit)",
-            100.0 * self.settings.margin
+            "WHICH (ranked on the validation log; an effect needs >= {:.0}% over the linear \
+             model and {:.0}% of its excess over the noise floor; none needs the linear model \
+             within {}x the floor)",
+            100.0 * self.settings.margin,
+            100.0 * self.settings.min_excess_closed,
+            self.settings.noise_factor
         );
         let _ = writeln!(
             s,
-            "  {:<4} {:<17} {:>10} {:>10} {:>11}  parameters",
-            "rank", "effect", "val NRMSE", "vs linear", "train NRMSE"
+            "  {:<4} {:<17} {:<10} {:>10} {:>10} {:>11}  parameters",
+            "rank", "effect", "place", "val NRMSE", "vs linear", "train NRMSE"
         );
         for (i, e) in self.effects.iter().enumerate() {
             let p: Vec<String> = e
@@ -220,9 +389,10 @@ impl GapReport {
                 .collect();
             let _ = writeln!(
                 s,
-                "  {:<4} {:<17} {:>10.4} {:>10} {:>11.5}  {}",
+                "  {:<4} {:<17} {:<10} {:>10.4} {:>10} {:>11.5}  {}",
                 i + 1,
                 e.effect,
+                e.place,
                 e.gap_after,
                 pct(e.improvement),
                 e.train_nrmse,

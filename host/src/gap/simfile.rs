@@ -79,8 +79,9 @@ pub fn parse_sim(text: &str, path: &Path) -> Result<StateSpace> {
 /// The sim model as a discrete model at the logs' sample time `ts` (s): ZOH-discretised when
 /// continuous, checked when discrete. Errors when the model is not SISO (the logs have one
 /// input and one output), when a discrete model has another sample time, or when the
-/// discrete model is not asymptotically stable (the diagnosis compares free-run simulations);
-/// `path` names the sim file in the error.
+/// discrete model has a pole on or outside the unit circle other than an integrator (z = 1,
+/// see [`is_integrator_pole`]; the diagnosis compares free-run simulations), and when its
+/// response is identically zero ([`zero_response`]); `path` names the sim file in the error.
 pub fn discretise_for_logs(sys: &StateSpace, ts: f64, path: &Path) -> Result<StateSpace> {
     let data_err = |msg: String| Error::Data {
         file: path.to_path_buf(),
@@ -109,7 +110,10 @@ pub fn discretise_for_logs(sys: &StateSpace, ts: f64, path: &Path) -> Result<Sta
     let poles = d
         .poles()
         .map_err(|e| data_err(format!("poles of the sim model: {e}")))?;
-    if let Some(p) = poles.iter().find(|p| p.norm() >= 1.0 - 1e-9) {
+    if let Some(p) = poles
+        .iter()
+        .find(|p| p.norm() >= 1.0 - 1e-9 && !is_integrator_pole(**p))
+    {
         let s = if sys.is_discrete() {
             String::new()
         } else {
@@ -118,13 +122,74 @@ pub fn discretise_for_logs(sys: &StateSpace, ts: f64, path: &Path) -> Result<Sta
         };
         return Err(data_err(format!(
             "sim model is not asymptotically stable: pole z = {:.6} {:+.6}j, |z| = {:.6}{s}. The \
-             gap diagnosis compares free-run simulations, which need a stable (damped) model",
+             gap diagnosis compares free-run simulations, which need a stable (damped) model; \
+             integrators (poles at z = 1, s = 0) are accepted",
             p.re,
             p.im,
             p.norm()
         )));
     }
+    if let Some(msg) = zero_response(&d) {
+        return Err(data_err(msg));
+    }
     Ok(d)
+}
+
+/// Largest distance |z − 1| at which a discrete pole counts as an integrator (a pole at z = 1,
+/// s = 0), which [`discretise_for_logs`] accepts (a position output of a velocity-driven axis).
+pub const INTEGRATOR_TOL: f64 = 1e-6;
+
+/// Whether the discrete pole `z` is an integrator (|z − 1| <= [`INTEGRATOR_TOL`]).
+pub fn is_integrator_pole(z: num_complex::Complex64) -> bool {
+    (z - 1.0).norm() <= INTEGRATOR_TOL
+}
+
+/// `Some(reason)` when the SISO model's response is identically zero: every Markov parameter
+/// D, CB, CAB, …, CA^(n−1)B is zero (relative to the scale ‖C‖·‖A‖^k·‖B‖ at 1e-12; B = 0 or
+/// C = 0 with D = 0 are the common cases). Such a model cannot be compared with a log.
+pub fn zero_response(sys: &StateSpace) -> Option<String> {
+    let n = sys.n_states();
+    let max_abs = |m: faer::MatRef<'_, f64>| {
+        let mut v = 0.0f64;
+        for j in 0..m.ncols() {
+            for i in 0..m.nrows() {
+                v = v.max(m[(i, j)].abs());
+            }
+        }
+        v
+    };
+    if max_abs(sys.d.as_ref()) > 0.0 {
+        return None;
+    }
+    let (nb, nc, na) = (
+        max_abs(sys.b.as_ref()),
+        max_abs(sys.c.as_ref()),
+        max_abs(sys.a.as_ref()),
+    );
+    let what = if nb == 0.0 {
+        "B = 0 (the input reaches no state) and D = 0"
+    } else if nc == 0.0 {
+        "C = 0 (no state reaches the output) and D = 0"
+    } else {
+        // Markov parameters C A^k B, k = 0..n-1.
+        let mut x: Vec<f64> = (0..n).map(|i| sys.b[(i, 0)]).collect();
+        let mut scale = nb * nc * n as f64;
+        for _ in 0..n {
+            let h: f64 = (0..n).map(|i| sys.c[(0, i)] * x[i]).sum();
+            if h.abs() > 1e-12 * scale {
+                return None;
+            }
+            x = (0..n)
+                .map(|i| (0..n).map(|j| sys.a[(i, j)] * x[j]).sum())
+                .collect();
+            scale *= na.max(1e-300) * n as f64;
+        }
+        "every Markov parameter (D, CB, CAB, ...) zero"
+    };
+    Some(format!(
+        "sim model has {what}: its output is identically zero, so there is no response to \
+         compare with the logs"
+    ))
 }
 
 #[cfg(test)]
