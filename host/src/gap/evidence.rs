@@ -33,6 +33,7 @@
 use super::locate::{default_nperseg, Region};
 use super::modal::{FitSet, ModalModel};
 use super::noise::detect_period;
+use super::select::{DwellEvidence, LatticeEvidence};
 use crate::error::Result;
 use crate::spectral::{PeriodicAveraging, Welch};
 use serde::Serialize;
@@ -152,15 +153,73 @@ pub struct Evidence {
     pub nonlinear_distortion: DistortionEvidence,
     /// Concentration of the linear model's residual (copied from `where`).
     pub residual_regions: Vec<Region>,
+    /// Lattice of the measured outputs (a quantizing sensor), when found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lattice: Option<Lattice>,
+    /// Dwells at zero velocity while the input pushes (static friction), when found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dwell: Option<Dwell>,
+}
+
+/// The lattice evidence ([`crate::gap::select::lattice_evidence`]) as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct Lattice {
+    /// Step, output units.
+    pub step: f64,
+    /// Share of the samples on the lattice.
+    pub share_on_lattice: f64,
+    /// Occupied levels.
+    pub levels: usize,
+    /// Step over the output standard deviation.
+    pub step_over_std: f64,
+}
+
+impl From<LatticeEvidence> for Lattice {
+    fn from(l: LatticeEvidence) -> Self {
+        Self {
+            step: l.step,
+            share_on_lattice: l.share_on_lattice,
+            levels: l.levels,
+            step_over_std: l.step_over_std,
+        }
+    }
+}
+
+/// The dwell evidence ([`crate::gap::select::dwell_evidence`]) as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct Dwell {
+    /// Dwells found.
+    pub dwells: usize,
+    /// Share of the scored samples in dwells.
+    pub dwell_share: f64,
+    /// Median |input| when a dwell ends (breakaway), input units.
+    pub breakaway: f64,
+    /// Median largest |input| held without moving, input units.
+    pub hold_max: f64,
+    /// Which signal stood for the velocity.
+    pub velocity: String,
+}
+
+impl From<&DwellEvidence> for Dwell {
+    fn from(d: &DwellEvidence) -> Self {
+        Self {
+            dwells: d.dwells,
+            dwell_share: d.dwell_share,
+            breakaway: d.breakaway,
+            hold_max: d.hold_max,
+            velocity: d.velocity.name().to_string(),
+        }
+    }
 }
 
 impl Evidence {
     /// Whether any test points at a nonlinearity: amplitude dependence, significant distortion
-    /// on non-excited lines, or a residual concentration.
+    /// on non-excited lines, a residual concentration, or dwells at zero velocity.
     pub fn nonlinear(&self) -> bool {
         self.amplitude.amplitude_dependent
             || self.nonlinear_distortion.significant()
             || self.residual_regions.iter().any(|r| r.concentrates)
+            || self.dwell.is_some()
     }
 
     /// Short phrases naming the tests that fired (for the text report and notes).
@@ -195,6 +254,22 @@ impl Evidence {
                 100.0 * d.odd_share,
                 100.0 * d.even_share,
                 d.nrmse_bound
+            ));
+        }
+        if let Some(l) = &self.lattice {
+            v.push(format!(
+                "outputs sit on a lattice of step {:.4e} ({:.1}% of the output std, {} levels)",
+                l.step,
+                100.0 * l.step_over_std,
+                l.levels
+            ));
+        }
+        if let Some(d) = &self.dwell {
+            v.push(format!(
+                "{} dwells at zero velocity ({:.1}% of the time), breakaway {:.4e}",
+                d.dwells,
+                100.0 * d.dwell_share,
+                d.breakaway
             ));
         }
         for r in self.residual_regions.iter().filter(|r| r.concentrates) {

@@ -297,6 +297,29 @@ impl GapReport {
                 if d.significant { "  <- significant" } else { "" }
             );
         }
+        if let Some(l) = &ev.lattice {
+            let _ = writeln!(
+                s,
+                "  output lattice: step {:.4e} ({:.1}% of the output std), {:.1}% of the samples \
+                 on it, {} levels",
+                l.step,
+                100.0 * l.step_over_std,
+                100.0 * l.share_on_lattice,
+                l.levels
+            );
+        }
+        if let Some(d) = &ev.dwell {
+            let _ = writeln!(
+                s,
+                "  dwells at zero velocity ({}): {} dwells, {:.1}% of the time, breakaway \
+                 {:.4e}, largest input held {:.4e}",
+                d.velocity,
+                d.dwells,
+                100.0 * d.dwell_share,
+                d.breakaway,
+                d.hold_max
+            );
+        }
         for r in &ev.residual_regions {
             let _ = writeln!(
                 s,
