@@ -539,12 +539,15 @@ pub fn diagnose(
     let use_d = sim.d[(0, 0)] != 0.0;
     let nominal_modal: Option<ModalModel> = (|| {
         let mut nominal = ModalModel::from_poles(ts, &poles, use_d).ok()?;
-        let y_sim: Vec<Vec<f64>> = fu
+        // The sim's own response (no measured data) on the training inputs and on the
+        // validation input, so the modal form reproduces the nominal where it is compared.
+        let inputs: Vec<Vec<f64>> = fu.iter().cloned().chain([vu.clone()]).collect();
+        let y_sim: Vec<Vec<f64>> = inputs
             .iter()
             .map(|u| sim.simulate_siso(u, None))
             .collect::<Result<_>>()
             .ok()?;
-        let set = FitSet::new(fu.clone(), y_sim, warmup).ok()?;
+        let set = FitSet::new(inputs, y_sim, warmup).ok()?;
         nominal.fit_linear_params(&set)?;
         Some(nominal)
     })();
@@ -779,22 +782,9 @@ pub fn diagnose(
                 .then(|| sc.model.velocity.name().to_string()),
         })
     };
-    let mut ranked: Vec<&Scored> = selection.singles.iter().chain(&selection.pairs).collect();
-    ranked.sort_by(|a, b| a.gap.total_cmp(&b.gap));
-    // The selection order decides ties with nested effects: keep the selected one on top.
-    if let Some(first) = selection.selected.first() {
-        if let Some(i) = ranked.iter().position(|s| {
-            s.effects.len() == selection.selected.len().min(2)
-                && s.effects
-                    .iter()
-                    .zip(&selection.selected)
-                    .all(|(p, e)| p.effect.kind() == e.effect.kind() && p.place == e.place)
-        }) {
-            let s = ranked.remove(i);
-            ranked.insert(0, s);
-        }
-        let _ = first;
-    }
+    // Singles in the selection's order (validation NRMSE, nested pair resolved), then the pairs
+    // tried on top of the best single, best first.
+    let ranked: Vec<&Scored> = selection.singles.iter().chain(&selection.pairs).collect();
     let effects: Vec<EffectReport> = ranked.iter().filter_map(|s| report_of(s)).collect();
     let verdict_effects: Vec<VerdictEffect> = if has_effect {
         selection

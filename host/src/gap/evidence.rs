@@ -20,8 +20,9 @@
 //!   significant mode shift (tol = `amplitude_tol`, default 0.1).
 //! * **Nonlinear distortion** ([`distortion`]): for every log whose input repeats (a multisine,
 //!   [`detect_period`]), the period-synchronous spectra ([`PeriodicAveraging`]) give the excited
-//!   lines; the output power on the *non-excited* lines between the first line and three times
-//!   the last excited one (minus the noise power estimated there from the period-to-period
+//!   lines; the output power on the *non-excited* lines from the first line up to three times
+//!   the last excited one (below the band too: even-order products and slow odd ones land
+//!   there) (minus the noise power estimated there from the period-to-period
 //!   scatter) cannot come from any linear model driven by that input. Reported as shares of the
 //!   output's periodic power, split into odd and even lines (for an odd multisine, power on the
 //!   odd detection lines is odd nonlinear distortion and on the even lines even distortion, as
@@ -469,7 +470,7 @@ pub fn distortion(logs: &[(String, &[f64], &[f64])], warmup: usize, ts: f64) -> 
             total_pow += w(k) * sp.y[k].norm_sqr();
         }
         let (mut odd, mut even, mut noise) = (0.0, 0.0, 0.0);
-        for k in k_lo.max(1)..=k_top {
+        for k in 1..=k_top {
             if excited[k] {
                 continue;
             }
