@@ -34,7 +34,10 @@ fn shared_data(rel: &str) -> Option<PathBuf> {
             return Some(p);
         }
     }
-    println!("notice: shared/data/{rel} not found above {}; skipping the F-16 gap test", here.display());
+    println!(
+        "notice: shared/data/{rel} not found above {}; skipping the F-16 gap test",
+        here.display()
+    );
     None
 }
 
@@ -49,13 +52,37 @@ fn diagnose_output(output: &str) -> Option<Value> {
     let work = scratch(&format!("f16-{output}"));
     let sim = work.join("f16.json");
     let r = ferrosid(&[
-        "identify", &l1, "--fs", "400", "--input", "Force", "--output", output, "--order", "8",
-        "--out", s(&sim),
+        "identify",
+        &l1,
+        "--fs",
+        "400",
+        "--input",
+        "Force",
+        "--output",
+        output,
+        "--order",
+        "8",
+        "--out",
+        s(&sim),
     ]);
     assert!(r.code == 0 || r.code == 1, "identify failed: {}", r.stderr);
     let r = ferrosid(&[
-        "gap", "--sim", s(&sim), "--real", &l1, "--real", &l7, "--validate", &l4, "--fs", "400",
-        "--input", "Force", "--output", output, "--json",
+        "gap",
+        "--sim",
+        s(&sim),
+        "--real",
+        &l1,
+        "--real",
+        &l7,
+        "--validate",
+        &l4,
+        "--fs",
+        "400",
+        "--input",
+        "Force",
+        "--output",
+        output,
+        "--json",
     ]);
     assert_eq!(r.code, 0, "gap failed: {}", r.stderr);
     Some(serde_json::from_str(&r.stdout).expect("JSON report"))
@@ -90,7 +117,10 @@ fn check(v: &Value, output: &str) {
     assert!(!bands.is_empty() && bands.len() <= 5, "{bands:?}");
     for b in bands {
         let (lo, hi) = (b["lo_hz"].as_f64().unwrap(), b["hi_hz"].as_f64().unwrap());
-        assert!(lo >= 1.5 && hi <= 15.5, "band {lo}..{hi} outside the excited 2-15 Hz");
+        assert!(
+            lo >= 1.5 && hi <= 15.5,
+            "band {lo}..{hi} outside the excited 2-15 Hz"
+        );
     }
     for b in v["where"]["bands_hz"].as_array().unwrap() {
         let hi = b[1].as_f64().unwrap();

@@ -75,8 +75,16 @@ fn a_mode_that_moves_with_amplitude_is_flagged_and_never_called_none() {
     let u_val = periodic(p, periods, 2.0, &mut rng);
     let sigma = 0.01 * std_dev(&low.simulate_siso(&u_low, None).unwrap());
     let train = vec![
-        log("low.csv", u_low.clone(), measured(&low, &u_low, sigma, &mut rng)),
-        log("high.csv", u_high.clone(), measured(&high, &u_high, sigma, &mut rng)),
+        log(
+            "low.csv",
+            u_low.clone(),
+            measured(&low, &u_low, sigma, &mut rng),
+        ),
+        log(
+            "high.csv",
+            u_high.clone(),
+            measured(&high, &u_high, sigma, &mut rng),
+        ),
     ];
     let y_val = measured(&val, &u_val, sigma, &mut rng);
     let vlog = log("val.csv", u_val, y_val.clone());
@@ -119,7 +127,10 @@ fn a_mode_that_moves_with_amplitude_is_flagged_and_never_called_none() {
     assert!(!b.is_empty());
     assert!(b.windows(2).all(|w| w[0].share >= w[1].share));
     assert!(b.iter().map(|x| x.share).sum::<f64>() <= 1.0 + 1e-12);
-    assert!(b.iter().all(|x| x.lo_hz >= 3.0 && x.hi_hz <= 160.0), "{b:?}");
+    assert!(
+        b.iter().all(|x| x.lo_hz >= 3.0 && x.hi_hz <= 160.0),
+        "{b:?}"
+    );
     assert!(b[0].lo_hz <= 71.0 && b[0].hi_hz >= 68.0, "{b:?}");
 }
 
@@ -133,8 +144,16 @@ fn the_linear_model_never_ends_worse_than_the_nominal() {
     let u_val = multisine(n, TS, 0.2, 100.0, 2.0, &mut rng);
     let sigma = 0.01 * std_dev(&trained.simulate_siso(&u_low, None).unwrap());
     let train = vec![
-        log("low.csv", u_low.clone(), measured(&trained, &u_low, sigma, &mut rng)),
-        log("high.csv", u_high.clone(), measured(&trained, &u_high, sigma, &mut rng)),
+        log(
+            "low.csv",
+            u_low.clone(),
+            measured(&trained, &u_low, sigma, &mut rng),
+        ),
+        log(
+            "high.csv",
+            u_high.clone(),
+            measured(&trained, &u_high, sigma, &mut rng),
+        ),
     ];
     let vlog = log(
         "val.csv",
@@ -215,8 +234,14 @@ fn distortion_on_detection_lines_separates_odd_even_and_linear() {
     }
     assert!(!l.significant, "{l:?}");
     assert!(l.odd_share + l.even_share < 1e-4, "{l:?}");
-    assert!(o.significant && o.odd_share > 100.0 * o.even_share.max(1e-9), "{o:?}");
-    assert!(e.significant && e.even_share > 100.0 * e.odd_share.max(1e-9), "{e:?}");
+    assert!(
+        o.significant && o.odd_share > 100.0 * o.even_share.max(1e-9),
+        "{o:?}"
+    );
+    assert!(
+        e.significant && e.even_share > 100.0 * e.odd_share.max(1e-9),
+        "{e:?}"
+    );
     // The bound is a real lower bound: the cubic's best linear approximation cannot reach it
     // from below — the bound is at most the nonlinear part's whole share of the output.
     assert!(o.nrmse_bound > 0.01 && o.nrmse_bound < 0.5, "{o:?}");
@@ -238,8 +263,16 @@ fn a_position_output_axis_with_an_integrator_is_diagnosed() {
     let u_val = multisine(n, TS, 0.5, 20.0, 2.0, &mut rng);
     let sigma = 1e-3 * std_dev(&axis.simulate_siso(&u_low, None).unwrap());
     let train = vec![
-        log("low.csv", u_low.clone(), measured(&axis, &u_low, sigma, &mut rng)),
-        log("high.csv", u_high.clone(), measured(&axis, &u_high, sigma, &mut rng)),
+        log(
+            "low.csv",
+            u_low.clone(),
+            measured(&axis, &u_low, sigma, &mut rng),
+        ),
+        log(
+            "high.csv",
+            u_high.clone(),
+            measured(&axis, &u_high, sigma, &mut rng),
+        ),
     ];
     let vlog = log(
         "val.csv",

@@ -195,7 +195,10 @@ fn motor_bench_gap_against_an_identified_linear_model() {
     );
     assert_eq!(vb["significant"], true);
     if v["verdict"] == "none" {
-        assert!(linear <= 2.0 * noise, "none with {linear} against floor {noise}");
+        assert!(
+            linear <= 2.0 * noise,
+            "none with {linear} against floor {noise}"
+        );
     }
     if linear > 2.0 * noise {
         assert_ne!(v["verdict"], "none");

@@ -5,19 +5,17 @@ use super::fit::{AugmentedModel, TrainData};
 use super::locate::{locate, Where};
 use super::modal::{nrmse, FitSet, ModalModel};
 use super::noise::{self, NoiseFloor};
-use super::report::{
-    BandError, EffectReport, GapReport, LinearReport, Settings, VerdictEffect,
-};
+use super::place::Candidate;
+use super::report::{BandError, EffectReport, GapReport, LinearReport, Settings, VerdictEffect};
 use super::select::{default_candidates, select_effects, Scored, SelectOptions};
 use super::simfile::is_integrator_pole;
-use super::place::Candidate;
 use super::structure::TwoMassStructure;
-use std::collections::BTreeMap;
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
 use crate::n4sid::{n4sid_slices, N4sidOptions, OrderSelection};
 use num_complex::Complex64;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Fewest samples per log the diagnosis accepts.
@@ -270,7 +268,8 @@ pub struct Diagnosis {
     pub report: GapReport,
     /// The nominal sim, discrete at the logs' sample time.
     pub nominal: StateSpace,
-    /// The linear re-fit.
+    /// The linear model (the output-error re-fit, or the nominal in modal form when the re-fit
+    /// does worse than the nominal on the validation log; `report.linear.source`).
     pub linear: AugmentedModel,
     /// The model of the verdict (the linear model when the verdict is `none` or
     /// `unexplained`).
@@ -416,7 +415,13 @@ fn linear_refit(
     let (mut m, c) = best.ok_or_else(|| {
         Error::Numerical("linear re-fit failed from every start (singular regressors)".into())
     })?;
-    if coarse.base.y.iter().zip(&td.base.y).all(|(a, b)| a.len() == b.len()) {
+    if coarse
+        .base
+        .y
+        .iter()
+        .zip(&td.base.y)
+        .all(|(a, b)| a.len() == b.len())
+    {
         return Ok((m, c));
     }
     let before = m.clone();
@@ -491,7 +496,9 @@ pub fn diagnose(
         )));
     }
     let poles = modal_stand_in(&sim_poles);
-    let warmup = opts.warmup.unwrap_or_else(|| default_warmup(&sim_poles, shortest));
+    let warmup = opts
+        .warmup
+        .unwrap_or_else(|| default_warmup(&sim_poles, shortest));
     if warmup >= shortest / 2 {
         return Err(Error::InvalidArgument(format!(
             "warm-up of {warmup} samples leaves too little of the shortest log ({shortest})"
@@ -553,14 +560,16 @@ pub fn diagnose(
     })();
 
     // Linear re-fit, guarded by the nominal (see LinearReport::source).
-    let (refit, refit_cost) =
-        linear_refit(&td, &poles, use_d, nominal_modal.as_ref(), &mut notes)?;
+    let (refit, refit_cost) = linear_refit(&td, &poles, use_d, nominal_modal.as_ref(), &mut notes)?;
     if profile {
-        eprintln!("profile: linear refit {:.3} s", t_start.elapsed().as_secs_f64());
+        eprintln!(
+            "profile: linear refit {:.3} s",
+            t_start.elapsed().as_secs_f64()
+        );
     }
     let gap_refit = nrmse(&vy, &refit.simulate(&vu), warmup);
     let (lin, lin_cost, linear_source) = match &nominal_modal {
-        Some(nom) if !(gap_refit <= gap_before) => {
+        Some(nom) if gap_refit.is_nan() || gap_refit > gap_before => {
             // The nominal with its offset set on the training logs (its residues fixed), or
             // as it is, whichever the training logs prefer; as it is when that one is not
             // above the nominal on validation either.
@@ -568,7 +577,8 @@ pub fn diagnose(
             with_offset.offset = mean_offset(&td, nom);
             let (c0, c1) = (nom.cost(&td.base), with_offset.cost(&td.base));
             let mut pick = if c1 < c0 { with_offset } else { nom.clone() };
-            if !(nrmse(&vy, &pick.simulate(&vu), warmup) <= gap_before) {
+            let g = nrmse(&vy, &pick.simulate(&vu), warmup);
+            if g.is_nan() || g > gap_before {
                 pick = nom.clone();
             }
             notes.push(format!(
@@ -619,17 +629,24 @@ pub fn diagnose(
     )?;
     notes.extend(selection.notes.iter().cloned());
     if profile {
-        eprintln!("profile: candidates done {:.3} s", t_start.elapsed().as_secs_f64());
+        eprintln!(
+            "profile: candidates done {:.3} s",
+            t_start.elapsed().as_secs_f64()
+        );
     }
 
     // Residuals of the linear model (training and validation) and of the nominal (training).
-    let resid = |y: &[f64], yh: &[f64]| -> Vec<f64> { y.iter().zip(yh).map(|(a, b)| a - b).collect() };
+    let resid =
+        |y: &[f64], yh: &[f64]| -> Vec<f64> { y.iter().zip(yh).map(|(a, b)| a - b).collect() };
     let y_lin_train: Vec<Vec<f64>> = tu
         .iter()
         .map(|u| linear.simulate(u))
         .collect::<Result<_>>()?;
-    let train_resid_lin: Vec<Vec<f64>> =
-        ty.iter().zip(&y_lin_train).map(|(y, yh)| resid(y, yh)).collect();
+    let train_resid_lin: Vec<Vec<f64>> = ty
+        .iter()
+        .zip(&y_lin_train)
+        .map(|(y, yh)| resid(y, yh))
+        .collect();
     let y_lin_val = linear.simulate(&vu)?;
     let val_resid_lin = resid(&vy, &y_lin_val);
     let train_resid_nom: Vec<Vec<f64>> = tu
@@ -642,8 +659,14 @@ pub fn diagnose(
     let noise_floor = noise::noise_floor(
         (&vu, &vy),
         &val_resid_lin,
-        &tu.iter().zip(&ty).map(|(u, y)| (u.as_slice(), y.as_slice())).collect::<Vec<_>>(),
-        &train_resid_lin.iter().map(Vec::as_slice).collect::<Vec<_>>(),
+        &tu.iter()
+            .zip(&ty)
+            .map(|(u, y)| (u.as_slice(), y.as_slice()))
+            .collect::<Vec<_>>(),
+        &train_resid_lin
+            .iter()
+            .map(Vec::as_slice)
+            .collect::<Vec<_>>(),
         warmup,
         1.0 / ts,
     )?;
@@ -673,6 +696,7 @@ pub fn diagnose(
         opts.amplitude_tol,
     )?;
     where_.amplitude_dependent = amplitude.amplitude_dependent;
+    where_.amplitude_change = amplitude.amplitude_change;
     let mut dist_logs: Vec<(String, &[f64], &[f64])> = train
         .iter()
         .zip(tu.iter().zip(&ty))
@@ -688,7 +712,10 @@ pub fn diagnose(
         dwell: selection.dwell.as_ref().map(Into::into),
     };
     if profile {
-        eprintln!("profile: evidence done {:.3} s", t_start.elapsed().as_secs_f64());
+        eprintln!(
+            "profile: evidence done {:.3} s",
+            t_start.elapsed().as_secs_f64()
+        );
     }
 
     // VERDICT.

@@ -246,7 +246,12 @@ impl Evidence {
                 m.damping_high
             ));
         }
-        for d in self.nonlinear_distortion.logs.iter().filter(|d| d.significant) {
+        for d in self
+            .nonlinear_distortion
+            .logs
+            .iter()
+            .filter(|d| d.significant)
+        {
             v.push(format!(
                 "{}: {:.2}% of the output power on non-excited lines (odd {:.2}%, even {:.2}%), \
                  no linear model below NRMSE {:.4}",
@@ -301,7 +306,7 @@ pub fn pair_freq_damping(r: f64, phi: f64, ts: f64) -> (f64, f64) {
 /// of its peak (nearest bin).
 fn excited_at(freq: &[f64], suu: &[f64], f: f64) -> bool {
     let top = suu.iter().cloned().fold(0.0, f64::max);
-    if freq.len() < 2 || !(top > 0.0) {
+    if freq.len() < 2 || top.is_nan() || top <= 0.0 {
         return false;
     }
     let df = freq[1] - freq[0];
@@ -386,7 +391,7 @@ pub fn amplitude_evidence(
                 .map(|&k| rel(k))
                 .collect();
             let m = median(d);
-            if m.is_finite() && !(m <= out.resonance_change) {
+            if m.is_finite() && (out.resonance_change.is_nan() || m > out.resonance_change) {
                 out.resonance_change = m;
                 out.resonance_change_hz = f0;
             }
@@ -470,8 +475,8 @@ pub fn distortion(logs: &[(String, &[f64], &[f64])], warmup: usize, ts: f64) -> 
             total_pow += w(k) * sp.y[k].norm_sqr();
         }
         let (mut odd, mut even, mut noise) = (0.0, 0.0, 0.0);
-        for k in 1..=k_top {
-            if excited[k] {
+        for (k, &exc) in excited.iter().enumerate().take(k_top + 1).skip(1) {
+            if exc {
                 continue;
             }
             let nv = w(k) * sp.var_y[k];
