@@ -96,8 +96,10 @@ fn json_report_figures_and_expect() {
             .find(|e| e["effect"] == name)
             .map(|e| e["gap_after"].as_f64().unwrap())
     };
+    // Singles first (pairs, named `a+b`, follow them), ranked by validation NRMSE.
     let others: Vec<f64> = effects
         .iter()
+        .filter(|e| !e["effect"].as_str().unwrap().contains('+'))
         .filter(|e| e["effect"] != "stiction" && e["effect"] != "coulomb_friction")
         .map(|e| e["gap_after"].as_f64().unwrap())
         .collect();
@@ -215,4 +217,65 @@ fn bad_input_exit_codes() {
     assert_eq!(r.code, 3, "{}", r.stderr);
     assert!(r.stderr.contains("bad.json:3"), "{}", r.stderr);
     assert!(!r.stderr.contains("panicked"));
+}
+
+/// A sim whose response is identically zero (B = 0) and a validation log whose output is all
+/// zeros are data errors (exit 3) naming the file, not NaN errors with a verdict and exit 0.
+#[test]
+fn zero_response_sim_and_zero_output_log_are_data_errors() {
+    let dir = scratch("gap-zero");
+    let f = write_case(&dir, "flexure/none/1", 2048);
+    let mut ss = StateSpaceData::from(&f.data.sim);
+    for row in ss.b.iter_mut() {
+        for v in row.iter_mut() {
+            *v = 0.0;
+        }
+    }
+    let zero_b = dir.join("zero_b.json");
+    std::fs::write(&zero_b, serde_json::to_string(&ss).unwrap()).unwrap();
+    let mut a = base_args(&f);
+    a[2] = s(&zero_b).to_string();
+    let r = run(&a);
+    assert_eq!(r.code, 3, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("zero_b.json") && r.stderr.contains("B = 0"),
+        "{}",
+        r.stderr
+    );
+    assert!(!r.stdout.contains("verdict"), "{}", r.stdout);
+    let flat = dir.join("flat.csv");
+    let zeros = vec![0.0; f.data.validate.u().len()];
+    write_csv(&flat, TS, f.data.validate.u(), &zeros);
+    let mut a = base_args(&f);
+    a[8] = s(&flat).to_string();
+    let r = run(&a);
+    assert_eq!(r.code, 3, "{}", r.stderr);
+    assert!(
+        r.stderr.contains("flat.csv") && r.stderr.contains("constant"),
+        "{}",
+        r.stderr
+    );
+}
+
+/// `--decimate Q` resamples every log as `identify --decimate` does: the report's sample time
+/// is Q times the logs'; Q < 2 is a usage error.
+#[test]
+fn decimate_resamples_every_log() {
+    let dir = scratch("gap-decimate");
+    let f = write_case(&dir, "flexure/none/1", 4096);
+    // The case's sim is continuous: it is discretised at the decimated rate.
+    assert!(!f.data.sim.is_discrete());
+    let mut a = base_args(&f);
+    a.extend(["--decimate".into(), "2".into(), "--json".into()]);
+    let r = run(&a);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let ts = v["settings"]["ts"].as_f64().unwrap();
+    assert!((ts - 2.0 * TS).abs() < 1e-12, "ts {ts}");
+    assert!(v["gap_before"].as_f64().unwrap().is_finite());
+    let mut a = base_args(&f);
+    a.extend(["--decimate".into(), "1".into()]);
+    let r = run(&a);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    assert!(r.stderr.contains("--decimate"), "{}", r.stderr);
 }

@@ -188,3 +188,63 @@ fn non_finite_sample_is_refused() {
     .to_string();
     assert!(s.contains("nan.csv") && s.contains("1234"), "{s}");
 }
+
+#[test]
+fn zero_response_sims_are_refused_naming_the_file() {
+    let p = Path::new("dead.json");
+    for (text, what) in [
+        (
+            r#"{"ts": 0, "a": [[-2.0]], "b": [[0.0]], "c": [[3.0]], "d": [[0.0]]}"#,
+            "B = 0",
+        ),
+        (
+            r#"{"ts": 0, "a": [[-2.0]], "b": [[1.0]], "c": [[0.0]], "d": [[0.0]]}"#,
+            "C = 0",
+        ),
+        // Controllable and observable parts disjoint: every Markov parameter is zero.
+        (
+            r#"{"ts": 0, "a": [[-1.0, 0.0], [0.0, -2.0]], "b": [[1.0], [0.0]], "c": [[0.0, 1.0]], "d": [[0.0]]}"#,
+            "Markov",
+        ),
+    ] {
+        let sys = parse_sim(text, p).unwrap();
+        let e = discretise_for_logs(&sys, TS, p).unwrap_err();
+        assert!(matches!(e, Error::Data { .. }), "{e:?}");
+        let s = e.to_string();
+        assert!(s.contains("dead.json") && s.contains(what), "{s}");
+    }
+    // A pure feedthrough (D ≠ 0, B = 0) has a response and is accepted.
+    let d_only = parse_sim(
+        r#"{"ts": 0, "a": [[-2.0]], "b": [[0.0]], "c": [[1.0]], "d": [[0.5]]}"#,
+        p,
+    )
+    .unwrap();
+    assert!(discretise_for_logs(&d_only, TS, p).is_ok());
+}
+
+#[test]
+fn integrator_sim_is_accepted_but_other_marginal_poles_are_not() {
+    let p = Path::new("axis.json");
+    // Position output of a velocity-driven axis: 1/(s(0.05 s + 1)).
+    let axis = parse_sim(r#"{"ts": 0, "num": [1.0], "den": [0.05, 1.0, 0.0]}"#, p).unwrap();
+    let d = discretise_for_logs(&axis, TS, p).unwrap();
+    assert!(d.poles().unwrap().iter().any(|z| (z - 1.0).norm() < 1e-12));
+    // An undamped oscillator is not an integrator.
+    let osc = parse_sim(r#"{"ts": 0, "num": [1.0], "den": [1.0, 0.0, 100.0]}"#, p).unwrap();
+    let e = discretise_for_logs(&osc, TS, p).unwrap_err().to_string();
+    assert!(e.contains("not asymptotically stable"), "{e}");
+}
+
+#[test]
+fn constant_validation_output_is_refused_naming_the_log() {
+    let sim = first_order_sim();
+    let train = vec![log("low.csv", 2048, TS)];
+    let mut val = log("zeros.csv", 2048, TS);
+    for v in &mut val.outputs[0].data {
+        *v = 0.0;
+    }
+    let e = diagnose(&sim, &train, &val, &GapOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::Data { .. }), "{e:?}");
+    let s = e.to_string();
+    assert!(s.contains("zeros.csv") && s.contains("constant"), "{s}");
+}

@@ -120,6 +120,14 @@ fn exact_sim_leaves_only_noise() {
     );
     // Re-fitting cannot beat the noise floor by more than over-fitting allows.
     assert!(rep.gap_linear > 0.95 * expected && rep.gap_linear < 1.05 * expected);
+    // The noise floor read off the residual spectrum above the multisine's band (white noise)
+    // is that same σ/std(y), within the spread of a median of Welch bins.
+    assert_eq!(rep.noise_floor.method, "off_band_residual");
+    assert!(
+        (rep.noise_floor.nrmse / expected - 1.0).abs() < 0.15,
+        "noise floor {} vs {expected}",
+        rep.noise_floor.nrmse
+    );
     assert!(rep.where_.bands_hz.is_empty(), "{:?}", rep.where_.bands_hz);
     assert!(!rep.where_.amplitude_dependent);
     assert!(rep.where_.worst_error < 0.2);

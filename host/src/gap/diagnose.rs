@@ -1,19 +1,21 @@
 //! The diagnosis itself: linear re-fit, candidate effects, ranking, verdict, shrink.
 use super::effect::{Effect, EffectKind};
 use super::evidence::{self, Evidence};
-use super::fit::{fit_candidate, AugmentedModel, Fitted, TrainData};
+use super::fit::{AugmentedModel, TrainData};
 use super::locate::{locate, Where};
 use super::modal::{nrmse, FitSet, ModalModel};
 use super::noise::{self, NoiseFloor};
-use super::report::{
-    BandError, EffectReport, GapReport, LinearReport, Settings, VerdictEffect,
-};
+use super::place::Candidate;
+use super::report::{BandError, EffectReport, GapReport, LinearReport, Settings, VerdictEffect};
+use super::select::{default_candidates, select_effects, Scored, SelectOptions};
 use super::simfile::is_integrator_pole;
+use super::structure::TwoMassStructure;
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
 use crate::n4sid::{n4sid_slices, N4sidOptions, OrderSelection};
 use num_complex::Complex64;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Fewest samples per log the diagnosis accepts.
@@ -130,17 +132,6 @@ impl VerdictRule {
                 100.0 * self.min_excess_closed
             )),
         }
-    }
-}
-
-/// The place an effect of this kind is reported at by the single-effect candidate loop (the
-/// place vocabulary of docs/gap.md): friction acts on the driven mass (`motor`), quantization
-/// at the `sensor`, everything else in the command path (`drive`).
-pub fn default_place(kind: EffectKind) -> &'static str {
-    match kind {
-        EffectKind::CoulombFriction | EffectKind::Stiction => "motor",
-        EffectKind::Quantization => "sensor",
-        _ => "drive",
     }
 }
 
@@ -277,7 +268,8 @@ pub struct Diagnosis {
     pub report: GapReport,
     /// The nominal sim, discrete at the logs' sample time.
     pub nominal: StateSpace,
-    /// The linear re-fit.
+    /// The linear model (the output-error re-fit, or the nominal in modal form when the re-fit
+    /// does worse than the nominal on the validation log; `report.linear.source`).
     pub linear: AugmentedModel,
     /// The model of the verdict (the linear model when the verdict is `none` or
     /// `unexplained`).
@@ -423,7 +415,13 @@ fn linear_refit(
     let (mut m, c) = best.ok_or_else(|| {
         Error::Numerical("linear re-fit failed from every start (singular regressors)".into())
     })?;
-    if coarse.base.y.iter().zip(&td.base.y).all(|(a, b)| a.len() == b.len()) {
+    if coarse
+        .base
+        .y
+        .iter()
+        .zip(&td.base.y)
+        .all(|(a, b)| a.len() == b.len())
+    {
         return Ok((m, c));
     }
     let before = m.clone();
@@ -498,7 +496,9 @@ pub fn diagnose(
         )));
     }
     let poles = modal_stand_in(&sim_poles);
-    let warmup = opts.warmup.unwrap_or_else(|| default_warmup(&sim_poles, shortest));
+    let warmup = opts
+        .warmup
+        .unwrap_or_else(|| default_warmup(&sim_poles, shortest));
     if warmup >= shortest / 2 {
         return Err(Error::InvalidArgument(format!(
             "warm-up of {warmup} samples leaves too little of the shortest log ({shortest})"
@@ -507,8 +507,8 @@ pub fn diagnose(
     let mut notes = Vec::new();
     if sim_poles.iter().any(|p| is_integrator_pole(*p)) {
         notes.push(format!(
-            "the sim has an integrator (pole at z = 1); its modal form uses z = 1 − {INTEGRATOR_STAND_IN:e} \
-             (a time constant far beyond the logs) and the warm-up follows the slowest stable pole"
+            "the sim has an integrator (pole at z = 1): kept exactly in its modal form (a second \
+             one at z = 1 − {INTEGRATOR_STAND_IN:e}); the warm-up follows the slowest stable pole"
         ));
     }
     // Fitting data: periodic training logs averaged over their periods (module docs of
@@ -546,25 +546,30 @@ pub fn diagnose(
     let use_d = sim.d[(0, 0)] != 0.0;
     let nominal_modal: Option<ModalModel> = (|| {
         let mut nominal = ModalModel::from_poles(ts, &poles, use_d).ok()?;
-        let y_sim: Vec<Vec<f64>> = fu
+        // The sim's own response (no measured data) on the training inputs and on the
+        // validation input, so the modal form reproduces the nominal where it is compared.
+        let inputs: Vec<Vec<f64>> = fu.iter().cloned().chain([vu.clone()]).collect();
+        let y_sim: Vec<Vec<f64>> = inputs
             .iter()
             .map(|u| sim.simulate_siso(u, None))
             .collect::<Result<_>>()
             .ok()?;
-        let set = FitSet::new(fu.clone(), y_sim, warmup).ok()?;
+        let set = FitSet::new(inputs, y_sim, warmup).ok()?;
         nominal.fit_linear_params(&set)?;
         Some(nominal)
     })();
 
     // Linear re-fit, guarded by the nominal (see LinearReport::source).
-    let (refit, refit_cost) =
-        linear_refit(&td, &poles, use_d, nominal_modal.as_ref(), &mut notes)?;
+    let (refit, refit_cost) = linear_refit(&td, &poles, use_d, nominal_modal.as_ref(), &mut notes)?;
     if profile {
-        eprintln!("profile: linear refit {:.3} s", t_start.elapsed().as_secs_f64());
+        eprintln!(
+            "profile: linear refit {:.3} s",
+            t_start.elapsed().as_secs_f64()
+        );
     }
     let gap_refit = nrmse(&vy, &refit.simulate(&vu), warmup);
     let (lin, lin_cost, linear_source) = match &nominal_modal {
-        Some(nom) if !(gap_refit <= gap_before) => {
+        Some(nom) if gap_refit.is_nan() || gap_refit > gap_before => {
             // The nominal with its offset set on the training logs (its residues fixed), or
             // as it is, whichever the training logs prefer; as it is when that one is not
             // above the nominal on validation either.
@@ -572,7 +577,8 @@ pub fn diagnose(
             with_offset.offset = mean_offset(&td, nom);
             let (c0, c1) = (nom.cost(&td.base), with_offset.cost(&td.base));
             let mut pick = if c1 < c0 { with_offset } else { nom.clone() };
-            if !(nrmse(&vy, &pick.simulate(&vu), warmup) <= gap_before) {
+            let g = nrmse(&vy, &pick.simulate(&vu), warmup);
+            if g.is_nan() || g > gap_before {
                 pick = nom.clone();
             }
             notes.push(format!(
@@ -588,91 +594,59 @@ pub fn diagnose(
     let linear = AugmentedModel::linear(lin.clone());
     let gap_linear = nrmse(&vy, &linear.simulate(&vu)?, warmup);
 
-    // WHICH: every candidate, from the re-fit and from the nominal sim in modal form.
-    let mut starts = vec![refit.clone()];
-    if let Some(mut nominal) = nominal_modal.clone() {
+    // WHICH: forward selection (host/src/gap/select.rs) from the linear model first, then the
+    // other of {re-fit, nominal sim in modal form}.
+    let mut starts = vec![lin.clone()];
+    if linear_source == "nominal" {
+        starts.push(refit.clone());
+    } else if let Some(mut nominal) = nominal_modal.clone() {
         nominal.offset = lin.offset;
         starts.push(nominal);
     }
-    let mut fitted: Vec<Fitted> = Vec::new();
-    let mut coulomb: Option<Fitted> = None;
-    let mut kinds = opts.candidates.clone();
-    kinds.sort();
-    kinds.dedup();
-    for &kind in &kinds {
-        let hint = if kind == EffectKind::Stiction {
-            coulomb
-                .clone()
-                .or_else(|| fit_candidate(EffectKind::CoulombFriction, &td, &starts, None, &poles))
-        } else {
-            None
-        };
-        let t0 = std::time::Instant::now();
-        let fc = fit_candidate(kind, &td, &starts, hint.as_ref(), &poles);
-        if profile {
-            eprintln!("profile: {kind} {:.3} s", t0.elapsed().as_secs_f64());
-        }
-        match fc {
-            Some(f) => {
-                if kind == EffectKind::CoulombFriction {
-                    coulomb = Some(f.clone());
-                }
-                fitted.push(f);
-            }
-            None => notes.push(format!(
-                "{kind}: no fit ({})",
-                if kind == EffectKind::Quantization {
-                    "the measured outputs do not sit on a lattice"
-                } else {
-                    "every trial model failed"
-                }
-            )),
-        }
-    }
-    let mut scored: Vec<(Fitted, f64)> = Vec::new();
-    for f in fitted {
-        let g = nrmse(&vy, &f.model.simulate(&vu)?, warmup);
-        scored.push((f, if g.is_finite() { g } else { f64::INFINITY }));
-    }
-    scored.sort_by(|a, b| a.1.total_cmp(&b.1));
-    // Nested pair: stiction contains Coulomb friction (breakaway = level). Stiction is
-    // preferred only if it lowers the validation NRMSE by the nested margin, or — when the
-    // validation log cannot tell them apart (within that margin; a stuck mass needs
-    // low-amplitude excitation) — if its training-log likelihood ratio over Coulomb friction
-    // exceeds NESTED_LR_THRESHOLD.
-    let pos = |k: EffectKind, s: &[(Fitted, f64)]| {
-        s.iter()
-            .position(|(f, _)| f.model.effect.map(|e| e.kind()) == Some(k))
+    let structure = TwoMassStructure::detect(sim);
+    let candidates_opt: Vec<Candidate> = if opts.candidates == EffectKind::ALL.to_vec() {
+        Vec::new()
+    } else {
+        let all = default_candidates(structure.is_some());
+        all.into_iter()
+            .filter(|c| opts.candidates.contains(&c.kind))
+            .collect()
     };
-    if let (Some(is), Some(ic)) = (
-        pos(EffectKind::Stiction, &scored),
-        pos(EffectKind::CoulombFriction, &scored),
-    ) {
-        let (gs, gc) = (scored[is].1, scored[ic].1);
-        let lr =
-            nested_likelihood_ratio(&scored[ic].0.model, &scored[is].0.model, &tu, &ty, warmup)?;
-        notes.push(format!(
-            "stiction vs coulomb_friction: training likelihood ratio {lr:.1} (threshold \
-             {NESTED_LR_THRESHOLD}), validation NRMSE {gs:.4} vs {gc:.4}"
-        ));
-        let stiction_wins = gs < gc * (1.0 - opts.nested_margin)
-            || (gs <= gc * (1.0 + opts.nested_margin) && lr > NESTED_LR_THRESHOLD);
-        if stiction_wins != (is < ic) {
-            scored.swap(is, ic);
-        }
-    }
+    let selection = select_effects(
+        &td,
+        &starts,
+        &poles,
+        structure.as_ref(),
+        &vu,
+        &vy,
+        warmup,
+        &SelectOptions {
+            margin: opts.margin,
+            nested_margin: opts.nested_margin,
+            candidates: candidates_opt,
+            ..SelectOptions::default()
+        },
+    )?;
+    notes.extend(selection.notes.iter().cloned());
     if profile {
-        eprintln!("profile: candidates done {:.3} s", t_start.elapsed().as_secs_f64());
+        eprintln!(
+            "profile: candidates done {:.3} s",
+            t_start.elapsed().as_secs_f64()
+        );
     }
 
     // Residuals of the linear model (training and validation) and of the nominal (training).
-    let resid = |y: &[f64], yh: &[f64]| -> Vec<f64> { y.iter().zip(yh).map(|(a, b)| a - b).collect() };
+    let resid =
+        |y: &[f64], yh: &[f64]| -> Vec<f64> { y.iter().zip(yh).map(|(a, b)| a - b).collect() };
     let y_lin_train: Vec<Vec<f64>> = tu
         .iter()
         .map(|u| linear.simulate(u))
         .collect::<Result<_>>()?;
-    let train_resid_lin: Vec<Vec<f64>> =
-        ty.iter().zip(&y_lin_train).map(|(y, yh)| resid(y, yh)).collect();
+    let train_resid_lin: Vec<Vec<f64>> = ty
+        .iter()
+        .zip(&y_lin_train)
+        .map(|(y, yh)| resid(y, yh))
+        .collect();
     let y_lin_val = linear.simulate(&vu)?;
     let val_resid_lin = resid(&vy, &y_lin_val);
     let train_resid_nom: Vec<Vec<f64>> = tu
@@ -685,8 +659,14 @@ pub fn diagnose(
     let noise_floor = noise::noise_floor(
         (&vu, &vy),
         &val_resid_lin,
-        &tu.iter().zip(&ty).map(|(u, y)| (u.as_slice(), y.as_slice())).collect::<Vec<_>>(),
-        &train_resid_lin.iter().map(Vec::as_slice).collect::<Vec<_>>(),
+        &tu.iter()
+            .zip(&ty)
+            .map(|(u, y)| (u.as_slice(), y.as_slice()))
+            .collect::<Vec<_>>(),
+        &train_resid_lin
+            .iter()
+            .map(Vec::as_slice)
+            .collect::<Vec<_>>(),
         warmup,
         1.0 / ts,
     )?;
@@ -716,6 +696,7 @@ pub fn diagnose(
         opts.amplitude_tol,
     )?;
     where_.amplitude_dependent = amplitude.amplitude_dependent;
+    where_.amplitude_change = amplitude.amplitude_change;
     let mut dist_logs: Vec<(String, &[f64], &[f64])> = train
         .iter()
         .zip(tu.iter().zip(&ty))
@@ -727,75 +708,128 @@ pub fn diagnose(
         amplitude,
         nonlinear_distortion,
         residual_regions: where_.residual_regions.clone(),
+        lattice: selection.lattice.map(Into::into),
+        dwell: selection.dwell.as_ref().map(Into::into),
     };
     if profile {
-        eprintln!("profile: evidence done {:.3} s", t_start.elapsed().as_secs_f64());
+        eprintln!(
+            "profile: evidence done {:.3} s",
+            t_start.elapsed().as_secs_f64()
+        );
     }
 
     // VERDICT.
-    let best_gap = scored.first().map_or(f64::INFINITY, |s| s.1);
     let improvement = |g: f64| (gap_linear - g) / gap_linear;
-    let best_name = scored
-        .first()
-        .and_then(|(f, _)| f.model.effect)
-        .map(|e| e.kind().name().to_string());
+    let best_gap = selection
+        .selected
+        .last()
+        .map_or(f64::INFINITY, |e| e.gap_after);
     let rule = VerdictRule {
         margin: opts.margin,
         noise_factor: opts.noise_factor,
         min_excess_closed: opts.min_excess_closed,
     };
-    let decision = rule.decide(gap_linear, best_gap, best_name.is_some(), &noise_floor, &evidence);
+    let quantization_by_lattice = selection.lattice.is_some()
+        && selection
+            .selected
+            .iter()
+            .any(|e| e.effect.kind() == EffectKind::Quantization);
+    let mut decision = rule.decide(
+        gap_linear,
+        best_gap,
+        !selection.selected.is_empty(),
+        &noise_floor,
+        &evidence,
+    );
+    if quantization_by_lattice {
+        decision = Decision::Effect;
+    }
     let verdict = match decision {
-        Decision::Effect => best_name.clone().unwrap_or_else(|| "none".into()),
+        Decision::Effect => selection
+            .selected
+            .iter()
+            .map(|e| e.effect.kind().name())
+            .collect::<Vec<_>>()
+            .join("+"),
         Decision::None => "none".into(),
         Decision::Unexplained => "unexplained".into(),
     };
+    if decision != Decision::Effect {
+        if let Some(e) = selection.selected.first() {
+            notes.push(format!(
+                "{} at {} improves on the linear model ({:.4} → {:.4}) but removes only {:.0}% \
+                 of its excess over the noise floor: not the verdict",
+                e.effect.kind().name(),
+                e.place.name(),
+                gap_linear,
+                best_gap,
+                100.0 * (gap_linear - best_gap)
+                    / (gap_linear - noise_floor.nrmse.max(0.0).min(gap_linear)).max(1e-300)
+            ));
+        }
+    }
     if let Some(reason) = rule.explain(gap_linear, best_gap, &noise_floor, decision) {
         notes.push(reason);
     }
     let has_effect = decision == Decision::Effect;
     let gap_after = if has_effect { best_gap } else { gap_linear };
 
-    let effects: Vec<EffectReport> = scored
-        .iter()
-        .filter_map(|(f, g)| {
-            let e: Effect = f.model.effect?;
-            Some(EffectReport {
-                effect: e.kind().name().to_string(),
-                place: default_place(e.kind()).to_string(),
-                params: e
-                    .params()
-                    .into_iter()
-                    .map(|(k, v)| (k.to_string(), v))
-                    .collect(),
-                gap_after: *g,
-                improvement: improvement(*g),
-                train_nrmse: (f.train_cost / td.u.len() as f64).sqrt(),
-                velocity_from: matches!(
-                    e,
-                    Effect::CoulombFriction { .. } | Effect::Stiction { .. }
-                )
-                .then(|| f.model.velocity.name().to_string()),
-            })
-        })
-        .collect();
-    let verdict_effects: Vec<VerdictEffect> = if has_effect {
-        effects
-            .first()
-            .map(|e| VerdictEffect {
-                effect: e.effect.clone(),
-                place: e.place.clone(),
-                params: e.params.clone(),
-                share: 1.0,
-            })
+    let params_of = |e: &Effect| -> BTreeMap<String, f64> {
+        e.params()
             .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect()
+    };
+    let report_of = |sc: &Scored| -> Option<EffectReport> {
+        let first = sc.effects.first()?;
+        let names: Vec<&str> = sc.effects.iter().map(|p| p.effect.kind().name()).collect();
+        let places: Vec<&str> = sc.effects.iter().map(|p| p.place.name()).collect();
+        let mut params = BTreeMap::new();
+        for p in &sc.effects {
+            for (k, v) in params_of(&p.effect) {
+                let key = if sc.effects.len() > 1 {
+                    format!("{}.{k}", p.effect.kind().name())
+                } else {
+                    k
+                };
+                params.insert(key, v);
+            }
+        }
+        Some(EffectReport {
+            effect: names.join("+"),
+            place: places.join("+"),
+            params,
+            gap_after: sc.gap,
+            improvement: improvement(sc.gap),
+            train_nrmse: (sc.train_cost / td.u.len() as f64).sqrt(),
+            velocity_from: first
+                .effect
+                .kind()
+                .is_friction()
+                .then(|| sc.model.velocity.name().to_string()),
+        })
+    };
+    // Singles in the selection's order (validation NRMSE, nested pair resolved), then the pairs
+    // tried on top of the best single, best first.
+    let ranked: Vec<&Scored> = selection.singles.iter().chain(&selection.pairs).collect();
+    let effects: Vec<EffectReport> = ranked.iter().filter_map(|s| report_of(s)).collect();
+    let verdict_effects: Vec<VerdictEffect> = if has_effect {
+        selection
+            .selected
+            .iter()
+            .map(|e| VerdictEffect {
+                effect: e.effect.kind().name().to_string(),
+                place: e.place.name().to_string(),
+                params: params_of(&e.effect),
+                share: e.share,
+            })
             .collect()
     } else {
         Vec::new()
     };
-    let candidates: Vec<AugmentedModel> = scored.into_iter().map(|(f, _)| f.model).collect();
+    let candidates: Vec<AugmentedModel> = ranked.iter().map(|s| s.model.clone()).collect();
     let verdict_model = if has_effect {
-        candidates[0].clone()
+        selection.model.clone()
     } else {
         linear.clone()
     };
@@ -936,13 +970,18 @@ fn mean_offset(td: &TrainData, m: &ModalModel) -> f64 {
 /// constant of 10⁷ samples, far beyond any log).
 pub const INTEGRATOR_STAND_IN: f64 = 1e-7;
 
-/// The poles with every integrator (z ≈ 1) replaced by z = 1 − [`INTEGRATOR_STAND_IN`].
+/// The poles for the modal form: the first integrator (|z − 1| within
+/// [`crate::gap::simfile::INTEGRATOR_TOL`]) exactly at z = 1 (the modal model keeps one exact
+/// integrator), any further one at z = 1 − [`INTEGRATOR_STAND_IN`].
 pub fn modal_stand_in(poles: &[Complex64]) -> Vec<Complex64> {
+    let mut seen = false;
     poles
         .iter()
         .map(|&p| {
             if is_integrator_pole(p) {
-                Complex64::new(1.0 - INTEGRATOR_STAND_IN, 0.0)
+                let z = if seen { 1.0 - INTEGRATOR_STAND_IN } else { 1.0 };
+                seen = true;
+                Complex64::new(z, 0.0)
             } else {
                 p
             }

@@ -20,8 +20,9 @@
 //!   significant mode shift (tol = `amplitude_tol`, default 0.1).
 //! * **Nonlinear distortion** ([`distortion`]): for every log whose input repeats (a multisine,
 //!   [`detect_period`]), the period-synchronous spectra ([`PeriodicAveraging`]) give the excited
-//!   lines; the output power on the *non-excited* lines between the first line and three times
-//!   the last excited one (minus the noise power estimated there from the period-to-period
+//!   lines; the output power on the *non-excited* lines from the first line up to three times
+//!   the last excited one (below the band too: even-order products and slow odd ones land
+//!   there) (minus the noise power estimated there from the period-to-period
 //!   scatter) cannot come from any linear model driven by that input. Reported as shares of the
 //!   output's periodic power, split into odd and even lines (for an odd multisine, power on the
 //!   odd detection lines is odd nonlinear distortion and on the even lines even distortion, as
@@ -33,6 +34,7 @@
 use super::locate::{default_nperseg, Region};
 use super::modal::{FitSet, ModalModel};
 use super::noise::detect_period;
+use super::select::{DwellEvidence, LatticeEvidence};
 use crate::error::Result;
 use crate::spectral::{PeriodicAveraging, Welch};
 use serde::Serialize;
@@ -152,15 +154,73 @@ pub struct Evidence {
     pub nonlinear_distortion: DistortionEvidence,
     /// Concentration of the linear model's residual (copied from `where`).
     pub residual_regions: Vec<Region>,
+    /// Lattice of the measured outputs (a quantizing sensor), when found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lattice: Option<Lattice>,
+    /// Dwells at zero velocity while the input pushes (static friction), when found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dwell: Option<Dwell>,
+}
+
+/// The lattice evidence ([`crate::gap::select::lattice_evidence`]) as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct Lattice {
+    /// Step, output units.
+    pub step: f64,
+    /// Share of the samples on the lattice.
+    pub share_on_lattice: f64,
+    /// Occupied levels.
+    pub levels: usize,
+    /// Step over the output standard deviation.
+    pub step_over_std: f64,
+}
+
+impl From<LatticeEvidence> for Lattice {
+    fn from(l: LatticeEvidence) -> Self {
+        Self {
+            step: l.step,
+            share_on_lattice: l.share_on_lattice,
+            levels: l.levels,
+            step_over_std: l.step_over_std,
+        }
+    }
+}
+
+/// The dwell evidence ([`crate::gap::select::dwell_evidence`]) as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct Dwell {
+    /// Dwells found.
+    pub dwells: usize,
+    /// Share of the scored samples in dwells.
+    pub dwell_share: f64,
+    /// Median |input| when a dwell ends (breakaway), input units.
+    pub breakaway: f64,
+    /// Median largest |input| held without moving, input units.
+    pub hold_max: f64,
+    /// Which signal stood for the velocity.
+    pub velocity: String,
+}
+
+impl From<&DwellEvidence> for Dwell {
+    fn from(d: &DwellEvidence) -> Self {
+        Self {
+            dwells: d.dwells,
+            dwell_share: d.dwell_share,
+            breakaway: d.breakaway,
+            hold_max: d.hold_max,
+            velocity: d.velocity.name().to_string(),
+        }
+    }
 }
 
 impl Evidence {
     /// Whether any test points at a nonlinearity: amplitude dependence, significant distortion
-    /// on non-excited lines, or a residual concentration.
+    /// on non-excited lines, a residual concentration, or dwells at zero velocity.
     pub fn nonlinear(&self) -> bool {
         self.amplitude.amplitude_dependent
             || self.nonlinear_distortion.significant()
             || self.residual_regions.iter().any(|r| r.concentrates)
+            || self.dwell.is_some()
     }
 
     /// Short phrases naming the tests that fired (for the text report and notes).
@@ -186,7 +246,12 @@ impl Evidence {
                 m.damping_high
             ));
         }
-        for d in self.nonlinear_distortion.logs.iter().filter(|d| d.significant) {
+        for d in self
+            .nonlinear_distortion
+            .logs
+            .iter()
+            .filter(|d| d.significant)
+        {
             v.push(format!(
                 "{}: {:.2}% of the output power on non-excited lines (odd {:.2}%, even {:.2}%), \
                  no linear model below NRMSE {:.4}",
@@ -195,6 +260,22 @@ impl Evidence {
                 100.0 * d.odd_share,
                 100.0 * d.even_share,
                 d.nrmse_bound
+            ));
+        }
+        if let Some(l) = &self.lattice {
+            v.push(format!(
+                "outputs sit on a lattice of step {:.4e} ({:.1}% of the output std, {} levels)",
+                l.step,
+                100.0 * l.step_over_std,
+                l.levels
+            ));
+        }
+        if let Some(d) = &self.dwell {
+            v.push(format!(
+                "{} dwells at zero velocity ({:.1}% of the time), breakaway {:.4e}",
+                d.dwells,
+                100.0 * d.dwell_share,
+                d.breakaway
             ));
         }
         for r in self.residual_regions.iter().filter(|r| r.concentrates) {
@@ -225,7 +306,7 @@ pub fn pair_freq_damping(r: f64, phi: f64, ts: f64) -> (f64, f64) {
 /// of its peak (nearest bin).
 fn excited_at(freq: &[f64], suu: &[f64], f: f64) -> bool {
     let top = suu.iter().cloned().fold(0.0, f64::max);
-    if freq.len() < 2 || !(top > 0.0) {
+    if freq.len() < 2 || top.is_nan() || top <= 0.0 {
         return false;
     }
     let df = freq[1] - freq[0];
@@ -310,7 +391,7 @@ pub fn amplitude_evidence(
                 .map(|&k| rel(k))
                 .collect();
             let m = median(d);
-            if m.is_finite() && !(m <= out.resonance_change) {
+            if m.is_finite() && (out.resonance_change.is_nan() || m > out.resonance_change) {
                 out.resonance_change = m;
                 out.resonance_change_hz = f0;
             }
@@ -394,8 +475,8 @@ pub fn distortion(logs: &[(String, &[f64], &[f64])], warmup: usize, ts: f64) -> 
             total_pow += w(k) * sp.y[k].norm_sqr();
         }
         let (mut odd, mut even, mut noise) = (0.0, 0.0, 0.0);
-        for k in k_lo.max(1)..=k_top {
-            if excited[k] {
+        for (k, &exc) in excited.iter().enumerate().take(k_top + 1).skip(1) {
+            if exc {
                 continue;
             }
             let nv = w(k) * sp.var_y[k];

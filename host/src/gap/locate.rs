@@ -5,17 +5,18 @@
 //!   summed over logs) and G_sim the nominal model's response at the same frequencies. Only bins
 //!   that pass the project's gate ([`Etfe::gate`]: magnitude-squared coherence at least
 //!   `coherence_min` and an excited input) are used.
-//! * **Bands** (`bands_hz`): runs of consecutive used bins with e > `threshold`.
-//! * **Worst** (`worst_hz`, `worst_error`): the used bin with the largest e; the **worst band**
-//!   is the run of used bins around it where e stays above half that peak.
+//! * **Ranked bands** (`bands`): the nominal sim's residual on the training logs, pooled Welch
+//!   PSD on the bins where the input has power, grouped into bands around its peaks and ranked
+//!   by their share of that power ([`ranked_bands`]); **time regions** likewise over windows of
+//!   each log ([`ranked_time_regions`]).
+//! * **Bands** (`bands_hz`): runs of used bins where the input has power (PSD within
+//!   [`EXCITED_REL`] of its peak) with e > `threshold`, runs two bins apart merged.
+//! * **Worst** (`worst_hz`, `worst_error`): the used, powered bin with the largest e; the
+//!   **worst band** is the run of such bins around it where e stays above half that peak.
 //! * **Coherence drops** (`coherence_drops_hz`): runs of bins (DC excluded) rejected by that
 //!   gate (low coherence or no input power); runs separated by at most two bins are merged.
-//! * **Amplitude dependence**: with two or more training logs, the H1 estimates of the logs
-//!   with the smallest and largest input RMS are compared over the bins used in both;
-//!   `amplitude_change` is the median of |G_low − G_high| / |G_high| and the gap is
-//!   `amplitude_dependent` when that exceeds `amplitude_tol`. A linear plant gives the same
-//!   response at both amplitudes (up to noise); friction, dead zones, backlash and saturation
-//!   do not.
+//! * **Amplitude dependence** (`amplitude_dependent`, `amplitude_change`): filled in from
+//!   [`crate::gap::evidence::amplitude_evidence`] by the diagnosis.
 //! * **Residual regions**: the free-run residual of the linear re-fit on the training logs,
 //!   RMS inside a region divided by its overall RMS. Regions: `near_zero_output` and
 //!   `near_zero_output_rate` (the 20 % of samples where |ŷ − median ŷ| resp. |Δŷ| of the
@@ -100,8 +101,12 @@ pub fn ranked_bands(freq: &[f64], srr: &[f64], powered: &[bool]) -> (Vec<BandSha
     let ok = |k: usize| k >= 1 && powered[k] && srr[k].is_finite();
     let total: f64 = (1..n).filter(|&k| ok(k)).map(|k| srr[k]).sum();
     let all: f64 = (1..n).filter(|&k| srr[k].is_finite()).map(|k| srr[k]).sum();
-    let outside = if all > 0.0 { 1.0 - total / all } else { f64::NAN };
-    if !(total > 0.0) {
+    let outside = if all > 0.0 {
+        1.0 - total / all
+    } else {
+        f64::NAN
+    };
+    if total.is_nan() || total <= 0.0 {
         return (Vec::new(), outside);
     }
     let mut taken = vec![false; n];
@@ -151,7 +156,7 @@ pub fn ranked_time_regions(
         .iter()
         .map(|r| r.iter().skip(warmup).map(|v| v * v).sum::<f64>())
         .sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return Vec::new();
     }
     let mut all = Vec::new();
@@ -161,7 +166,10 @@ pub fn ranked_time_regions(
             continue;
         }
         for w in 0..TIME_WINDOWS {
-            let (a, b) = (warmup + w * n / TIME_WINDOWS, warmup + (w + 1) * n / TIME_WINDOWS);
+            let (a, b) = (
+                warmup + w * n / TIME_WINDOWS,
+                warmup + (w + 1) * n / TIME_WINDOWS,
+            );
             let e: f64 = r[a..b].iter().map(|v| v * v).sum();
             all.push(TimeShare {
                 log: paths
@@ -410,8 +418,7 @@ pub fn locate(
         acc.add(&ul[warmup..], &rl[warmup..])?;
     }
     let rspec = acc.finish()?;
-    let (bands, residual_share_outside_input_band) =
-        ranked_bands(&freq, &rspec.syy, &powered);
+    let (bands, residual_share_outside_input_band) = ranked_bands(&freq, &rspec.syy, &powered);
     let time_regions = ranked_time_regions(resid_nom, paths, warmup, ts);
     Ok(Where {
         bands,

@@ -84,7 +84,7 @@ pub fn detect_period(u: &[f64]) -> Option<usize> {
     let m = mean(u);
     let x: Vec<f64> = u.iter().map(|v| v - m).collect();
     let var = variance(u);
-    if !(var > 0.0) {
+    if var.is_nan() || var <= 0.0 {
         return None;
     }
     let nfft = (2 * n).next_power_of_two();
@@ -101,7 +101,7 @@ pub fn detect_period(u: &[f64]) -> Option<usize> {
     let mut acf = inv.make_output_vec();
     inv.process(&mut spec, &mut acf).ok()?;
     let r0 = acf[0];
-    if !(r0 > 0.0) {
+    if r0.is_nan() || r0 <= 0.0 {
         return None;
     }
     // Unbiased normalised autocorrelation.
@@ -169,7 +169,7 @@ pub fn off_band_variance(u: &[f64], r: &[f64], fs: f64) -> Result<Option<f64>> {
     let su = w.psd(&u[..n], fs)?;
     let sr = w.psd(&r[..n], fs)?;
     let top = su.density.iter().cloned().fold(0.0, f64::max);
-    if !(top > 0.0) {
+    if top.is_nan() || top <= 0.0 {
         return Ok(None);
     }
     let mut off: Vec<f64> = (1..su.density.len())
@@ -307,7 +307,9 @@ mod tests {
         let one = multisine_period(400, &mut rng);
         let n = 400 * 12;
         let sigma = 0.05;
-        let y: Vec<f64> = (0..n).map(|k| one[k % 400] + sigma * rng.normal()).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|k| one[k % 400] + sigma * rng.normal())
+            .collect();
         let (s2, m) = periodic_scatter(&y, 400, 10).unwrap();
         assert_eq!(m, 11);
         // 11·400 samples, (m−1)·p = 4000 degrees of freedom: relative SE of σ² ≈ sqrt(2/4000).

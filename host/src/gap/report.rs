@@ -157,7 +157,11 @@ impl GapReport {
         let pct = |v: f64| format!("{:+.0}%", -100.0 * v);
         let _ = writeln!(s, "Sim-to-real gap diagnosis — verdict: {}", self.verdict);
         for e in &self.verdict_effects {
-            let p: Vec<String> = e.params.iter().map(|(k, v)| format!("{k}={v:.4e}")).collect();
+            let p: Vec<String> = e
+                .params
+                .iter()
+                .map(|(k, v)| format!("{k}={v:.4e}"))
+                .collect();
             let _ = writeln!(
                 s,
                 "  {} at {} ({}), {:.0}% of the shrink",
@@ -170,7 +174,10 @@ impl GapReport {
         let _ = writeln!(s);
         let _ = writeln!(s, "WHERE (training logs vs nominal sim)");
         if w.bands.is_empty() {
-            let _ = writeln!(s, "  residual bands: none (no residual where the input has power)");
+            let _ = writeln!(
+                s,
+                "  residual bands: none (no residual where the input has power)"
+            );
         } else {
             let _ = writeln!(
                 s,
@@ -294,7 +301,34 @@ impl GapReport {
                 100.0 * d.even_share,
                 100.0 * d.noise_share,
                 d.nrmse_bound,
-                if d.significant { "  <- significant" } else { "" }
+                if d.significant {
+                    "  <- significant"
+                } else {
+                    ""
+                }
+            );
+        }
+        if let Some(l) = &ev.lattice {
+            let _ = writeln!(
+                s,
+                "  output lattice: step {:.4e} ({:.1}% of the output std), {:.1}% of the samples \
+                 on it, {} levels",
+                l.step,
+                100.0 * l.step_over_std,
+                100.0 * l.share_on_lattice,
+                l.levels
+            );
+        }
+        if let Some(d) = &ev.dwell {
+            let _ = writeln!(
+                s,
+                "  dwells at zero velocity ({}): {} dwells, {:.1}% of the time, breakaway \
+                 {:.4e}, largest input held {:.4e}",
+                d.velocity,
+                d.dwells,
+                100.0 * d.dwell_share,
+                d.breakaway,
+                d.hold_max
             );
         }
         for r in &ev.residual_regions {
