@@ -768,7 +768,13 @@ pub fn diagnose(
             ));
         }
     }
-    if let Some(reason) = rule.explain(gap_linear, best_gap, &noise_floor, decision) {
+    // For the note: the selection's gap, or the best single's when nothing was selected.
+    let best_tried = if best_gap.is_finite() {
+        best_gap
+    } else {
+        selection.singles.first().map_or(f64::NAN, |s| s.gap)
+    };
+    if let Some(reason) = rule.explain(gap_linear, best_tried, &noise_floor, decision) {
         notes.push(reason);
     }
     let has_effect = decision == Decision::Effect;

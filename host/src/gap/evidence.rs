@@ -50,6 +50,9 @@ pub const EXCITED_LINE_REL: f64 = 1e-3;
 /// Damping ratio below which a mode counts as lightly damped for the mode-shift test.
 pub const LIGHT_DAMPING: f64 = 0.3;
 
+/// Complex pairs of the linear model damped more than this are not listed as modes.
+pub const MAX_REPORTED_DAMPING: f64 = 0.95;
+
 /// Smallest relative frequency shift of a mode that counts (1 %).
 pub const MIN_FREQ_SHIFT: f64 = 0.01;
 
@@ -399,19 +402,14 @@ pub fn amplitude_evidence(
         let (Some(ml), Some(mh)) = (&ml, &mh) else {
             continue;
         };
-        // Match by nearest continuous pole to the re-fit's (LM may reorder pairs).
-        let s0 = num_complex::Complex64::new(r.ln(), phi);
+        // Each log's fit started from the same pairs, whose parameters move continuously: pair
+        // j of a log's fit is pair j of the linear model. Overdamped pairs are not modes.
+        if z0 > MAX_REPORTED_DAMPING {
+            continue;
+        }
         let nearest = |m: &ModalModel| -> Option<(f64, f64)> {
-            m.pairs
-                .iter()
-                .min_by(|a, b| {
-                    let da = (num_complex::Complex64::new(a.0.ln(), a.1) - s0).norm();
-                    let db = (num_complex::Complex64::new(b.0.ln(), b.1) - s0).norm();
-                    da.total_cmp(&db)
-                })
-                .map(|&(r, p)| pair_freq_damping(r, p, ts))
+            m.pairs.get(j).map(|&(r, p)| pair_freq_damping(r, p, ts))
         };
-        let _ = j;
         let (Some((fl, zl)), Some((fh, zh))) = (nearest(ml), nearest(mh)) else {
             continue;
         };
