@@ -146,3 +146,44 @@ pub fn output_deviation(op: Option<&OperatingPoint>, y: &[&[f64]]) -> Vec<Vec<f6
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::Mat;
+
+    #[test]
+    fn raw_simulation_goes_through_the_operating_point() {
+        // y[k+1]-state model: x+ = 0.5 x + u, y = x (DC gain 2).
+        let g = StateSpace::new(
+            Mat::from_fn(1, 1, |_, _| 0.5),
+            Mat::from_fn(1, 1, |_, _| 1.0),
+            Mat::from_fn(1, 1, |_, _| 1.0),
+            Mat::zeros(1, 1),
+            1e-3,
+        )
+        .unwrap();
+        let op = OperatingPoint {
+            u0: vec![3.0],
+            y0: vec![-7.0],
+            detrend: "mean".into(),
+            decimation: 1,
+            fs_raw_hz: 1000.0,
+        };
+        // The raw input sits at the operating point: the output stays at y0.
+        let u = vec![3.0; 50];
+        let y = simulate_raw(&g, Some(&op), &[&u], None).unwrap();
+        assert!(y[0].iter().all(|v| (v + 7.0).abs() < 1e-12), "{:?}", y[0]);
+        // One unit above it: the output settles at y0 + 2.
+        let u = vec![4.0; 60];
+        let y = simulate_raw(&g, Some(&op), &[&u], None).unwrap();
+        assert!((y[0][59] - (-5.0)).abs() < 1e-12);
+        // Without an operating point the signals are used as they are.
+        let y = simulate_raw(&g, None, &[&u], None).unwrap();
+        assert!((y[0][59] - 8.0).abs() < 1e-12);
+        assert_eq!(
+            output_deviation(Some(&op), &[&[-7.0, -6.0][..]]),
+            vec![vec![0.0, 1.0]]
+        );
+    }
+}
