@@ -9,7 +9,8 @@ use super::frf::LogArgs;
 use super::output;
 use super::ExitCode;
 use crate::error::{Error, Result};
-use crate::gap::simfile::{discretise_for_logs, load_sim};
+use crate::gap::simfile::{discretise_for_logs, load_sim_with_operating_point};
+use crate::operating_point::output_deviation;
 use crate::gap::{diagnose, EffectKind, GapOptions};
 use crate::preprocess::{preprocess, Step};
 use std::path::PathBuf;
@@ -170,13 +171,42 @@ impl Args {
 /// Runs `ferrosid gap`.
 pub fn run(args: &Args) -> Result<ExitCode> {
     let opts = args.options()?;
-    let sim = load_sim(&args.sim)?;
+    let (sim, op) = load_sim_with_operating_point(&args.sim)?;
     let mut train = args.select.read_all(&args.real)?;
     let mut validate = args
         .select
         .read_all(std::slice::from_ref(&args.validate))?
         .remove(0);
-    if let Some(factor) = args.decimate {
+    // A model written by `identify`/`run` maps deviations from the operating point it was
+    // identified at: compare it with the logs' deviations (u − u0, y − y0), at the model's rate.
+    if let Some(op) = &op {
+        for log in train.iter_mut().chain(std::iter::once(&mut validate)) {
+            let y: Vec<&[f64]> = log.outputs.iter().map(|c| c.data.as_slice()).collect();
+            let y_dev = output_deviation(Some(op), &y);
+            for (c, d) in log.outputs.iter_mut().zip(y_dev) {
+                c.data = d;
+            }
+            for (j, c) in log.inputs.iter_mut().enumerate() {
+                let u0 = op.input_offset(j);
+                c.data.iter_mut().for_each(|v| *v -= u0);
+            }
+        }
+        eprintln!(
+            "note: {} carries an operating point (u0 = {:?}, y0 = {:?}, {}); the logs are compared \
+             as deviations from it",
+            args.sim.display(),
+            op.u0,
+            op.y0,
+            op.detrend
+        );
+    }
+    let decimate = args
+        .decimate
+        .or_else(|| op.as_ref().map(|o| o.decimation).filter(|&q| q > 1));
+    if let (Some(q), None) = (decimate, args.decimate) {
+        eprintln!("note: decimating the logs by {q} as the model file's preprocessing records");
+    }
+    if let Some(factor) = decimate {
         let steps = [Step::Decimate { factor }];
         for log in train.iter_mut().chain(std::iter::once(&mut validate)) {
             *log = preprocess(log, &steps)?.0;

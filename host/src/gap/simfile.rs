@@ -10,6 +10,7 @@
 //! `ts` is the sample time in seconds, 0 for a continuous model. Units are those of the logs.
 //! A continuous model is discretised by zero-order hold at the logs' sample time; a discrete
 //! one must have the logs' sample time (relative tolerance 1e-9).
+use crate::data::OperatingPoint;
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData, TransferFunction};
 use serde::Deserialize;
@@ -27,11 +28,25 @@ struct TfData {
 /// ([`Error::Io`]), malformed JSON ([`Error::Parse`] with the line), neither form or
 /// inconsistent shapes ([`Error::Data`]).
 pub fn load_sim(path: &Path) -> Result<StateSpace> {
+    Ok(load_sim_with_operating_point(path)?.0)
+}
+
+/// Reads a sim model file like [`load_sim`] and also returns the operating point a state-space
+/// model file carries (`operating_point`, written by `identify` and `run`; `None` for transfer
+/// functions and older files). See [`crate::operating_point`] for how it applies to raw logs.
+pub fn load_sim_with_operating_point(path: &Path) -> Result<(StateSpace, Option<OperatingPoint>)> {
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
         file: path.to_path_buf(),
         source,
     })?;
-    parse_sim(&text, path)
+    let sys = parse_sim(&text, path)?;
+    // parse_sim has validated the JSON; only a state-space file can carry an operating point.
+    let op = serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .filter(|v| v.get("a").is_some())
+        .and_then(|v| serde_json::from_value::<StateSpaceData>(v).ok())
+        .and_then(|ss| ss.operating_point);
+    Ok((sys, op))
 }
 
 /// Parses sim-model JSON text; `path` is only used to name the source in errors.
