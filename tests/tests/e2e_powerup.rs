@@ -311,6 +311,9 @@ fn bundled_pipeline_outputs_feed_codegen() {
     // receipts.json; `ferrosid codegen` takes them as they are, and the header compiles.
     use clap::Parser as _;
     let out = work_dir().join("example-pipeline");
+    // The test's own scratch directory: start empty, so outputs of an older ferrosid (written
+    // before the output manifest existed, which `run` now refuses to replace) cannot linger.
+    let _ = std::fs::remove_dir_all(&out);
     let toml = repo_root().join("examples").join("pipeline.toml");
     let cli = ferrosid::cli::Cli::try_parse_from([
         "ferrosid".as_ref(),
