@@ -857,6 +857,7 @@ mod tests {
 mod cases {
     use super::*;
     use crate::gap::benchmark::{filtered_noise, multisine};
+    use crate::gap::effect::{quantize, saturation};
     use crate::gap::modal::FitSet;
     use crate::gap::plant::{simulate, Plant, SimSettings};
     use crate::gap::rng::Rng;
@@ -1007,23 +1008,21 @@ mod cases {
             .unwrap_or(0.0)
     }
 
-    fn more_cases() {
-        use crate::gap::effect::{quantize, saturation, Effect};
-        let n = 16384;
-        let show = |name: &str, c: &Case| {
-            let t0 = cpu_seconds();
-            let s = run(c);
-            eprintln!("{name} ({:.2} s): {}", cpu_seconds() - t0, describe(&s));
-        };
-        // Integrating axis with Coulomb friction.
+    // The checked cases, shared by the checks below and the study (`n` samples per log).
+
+    /// Integrating axis with Coulomb friction 1.0 (seed 21).
+    pub(super) fn axis_friction_case(n: usize) -> Case {
         let ax = Plant::axis();
         let ns = 0.01 * y_rms(&ax, 2.0, 20.0);
         let e = Effect::CoulombFriction { level: 1.0 };
-        let c = make_case(ax, 2.0, 20.0, n, 21, &|u, k| {
+        make_case(ax, 2.0, 20.0, n, 21, &|u, k| {
             simulate(&ax, Some(&e), u, &settings(ns, k)).unwrap()
-        });
-        show("axis coulomb 1.0", &c);
-        // Quantization after noise at 5 % of the RMS, position in metres (tiny scale).
+        })
+    }
+
+    /// Quantization after noise at 5 % of the RMS, flexure position in metres (tiny scale);
+    /// returns the case and the true step.
+    pub(super) fn small_quantization_case(n: usize) -> (Case, f64) {
         let fx = Plant::flexure();
         let rms = y_rms(&fx, 1.0, 60.0) * 1e-6;
         let step = 0.05 * rms;
@@ -1034,9 +1033,12 @@ mod cases {
                 .map(|v| quantize(v * 1e-6, step))
                 .collect()
         });
-        eprintln!("(true step {step:.3e})");
-        show("flexure quantization 5 %", &c);
-        // Sensor clip at 70 % of the peak, DC motor.
+        (c, step)
+    }
+
+    /// DC motor with a sensor clipping at 60 % of a probe run's peak; returns the case and
+    /// the clip level.
+    pub(super) fn sensor_clip_case(n: usize) -> (Case, f64) {
         let dc = Plant::dc_motor();
         let mut rng = Rng::new(5);
         let probe = filtered_noise(n, TS, 100.0, 3.0, &mut rng);
@@ -1053,29 +1055,63 @@ mod cases {
                 .map(|v| saturation(v, lim))
                 .collect()
         });
-        eprintln!("(true clip {lim:.4})");
-        show("dc sensor clip", &c);
-        // Lightly damped mode at 160 Hz in series, DC motor excited to 200 Hz.
-        let e = Effect::Resonance { freq_hz: 160.0, damping: 0.02 };
+        (c, lim)
+    }
+
+    /// Lightly damped mode at 160 Hz (ζ = 0.02) in series, DC motor excited to 200 Hz.
+    pub(super) fn resonance_160_case(n: usize) -> Case {
+        let dc = Plant::dc_motor();
+        let e = Effect::Resonance {
+            freq_hz: 160.0,
+            damping: 0.02,
+        };
         let ns = 0.01 * y_rms(&dc, 1.0, 200.0);
-        let c = make_case(dc, 1.0, 200.0, n, 24, &|u, k| {
+        make_case(dc, 1.0, 200.0, n, 24, &|u, k| {
             simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
-        });
-        show("dc resonance 160 Hz", &c);
-        // Pair: input saturation and Coulomb friction, DC motor.
+        })
+    }
+
+    /// Pair: input saturation at 1.5 and Coulomb friction 0.3, DC motor.
+    pub(super) fn saturation_friction_case(n: usize) -> Case {
+        let dc = Plant::dc_motor();
         let e = Effect::CoulombFriction { level: 0.3 };
         let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
-        let c = make_case(dc, 1.0, 100.0, n, 25, &|u, k| {
+        make_case(dc, 1.0, 100.0, n, 25, &|u, k| {
             let us: Vec<f64> = u.iter().map(|&v| saturation(v, 1.5)).collect();
             simulate(&dc, Some(&e), &us, &settings(ns, k)).unwrap()
-        });
-        show("dc saturation 1.5 + coulomb 0.3", &c);
-        // Stiction with a stick band on the DC motor.
-        let e = Effect::Stiction { level: 0.2, breakaway: 0.4 };
-        let c = make_case(dc, 1.0, 100.0, n, 26, &|u, k| {
+        })
+    }
+
+    /// Karnopp stiction 0.2 / breakaway 0.4 on the DC motor.
+    pub(super) fn stiction_case(n: usize) -> Case {
+        let dc = Plant::dc_motor();
+        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
+        let e = Effect::Stiction {
+            level: 0.2,
+            breakaway: 0.4,
+        };
+        make_case(dc, 1.0, 100.0, n, 26, &|u, k| {
             simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
-        });
-        show("dc stiction 0.2/0.4", &c);
+        })
+    }
+
+    fn more_cases() {
+        let n = 16384;
+        let show = |name: &str, c: &Case| {
+            let t0 = cpu_seconds();
+            let s = run(c);
+            eprintln!("{name} ({:.2} s): {}", cpu_seconds() - t0, describe(&s));
+        };
+        show("axis coulomb 1.0", &axis_friction_case(n));
+        let (c, step) = small_quantization_case(n);
+        eprintln!("(true step {step:.3e})");
+        show("flexure quantization 5 %", &c);
+        let (c, lim) = sensor_clip_case(n);
+        eprintln!("(true clip {lim:.4})");
+        show("dc sensor clip", &c);
+        show("dc resonance 160 Hz", &resonance_160_case(n));
+        show("dc saturation 1.5 + coulomb 0.3", &saturation_friction_case(n));
+        show("dc stiction 0.2/0.4", &stiction_case(n));
     }
 
     /// Study (not a check): prints the selection on a range of cases.
@@ -1121,12 +1157,12 @@ mod cases {
 /// Checks of the selection on simulated axes, one per failure shape of issue 9.
 #[cfg(test)]
 mod checks {
-    use super::cases::{make_case, run, settings, y_rms, Case, TS};
+    use super::cases::{
+        make_case, resonance_160_case, run, saturation_friction_case, sensor_clip_case, settings,
+        small_quantization_case, stiction_case, y_rms, Case,
+    };
     use super::*;
-    use crate::gap::benchmark::filtered_noise;
-    use crate::gap::effect::{quantize, saturation};
     use crate::gap::plant::{simulate, simulate_drivetrain_backlash, Plant};
-    use crate::gap::rng::Rng;
 
     const N: usize = 16384;
 
@@ -1163,16 +1199,7 @@ mod checks {
     /// (steps of about 4e-5): decided by the lattice although it cannot pass the 10 % margin.
     #[test]
     fn quantization_is_decided_by_the_lattice_at_small_scale() {
-        let fx = Plant::flexure();
-        let rms = y_rms(&fx, 1.0, 60.0) * 1e-6;
-        let step = 0.05 * rms;
-        let c = make_case(fx, 1.0, 60.0, N, 22, &|u, k| {
-            simulate(&fx, None, u, &settings(0.01 * rms * 1e6, k))
-                .unwrap()
-                .into_iter()
-                .map(|v| quantize(v * 1e-6, step))
-                .collect()
-        });
+        let (c, step) = small_quantization_case(N);
         let s = run(&c);
         let (e, place) = only(&s);
         assert_eq!(place, Place::Sensor);
@@ -1185,16 +1212,7 @@ mod checks {
     /// levels within 10 %.
     #[test]
     fn stiction_with_a_stick_band_is_told_from_coulomb_friction() {
-        let dc = Plant::dc_motor();
-        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
-        let e = Effect::Stiction {
-            level: 0.2,
-            breakaway: 0.4,
-        };
-        let c = make_case(dc, 1.0, 100.0, N, 26, &|u, k| {
-            simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
-        });
-        let s = run(&c);
+        let s = run(&stiction_case(N));
         let (e, place) = only(&s);
         assert_eq!(place, Place::Motor);
         let Effect::Stiction { level, breakaway } = e else { panic!("{e}") };
@@ -1205,16 +1223,7 @@ mod checks {
     /// A lightly damped mode at 160 Hz in series with the input: found at its frequency.
     #[test]
     fn lightly_damped_mode_above_130_hz_is_found() {
-        let dc = Plant::dc_motor();
-        let e = Effect::Resonance {
-            freq_hz: 160.0,
-            damping: 0.02,
-        };
-        let ns = 0.01 * y_rms(&dc, 1.0, 200.0);
-        let c = make_case(dc, 1.0, 200.0, N, 24, &|u, k| {
-            simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
-        });
-        let s = run(&c);
+        let s = run(&resonance_160_case(N));
         let (e, _) = only(&s);
         let Effect::Resonance { freq_hz, damping } = e else { panic!("{e}") };
         assert!(rel(freq_hz, 160.0) < 0.01 && rel(damping, 0.02) < 0.15, "{e}");
@@ -1223,22 +1232,7 @@ mod checks {
     /// A sensor that clips: saturation at the sensor with the clip level.
     #[test]
     fn sensor_clipping_is_saturation_at_the_sensor() {
-        let dc = Plant::dc_motor();
-        let mut rng = Rng::new(5);
-        let probe = filtered_noise(N, TS, 100.0, 3.0, &mut rng);
-        let pk = simulate(&dc, None, &probe, &settings(0.0, 0))
-            .unwrap()
-            .iter()
-            .fold(0.0f64, |a, v| a.max(v.abs()));
-        let lim = 0.6 * pk;
-        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
-        let c = make_case(dc, 1.0, 100.0, N, 23, &|u, k| {
-            simulate(&dc, None, u, &settings(ns, k))
-                .unwrap()
-                .into_iter()
-                .map(|v| saturation(v, lim))
-                .collect()
-        });
+        let (c, lim) = sensor_clip_case(N);
         let s = run(&c);
         let (e, place) = only(&s);
         assert_eq!(place, Place::Sensor);
@@ -1250,14 +1244,7 @@ mod checks {
     /// to 1.
     #[test]
     fn saturation_and_friction_are_selected_as_a_pair() {
-        let dc = Plant::dc_motor();
-        let e = Effect::CoulombFriction { level: 0.3 };
-        let ns = 0.01 * y_rms(&dc, 1.0, 100.0);
-        let c = make_case(dc, 1.0, 100.0, N, 25, &|u, k| {
-            let us: Vec<f64> = u.iter().map(|&v| saturation(v, 1.5)).collect();
-            simulate(&dc, Some(&e), &us, &settings(ns, k)).unwrap()
-        });
-        let s = run(&c);
+        let s = run(&saturation_friction_case(N));
         let kinds: Vec<(EffectKind, Place)> = s
             .selected
             .iter()
@@ -1277,20 +1264,14 @@ mod checks {
         let ax = Plant::axis();
         let ns = 0.01 * y_rms(&ax, 2.0, 20.0);
         let e = Effect::CoulombFriction { level: 1.0 };
-        let c = make_case(ax, 2.0, 20.0, N, seed, &|u, k| {
+        make_case(ax, 2.0, 20.0, N, seed, &|u, k| {
             let ui: Vec<f64> = u.iter().map(|v| v / u_scale).collect();
             simulate(&ax, Some(&e), &ui, &settings(ns, k))
                 .unwrap()
                 .into_iter()
                 .map(|v| v * y_scale)
                 .collect()
-        });
-        if u_scale == 1.0 && y_scale == 1.0 {
-            return c;
-        }
-        // Same logs with the input in other units (u·u_scale) and the output scaled: rebuild
-        // the training data and the starts from the scaled signals.
-        c
+        })
     }
 
     /// Integrating plant (position output, pole at z = 1): friction acts on the derivative of
