@@ -290,18 +290,19 @@ fn identified_model_operating_point_applies_to_the_gap() {
     let f = write_case(&dir, "flexure/none/0", 4096);
     let gap_before = |low: &Path, high: &Path, val: &Path, tag: &str| -> f64 {
         let model = dir.join(format!("model_{tag}.json"));
-        let r = ferrosid(&[
-            "identify",
-            s(low),
-            "--order",
-            "2",
-            "--out",
-            s(&model),
-        ]);
+        let r = ferrosid(&["identify", s(low), "--order", "2", "--out", s(&model)]);
         assert_eq!(r.code, 0, "identify: {}", r.stderr);
         let r = ferrosid(&[
-            "gap", "--sim", s(&model), "--real", s(low), "--real", s(high), "--validate",
-            s(val), "--json",
+            "gap",
+            "--sim",
+            s(&model),
+            "--real",
+            s(low),
+            "--real",
+            s(high),
+            "--validate",
+            s(val),
+            "--json",
         ]);
         assert_eq!(r.code, 0, "gap: {}", r.stderr);
         let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
@@ -311,7 +312,11 @@ fn identified_model_operating_point_applies_to_the_gap() {
     let offset_logs: Vec<PathBuf> = [("low", 0usize), ("high", 1), ("val", 2)]
         .iter()
         .map(|&(name, k)| {
-            let log = if k < 2 { &f.data.train[k] } else { &f.data.validate };
+            let log = if k < 2 {
+                &f.data.train[k]
+            } else {
+                &f.data.validate
+            };
             let u: Vec<f64> = log.u().iter().map(|v| v + 0.7).collect();
             let y: Vec<f64> = log.y().iter().map(|v| v + 5.0).collect();
             let p = dir.join(format!("{name}_offset.csv"));
@@ -320,7 +325,10 @@ fn identified_model_operating_point_applies_to_the_gap() {
         })
         .collect();
     let shifted = gap_before(&offset_logs[0], &offset_logs[1], &offset_logs[2], "offset");
-    assert!(plain < 0.5, "identified model should fit its own plant: {plain}");
+    assert!(
+        plain < 0.5,
+        "identified model should fit its own plant: {plain}"
+    );
     assert!(
         (shifted - plain).abs() <= 1e-3 * plain,
         "offset logs: gap_before {shifted} vs {plain} without offsets"

@@ -10,8 +10,8 @@ use super::output;
 use super::ExitCode;
 use crate::error::{Error, Result};
 use crate::gap::simfile::{discretise_for_logs, load_sim_with_operating_point};
-use crate::operating_point::output_deviation;
 use crate::gap::{diagnose, EffectKind, GapOptions};
+use crate::operating_point::output_deviation;
 use crate::preprocess::{preprocess, Step};
 use std::path::PathBuf;
 

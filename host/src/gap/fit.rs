@@ -214,7 +214,10 @@ impl AugmentedModel {
     /// Free-run output and the signal that entered the linear part.
     pub fn simulate_with_input(&self, u: &[f64]) -> Result<(Vec<f64>, Vec<f64>)> {
         let effects = self.effects();
-        if let Some(pe) = effects.iter().find(|p| p.effect.kind() == EffectKind::StateLimit) {
+        if let Some(pe) = effects
+            .iter()
+            .find(|p| p.effect.kind() == EffectKind::StateLimit)
+        {
             return Err(Error::InvalidArgument(format!(
                 "{}: a state limit is not realised by the modal model",
                 pe.effect
@@ -477,7 +480,11 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
                 .base
                 .y
                 .iter()
-                .map(|y| y.iter().map(|v| v.abs() < CLIP_MASK_FRACTION * limit).collect())
+                .map(|y| {
+                    y.iter()
+                        .map(|v| v.abs() < CLIP_MASK_FRACTION * limit)
+                        .collect()
+                })
                 .collect();
             model.linear.fit_linear_params_masked(&set, Some(&mask))?
         }
@@ -765,7 +772,9 @@ pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Eff
         EffectKind::SlewRate => Effect::SlewRate {
             rate: 1e12 * td.u_peak.max(s) / td.ts,
         },
-        EffectKind::Quantization => Effect::Quantization { step: 1e-12 * y_peak },
+        EffectKind::Quantization => Effect::Quantization {
+            step: 1e-12 * y_peak,
+        },
         EffectKind::StateLimit => Effect::StateLimit {
             limit: 1e12 * y_peak,
         },
@@ -1255,16 +1264,23 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
             };
             for &vel in sources {
                 all.extend(grid.iter().filter_map(|&p| {
-                    eval_added(td, base, Effect::CoulombFriction { level: p }, place, vel, 1)
+                    eval_added(
+                        td,
+                        base,
+                        Effect::CoulombFriction { level: p },
+                        place,
+                        vel,
+                        1,
+                    )
                 }));
             }
             all
         }
-        EffectKind::Backlash => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
-            Effect::Backlash { gap: p }
+        EffectKind::Backlash => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| Effect::Backlash {
+            gap: p,
         }),
-        EffectKind::Deadzone => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| {
-            Effect::Deadzone { width: p }
+        EffectKind::Deadzone => on_grid(&log_grid(0.01 * s, 2.0 * s, 16), &|p| Effect::Deadzone {
+            width: p,
         }),
         EffectKind::Saturation if place == Place::Sensor => {
             let y_peak = td
@@ -1279,7 +1295,9 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
         }
         EffectKind::Saturation => {
             let hi = td.u_peak.max(0.25 * s);
-            on_grid(&log_grid(0.2 * s, hi, 16), &|p| Effect::Saturation { limit: p })
+            on_grid(&log_grid(0.2 * s, hi, 16), &|p| Effect::Saturation {
+                limit: p,
+            })
         }
         EffectKind::TimeDelay => {
             let grid: Vec<f64> = (0..=(2.0 * MAX_DELAY_SAMPLES) as usize)
@@ -1288,11 +1306,10 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
             on_grid(&grid, &|p| Effect::TimeDelay { seconds: p })
         }
         EffectKind::SlewRate => {
-            let dmax = td
-                .u
-                .iter()
-                .flat_map(|u| u.windows(2).map(|w| (w[1] - w[0]).abs()))
-                .fold(0.0f64, f64::max);
+            let dmax =
+                td.u.iter()
+                    .flat_map(|u| u.windows(2).map(|w| (w[1] - w[0]).abs()))
+                    .fold(0.0f64, f64::max);
             if dmax <= 0.0 {
                 return Vec::new();
             }

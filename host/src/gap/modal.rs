@@ -879,7 +879,11 @@ mod tests {
             if k % 4 == 0 {
                 // Full-step rate at the sample instant (4 sub-steps per sample below).
                 let r = sub.rate(&x, w_prev);
-                assert!((r - v[k]).abs() < 1e-6 * (1.0 + v[k].abs()), "k {k}: {r} vs {}", v[k]);
+                assert!(
+                    (r - v[k]).abs() < 1e-6 * (1.0 + v[k].abs()),
+                    "k {k}: {r} vs {}",
+                    v[k]
+                );
             }
             for _ in 0..4 {
                 sub.step(&mut x, uk);

@@ -465,7 +465,12 @@ pub fn simulate_drivetrain_backlash(
     u: &[f64],
     s: &SimSettings,
 ) -> Result<Vec<f64>> {
-    if !(s.ts.is_finite() && s.ts > 0.0) || s.substeps == 0 || gap.partial_cmp(&0.0).is_none_or(|o| o == std::cmp::Ordering::Less) {
+    if !(s.ts.is_finite() && s.ts > 0.0)
+        || s.substeps == 0
+        || gap
+            .partial_cmp(&0.0)
+            .is_none_or(|o| o == std::cmp::Ordering::Less)
+    {
         return Err(Error::InvalidArgument(format!(
             "drivetrain backlash simulation needs ts > 0, substeps >= 1 and gap >= 0 (got {} s, \
              {}, {gap})",
@@ -602,7 +607,9 @@ mod tests {
     #[test]
     fn drivetrain_simulation_without_play_is_the_linear_plant() {
         let p = Plant::two_mass();
-        let Plant::TwoMass(tm) = p else { unreachable!() };
+        let Plant::TwoMass(tm) = p else {
+            unreachable!()
+        };
         let mut rng = Rng::new(4);
         let u: Vec<f64> = (0..4000).map(|_| 0.05 * rng.normal()).collect();
         let y0 = simulate(&p, None, &u, &settings()).unwrap();

@@ -17,12 +17,12 @@
 //!
 //! Each selected effect reports its own share of the shrink (gap_linear − gap_after): the
 //! forward-selection deltas, clipped at zero and normalised to sum to 1.
+use super::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD};
 use super::effect::{Effect, EffectKind};
 use super::fit::{
     fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
     JOINT_MAX_ITER,
 };
-use super::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD};
 use super::modal::{nrmse, ModalModel};
 use super::place::{Candidate, Place, PlacedEffect};
 use super::structure::TwoMassStructure;
@@ -253,7 +253,11 @@ pub fn dwell_evidence(
             dwells += 1;
             in_dwell += len;
             exits.push(ul[k].abs().max(ul[k - 1].abs()));
-            holds.push(ul[s..k.saturating_sub(2).max(s + 1)].iter().fold(0.0f64, |a, x| a.max(x.abs())));
+            holds.push(
+                ul[s..k.saturating_sub(2).max(s + 1)]
+                    .iter()
+                    .fold(0.0f64, |a, x| a.max(x.abs())),
+            );
         }
     }
     let share = in_dwell as f64 / scored.max(1) as f64;
@@ -515,7 +519,11 @@ pub fn select_effects(
                 .map(|(_, b)| b.clone())
                 .collect()
         } else {
-            bases.iter().filter(|b| b.two_mass.is_none()).cloned().collect()
+            bases
+                .iter()
+                .filter(|b| b.two_mass.is_none())
+                .cloned()
+                .collect()
         };
         let hint = if c.kind == EffectKind::Stiction && c.place == Place::Motor {
             coulomb.as_ref()
@@ -539,21 +547,36 @@ pub fn select_effects(
     }
     singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
     // Friction on the load wins: its stiction variant, started from it.
-    if singles.first().and_then(|s| s.effects.first()).is_some_and(|p| {
-        p.place == Place::Load && p.effect.kind() == EffectKind::CoulombFriction
-    }) {
+    if singles
+        .first()
+        .and_then(|s| s.effects.first())
+        .is_some_and(|p| p.place == Place::Load && p.effect.kind() == EffectKind::CoulombFriction)
+    {
         let c = Fitted {
             model: singles[0].model.clone(),
             train_cost: singles[0].train_cost,
         };
         let cand = Candidate::new(EffectKind::Stiction, Place::Load);
-        if let Some(f) = fit_placed(cand, td, std::slice::from_ref(&c.model), Some(&c), sim_poles, &hints) {
+        if let Some(f) = fit_placed(
+            cand,
+            td,
+            std::slice::from_ref(&c.model),
+            Some(&c),
+            sim_poles,
+            &hints,
+        ) {
             singles.push(score(f, val_u, val_y, warmup, gap_linear));
             singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
         }
     }
     // Nested: stiction vs Coulomb friction at the same place.
-    resolve_nested(&mut singles, td, dwell.as_ref(), opts.nested_margin, &mut notes);
+    resolve_nested(
+        &mut singles,
+        td,
+        dwell.as_ref(),
+        opts.nested_margin,
+        &mut notes,
+    );
     // 2. Best single.
     let mut selected_models: Vec<Scored> = Vec::new();
     if let Some(best) = singles.first() {
@@ -574,9 +597,10 @@ pub fn select_effects(
     let mut pairs: Vec<Scored> = Vec::new();
     let try_pairs = selected_models.first().is_some_and(|f| {
         f.improvement < PAIR_WORTH_TRYING
-            && opts
-                .noise_floor
-                .is_none_or(|fl| f.gap.partial_cmp(&(PAIR_FLOOR_FACTOR * fl)) != Some(std::cmp::Ordering::Less) && f.gap != PAIR_FLOOR_FACTOR * fl)
+            && opts.noise_floor.is_none_or(|fl| {
+                f.gap.partial_cmp(&(PAIR_FLOOR_FACTOR * fl)) != Some(std::cmp::Ordering::Less)
+                    && f.gap != PAIR_FLOOR_FACTOR * fl
+            })
     });
     if !try_pairs && !selected_models.is_empty() {
         notes.push(format!(
@@ -591,8 +615,14 @@ pub fn select_effects(
             .iter()
             .skip(1)
             .filter(|s| s.improvement >= 0.5 * opts.margin)
-            .filter_map(|s| s.effects.first().map(|p| Candidate::new(p.effect.kind(), p.place)))
-            .filter(|c| Some(c.kind) != k1 && !(c.kind.is_friction() && k1.is_some_and(|k| k.is_friction())))
+            .filter_map(|s| {
+                s.effects
+                    .first()
+                    .map(|p| Candidate::new(p.effect.kind(), p.place))
+            })
+            .filter(|c| {
+                Some(c.kind) != k1 && !(c.kind.is_friction() && k1.is_some_and(|k| k.is_friction()))
+            })
             .filter(|c| c.kind != EffectKind::Quantization && c.kind != EffectKind::Stiction)
             .take(opts.pair_partners)
             .collect();
@@ -627,7 +657,10 @@ pub fn select_effects(
         };
         let base = first.model.clone();
         for c in partners {
-            if c.place.needs_two_mass() && base.two_mass.is_none() && base.motor_friction().is_some() {
+            if c.place.needs_two_mass()
+                && base.two_mass.is_none()
+                && base.motor_friction().is_some()
+            {
                 continue;
             }
             let t0 = profile_seconds();
@@ -788,7 +821,10 @@ fn resolve_nested(
         "stiction vs coulomb_friction at {place}: validation NRMSE {gs:.4} vs {gc:.4}, fitted \
          breakaway ratio {:.2}, training likelihood ratio {lr:.1}, dwell breakaway {}",
         ratio.0,
-        dwell.map_or("none".to_string(), |d| format!("{:.4} ({} dwells)", d.breakaway, d.dwells))
+        dwell.map_or("none".to_string(), |d| format!(
+            "{:.4} ({} dwells)",
+            d.breakaway, d.dwells
+        ))
     ));
     if stiction_wins != (is < ic) {
         singles.swap(is, ic);
@@ -905,8 +941,18 @@ mod cases {
             .map(|p| p.norm())
             .filter(|&r| r < 1.0 - 1e-9)
             .fold(0.0f64, f64::max);
-        let tau = if slowest > 0.0 { -1.0 / slowest.ln() } else { 0.0 };
-        let warmup = ((5.0 * tau).ceil() as usize).min(n / 10).max(if poles.iter().any(|p| (p - 1.0).norm() < 1e-9) { n / 10 } else { 0 });
+        let tau = if slowest > 0.0 {
+            -1.0 / slowest.ln()
+        } else {
+            0.0
+        };
+        let warmup = ((5.0 * tau).ceil() as usize).min(n / 10).max(
+            if poles.iter().any(|p| (p - 1.0).norm() < 1e-9) {
+                n / 10
+            } else {
+                0
+            },
+        );
         let td = TrainData::new(
             TS,
             vec![u_lo.clone(), u_hi.clone()],
@@ -917,11 +963,10 @@ mod cases {
         let mut lin = ModalModel::from_poles(TS, &poles, false).unwrap();
         lin.fit_output_error(&td.base, 60).unwrap();
         let mut nom = ModalModel::from_poles(TS, &poles, false).unwrap();
-        let y_sim: Vec<Vec<f64>> = td
-            .u
-            .iter()
-            .map(|u| nominal.simulate_siso(u, None).unwrap())
-            .collect();
+        let y_sim: Vec<Vec<f64>> =
+            td.u.iter()
+                .map(|u| nominal.simulate_siso(u, None).unwrap())
+                .collect();
         nom.fit_linear_params(&FitSet::new(td.u.clone(), y_sim, warmup).unwrap())
             .unwrap();
         nom.offset = lin.offset;
@@ -971,12 +1016,21 @@ mod cases {
         let sel: Vec<String> = s
             .selected
             .iter()
-            .map(|e| format!("{}@{} share {:.2} gap {:.4}", e.effect, e.place, e.share, e.gap_after))
+            .map(|e| {
+                format!(
+                    "{}@{} share {:.2} gap {:.4}",
+                    e.effect, e.place, e.share, e.gap_after
+                )
+            })
             .collect();
         let singles: Vec<String> = s
             .singles
             .iter()
-            .take(if std::env::var_os("GAP_ALL").is_some() { 99 } else { 4 })
+            .take(if std::env::var_os("GAP_ALL").is_some() {
+                99
+            } else {
+                4
+            })
             .map(|x| {
                 format!(
                     "{} {:.4}",
@@ -1110,7 +1164,10 @@ mod cases {
         eprintln!("(true clip {lim:.4})");
         show("dc sensor clip", &c);
         show("dc resonance 160 Hz", &resonance_160_case(n));
-        show("dc saturation 1.5 + coulomb 0.3", &saturation_friction_case(n));
+        show(
+            "dc saturation 1.5 + coulomb 0.3",
+            &saturation_friction_case(n),
+        );
         show("dc stiction 0.2/0.4", &stiction_case(n));
     }
 
@@ -1122,16 +1179,25 @@ mod cases {
         use crate::gap::plant::simulate_drivetrain_backlash;
         let n = 16384;
         let tm = Plant::two_mass();
-        let crate::gap::plant::Plant::TwoMass(tmp) = tm else { unreachable!() };
+        let crate::gap::plant::Plant::TwoMass(tmp) = tm else {
+            unreachable!()
+        };
         let ns = 0.01 * y_rms(&tm, 0.05, 120.0);
         for gap in [0.003, 0.008] {
             let c = make_case(tm, 0.05, 120.0, n, 11, &|u, k| {
                 simulate_drivetrain_backlash(&tmp, gap, u, &settings(ns, k)).unwrap()
             });
-            eprintln!("structure {:?}", c.structure.as_ref().map(|s| s.mapping_nrmse));
+            eprintln!(
+                "structure {:?}",
+                c.structure.as_ref().map(|s| s.mapping_nrmse)
+            );
             let t0 = cpu_seconds();
             let s = run(&c);
-            eprintln!("drivetrain backlash {gap} rad ({:.2} s): {}", cpu_seconds() - t0, describe(&s));
+            eprintln!(
+                "drivetrain backlash {gap} rad ({:.2} s): {}",
+                cpu_seconds() - t0,
+                describe(&s)
+            );
         }
         if std::env::var_os("GAP_ONLY_DT").is_some() {
             return;
@@ -1141,7 +1207,13 @@ mod cases {
             return;
         }
         for (name, e) in [
-            ("stiction 1.8x", Effect::Stiction { level: 0.01, breakaway: 0.018 }),
+            (
+                "stiction 1.8x",
+                Effect::Stiction {
+                    level: 0.01,
+                    breakaway: 0.018,
+                },
+            ),
             ("coulomb", Effect::CoulombFriction { level: 0.015 }),
         ] {
             let c = make_case(tm, 0.05, 120.0, n, 12, &|u, k| {
@@ -1181,7 +1253,9 @@ mod checks {
     #[test]
     fn drivetrain_backlash_is_found_in_the_two_mass_structure() {
         let tm = Plant::two_mass();
-        let Plant::TwoMass(p) = tm else { unreachable!() };
+        let Plant::TwoMass(p) = tm else {
+            unreachable!()
+        };
         let ns = 0.01 * y_rms(&tm, 0.05, 120.0);
         let c = make_case(tm, 0.05, 120.0, N, 11, &|u, k| {
             simulate_drivetrain_backlash(&p, 0.003, u, &settings(ns, k)).unwrap()
@@ -1190,7 +1264,9 @@ mod checks {
         let s = run(&c);
         let (e, place) = only(&s);
         assert_eq!(place, Place::Drivetrain);
-        let Effect::Backlash { gap } = e else { panic!("{e}") };
+        let Effect::Backlash { gap } = e else {
+            panic!("{e}")
+        };
         assert!(rel(gap, 0.003) < 0.1, "gap {gap}");
         assert!(s.selected[0].gap_after < 0.3 * s.gap_linear);
     }
@@ -1203,7 +1279,9 @@ mod checks {
         let s = run(&c);
         let (e, place) = only(&s);
         assert_eq!(place, Place::Sensor);
-        let Effect::Quantization { step: got } = e else { panic!("{e}") };
+        let Effect::Quantization { step: got } = e else {
+            panic!("{e}")
+        };
         assert!(rel(got, step) < 1e-3, "{got} vs {step}");
         assert!(s.lattice.is_some());
     }
@@ -1215,7 +1293,9 @@ mod checks {
         let s = run(&stiction_case(N));
         let (e, place) = only(&s);
         assert_eq!(place, Place::Motor);
-        let Effect::Stiction { level, breakaway } = e else { panic!("{e}") };
+        let Effect::Stiction { level, breakaway } = e else {
+            panic!("{e}")
+        };
         assert!(rel(level, 0.2) < 0.1 && rel(breakaway, 0.4) < 0.1, "{e}");
         assert!(s.dwell.is_some());
     }
@@ -1225,8 +1305,13 @@ mod checks {
     fn lightly_damped_mode_above_130_hz_is_found() {
         let s = run(&resonance_160_case(N));
         let (e, _) = only(&s);
-        let Effect::Resonance { freq_hz, damping } = e else { panic!("{e}") };
-        assert!(rel(freq_hz, 160.0) < 0.01 && rel(damping, 0.02) < 0.15, "{e}");
+        let Effect::Resonance { freq_hz, damping } = e else {
+            panic!("{e}")
+        };
+        assert!(
+            rel(freq_hz, 160.0) < 0.01 && rel(damping, 0.02) < 0.15,
+            "{e}"
+        );
     }
 
     /// A sensor that clips: saturation at the sensor with the clip level.
@@ -1236,7 +1321,9 @@ mod checks {
         let s = run(&c);
         let (e, place) = only(&s);
         assert_eq!(place, Place::Sensor);
-        let Effect::Saturation { limit } = e else { panic!("{e}") };
+        let Effect::Saturation { limit } = e else {
+            panic!("{e}")
+        };
         assert!(rel(limit, lim) < 0.01, "{limit} vs {lim}");
     }
 
@@ -1250,9 +1337,14 @@ mod checks {
             .iter()
             .map(|x| (x.effect.kind(), x.place))
             .collect();
-        assert!(kinds.contains(&(EffectKind::Saturation, Place::Drive)), "{kinds:?}");
         assert!(
-            kinds.iter().any(|(k, p)| k.is_friction() && *p == Place::Motor),
+            kinds.contains(&(EffectKind::Saturation, Place::Drive)),
+            "{kinds:?}"
+        );
+        assert!(
+            kinds
+                .iter()
+                .any(|(k, p)| k.is_friction() && *p == Place::Motor),
             "{kinds:?}"
         );
         let total: f64 = s.selected.iter().map(|x| x.share).sum();
@@ -1331,9 +1423,17 @@ mod conditioning {
     /// (the linear starts scaled to match: residues and feedthrough by the output/input
     /// ratio `gain`, the offset by `fy`).
     fn mapped(c: &Case, fu: &dyn Fn(f64) -> f64, fy: &dyn Fn(f64) -> f64, gain: f64) -> Case {
-        let u: Vec<Vec<f64>> = c.td.u.iter().map(|l| l.iter().map(|&v| fu(v)).collect()).collect();
+        let u: Vec<Vec<f64>> =
+            c.td.u
+                .iter()
+                .map(|l| l.iter().map(|&v| fu(v)).collect())
+                .collect();
         let y: Vec<Vec<f64>> =
-            c.td.base.y.iter().map(|l| l.iter().map(|&v| fy(v)).collect()).collect();
+            c.td.base
+                .y
+                .iter()
+                .map(|l| l.iter().map(|&v| fy(v)).collect())
+                .collect();
         let starts = c
             .starts
             .iter()
@@ -1381,7 +1481,10 @@ mod conditioning {
         assert!(!pa.is_empty());
         for ((n, va), (_, vb)) in pa.iter().zip(&pb) {
             let want = va * ku; // friction levels are in input units
-            assert!((vb - want).abs() <= 1e-6 * want.abs(), "{n}: {vb} vs {want}");
+            assert!(
+                (vb - want).abs() <= 1e-6 * want.abs(),
+                "{n}: {vb} vs {want}"
+            );
         }
         assert!((a.selected[0].gap_after - b.selected[0].gap_after).abs() < 1e-6);
     }
@@ -1393,7 +1496,9 @@ mod conditioning {
         let c = axis_case();
         let a = run(&c);
         let mut rng = Rng::new(77);
-        let jitter: Vec<f64> = (0..4 * 16384).map(|_| 1e-9 * (2.0 * rng.uniform() - 1.0)).collect();
+        let jitter: Vec<f64> = (0..4 * 16384)
+            .map(|_| 1e-9 * (2.0 * rng.uniform() - 1.0))
+            .collect();
         let k = std::cell::Cell::new(0usize);
         let bump = |v: f64| {
             let i = k.get();

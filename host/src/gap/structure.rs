@@ -94,8 +94,7 @@ impl TwoMassModel {
     fn check(&self) -> Result<()> {
         let ok = |v: f64| v.is_finite() && v > 0.0;
         let okz = |v: f64| v.is_finite() && v >= 0.0;
-        if ok(self.jm) && ok(self.jl) && ok(self.k) && okz(self.c) && okz(self.bm) && okz(self.bl)
-        {
+        if ok(self.jm) && ok(self.jl) && ok(self.k) && okz(self.c) && okz(self.bm) && okz(self.bl) {
             Ok(())
         } else {
             Err(Error::InvalidArgument(format!(
@@ -126,7 +125,11 @@ impl TwoMassModel {
     /// (`engaged`) or free.
     fn mode_matrices(&self, engaged: bool) -> (Mat<f64>, Mat<f64>) {
         let n = self.n_states();
-        let (k, c) = if engaged { (self.k, self.c) } else { (0.0, 0.0) };
+        let (k, c) = if engaged {
+            (self.k, self.c)
+        } else {
+            (0.0, 0.0)
+        };
         let (jm, jl) = (self.jm, self.jl);
         let mut a = Mat::<f64>::zeros(n, n);
         a[(0, 1)] = 1.0;
@@ -192,7 +195,11 @@ impl TwoMassModel {
                 (Place::Drivetrain, Effect::Backlash { gap }) => half = 0.5 * gap,
                 (Place::Motor | Place::Load, e) if e.kind().is_friction() => {
                     if let Some((l, b)) = friction_levels(&e) {
-                        let (vi, col) = if p.place == Place::Motor { (1, 1) } else { (2, 2) };
+                        let (vi, col) = if p.place == Place::Motor {
+                            (1, 1)
+                        } else {
+                            (2, 2)
+                        };
                         fric = Some((StickSlip::new(l, b), vi, col));
                     }
                 }
@@ -227,8 +234,9 @@ impl TwoMassModel {
             let bias = bias_of(mode);
             for i in 0..n {
                 let row = &a[i * n..(i + 1) * n];
-                xn[i] =
-                    row.iter().zip(x).map(|(p, q)| p * q).sum::<f64>() + b[i][0] * wk + b[i][3] * bias;
+                xn[i] = row.iter().zip(x).map(|(p, q)| p * q).sum::<f64>()
+                    + b[i][0] * wk
+                    + b[i][3] * bias;
             }
         };
         let mut xa = vec![0.0; n];
@@ -526,7 +534,11 @@ fn two_mass_base(base: &AugmentedModel) -> Option<AugmentedModel> {
 /// Grid stage for a candidate inside a two-mass structure (drivetrain backlash, load or motor
 /// friction) added to `base`: gaps scaled by the twist RMS of the linear two-mass plant,
 /// friction levels by the input RMS.
-pub fn initial_search_two_mass(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec<Fitted> {
+pub fn initial_search_two_mass(
+    cand: Candidate,
+    td: &TrainData,
+    base: &AugmentedModel,
+) -> Vec<Fitted> {
     let Some(b) = two_mass_base(base) else {
         return Vec::new();
     };
@@ -594,10 +606,7 @@ pub fn fit_drivetrain_backlash(
     let with_gap = |m: &AugmentedModel, g: f64| -> AugmentedModel {
         let mut m = m.clone();
         let mut list = m.effects_in_selection_order();
-        if let Some(p) = list
-            .iter_mut()
-            .find(|p| p.place == Place::Drivetrain)
-        {
+        if let Some(p) = list.iter_mut().find(|p| p.place == Place::Drivetrain) {
             p.effect = Effect::Backlash { gap: g };
         }
         m.set_effects_in_selection_order(&list);
@@ -612,24 +621,31 @@ pub fn fit_drivetrain_backlash(
             })
             .unwrap_or(f64::NAN)
     };
-    let scan = |data: &TrainData, m: &AugmentedModel, lo: f64, hi: f64, k: usize| -> Option<Fitted> {
-        let g0 = gap_of(m);
-        let mut best: Option<Fitted> = None;
-        for g in log_grid(g0 * lo, g0 * hi, k) {
-            if let Some(f) = eval_two_mass(data, with_gap(m, g)) {
-                if best.as_ref().is_none_or(|b| f.train_cost < b.train_cost) {
-                    best = Some(f);
+    let scan =
+        |data: &TrainData, m: &AugmentedModel, lo: f64, hi: f64, k: usize| -> Option<Fitted> {
+            let g0 = gap_of(m);
+            let mut best: Option<Fitted> = None;
+            for g in log_grid(g0 * lo, g0 * hi, k) {
+                if let Some(f) = eval_two_mass(data, with_gap(m, g)) {
+                    if best.as_ref().is_none_or(|b| f.train_cost < b.train_cost) {
+                        best = Some(f);
+                    }
                 }
             }
-        }
-        best
-    };
+            best
+        };
     let mut best: Option<Fitted> = None;
     for b in bases {
         let Some(b) = two_mass_base(b) else { continue };
-        let Some(tm) = b.two_mass.clone() else { continue };
-        let Ok(w) = b.drive_input(&coarse.u[0]) else { continue };
-        let Ok((_, tw)) = tm.simulate_states(&w, &[]) else { continue };
+        let Some(tm) = b.two_mass.clone() else {
+            continue;
+        };
+        let Ok(w) = b.drive_input(&coarse.u[0]) else {
+            continue;
+        };
+        let Ok((_, tw)) = tm.simulate_states(&w, &[]) else {
+            continue;
+        };
         if tw.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             continue;
         }
