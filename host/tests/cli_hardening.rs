@@ -625,17 +625,27 @@ fn rounded_time_columns_are_accepted_and_fs_overrides_with_a_warning() {
         "{}",
         r.stdout
     );
-    // 5 digits: refused, naming the line and both options that fix it.
+    // 5 digits: the interval rule alone refuses it (rounding up to 1.5e-1 of the interval at
+    // the end), but every stamp lies on the uniform grid within its printed rounding: accepted.
     let five = write_t("five.csv", &|t| format!("{t:.4e}"));
     let r = ferrosid(&["frf", s(&five)]);
+    assert_eq!(r.code, 0, "5-digit time column refused: {}", r.stderr);
+    // Real jitter (1 % of the interval every 7th sample, printed to 12 digits): refused, naming
+    // the line and both options that fix it.
+    let jit = write_t("jittered.csv", &|t| {
+        let k = (t * 3000.0).round() as i64;
+        let j = if k % 7 == 3 { 0.01 / 3000.0 } else { 0.0 };
+        format!("{:.11e}", t + j)
+    });
+    let r = ferrosid(&["frf", s(&jit)]);
     expect(
         &r,
         3,
         &["non-uniform sampling", "--time-jitter", "--fs"],
-        "5-digit time column",
+        "jittered time column",
     );
     // --fs takes precedence over the time column, with a warning.
-    let r = ferrosid(&["frf", s(&five), "--fs", "3000"]);
+    let r = ferrosid(&["frf", s(&jit), "--fs", "3000"]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(
         r.stderr.contains("warning") && r.stderr.contains("using the given fs = 3000 Hz"),
@@ -643,7 +653,7 @@ fn rounded_time_columns_are_accepted_and_fs_overrides_with_a_warning() {
         r.stderr
     );
     // A grossly different --fs is still refused.
-    let r = ferrosid(&["frf", s(&five), "--fs", "1000"]);
+    let r = ferrosid(&["frf", s(&jit), "--fs", "1000"]);
     expect(&r, 3, &["implies fs", "1000"], "wrong --fs");
 }
 

@@ -166,11 +166,50 @@ fn non_monotonic_time_names_line() {
 }
 
 #[test]
+fn time_stamps_printed_to_nine_digits_late_in_a_long_log_are_read_on_their_grid() {
+    // 10 kHz from t = 1000 s, stamps printed with 9 significant digits (%.8e): the last digit
+    // is 1e-5 s, so intervals jitter by up to 1e-1 of the 1e-4 s interval — far beyond the
+    // interval rule's 1e-3, yet every stamp is within its printed rounding of the grid.
+    let rows = |shift: Option<(usize, f64)>, drop: Option<usize>| -> String {
+        let mut text = String::from("t,u,y\n");
+        for k in 0..400usize {
+            if Some(k) == drop {
+                continue;
+            }
+            let mut t = 1000.0 + k as f64 * 1e-4;
+            if let Some((ks, dt)) = shift {
+                if k == ks {
+                    t += dt;
+                }
+            }
+            let u = (0.37 * k as f64).sin();
+            text.push_str(&format!("{t:.8e},{u},{}\n", 0.5 * u));
+        }
+        text
+    };
+    let p = file("late_nine_digits.csv", &rows(None, None));
+    let log = read_csv(&p, &CsvOptions::default()).unwrap();
+    assert!((log.ts - 1e-4).abs() <= 1e-4 * 1e-6, "ts = {}", log.ts);
+    // A dropped sample (file line 202) is refused: a grid residual of half an interval.
+    let p = file("late_dropped.csv", &rows(None, Some(200)));
+    let (line, msg) = parse_line(read_csv(&p, &CsvOptions::default()).unwrap_err());
+    assert!(msg.contains("non-uniform"), "{msg}");
+    assert!((201..=203).contains(&line), "line {line}: {msg}");
+    // A stamp shifted by 3e-5 s (3 units in its last digit, 0.3 interval) is refused too.
+    let p = file("late_shifted.csv", &rows(Some((150, 3e-5)), None));
+    let (line, msg) = parse_line(read_csv(&p, &CsvOptions::default()).unwrap_err());
+    assert!(msg.contains("non-uniform"), "{msg}");
+    assert!((151..=153).contains(&line), "line {line}: {msg}");
+}
+
+#[test]
 fn non_uniform_time_names_line_and_tolerance_is_adjustable() {
-    // 1e-2 relative jitter on the interval into line 5: beyond the default 1e-3.
+    // 1e-2 relative jitter on the interval into line 5: beyond the default 1e-3, and beyond
+    // the rounding of stamps printed to 5 significant digits. (Printed as `3.01` among `0, 1,
+    // 2, 4` it would be within the rounding of a 3-digit column and accepted on its grid.)
     let p = file(
         "jitter.csv",
-        "t,u,y\n0,1,2\n1,2,3\n2,3,4\n3.01,4,5\n4,5,6\n",
+        "t,u,y\n0.0000,1,2\n1.0000,2,3\n2.0000,3,4\n3.0100,4,5\n4.0000,5,6\n",
     );
     let (line, msg) = parse_line(read_csv(&p, &CsvOptions::default()).unwrap_err());
     assert_eq!(line, 5);

@@ -174,6 +174,8 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
     let mut ins: Vec<Vec<f64>> = vec![Vec::new(); in_idx.len()];
     let mut outs: Vec<Vec<f64>> = vec![Vec::new(); out_idx.len()];
     let mut t: Vec<f64> = Vec::new();
+    // How each time stamp was printed (for its rounding, see `super::printed`).
+    let mut t_printed: Vec<Option<super::printed::Printed>> = Vec::new();
     let mut lines: Vec<usize> = Vec::new();
     let field = |rec: &::csv::StringRecord, i: usize, line: usize| -> Result<f64> {
         let s = rec.get(i).unwrap_or("");
@@ -218,6 +220,7 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
         }
         if let Some(i) = time_idx {
             t.push(field(&rec, i, line)? * opts.time_scale);
+            t_printed.push(super::printed::Printed::parse(rec.get(i).unwrap_or("")));
         }
         lines.push(line);
     }
@@ -230,9 +233,11 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
     let (ts, time_warning) = match &time_name {
         Some(name) => {
             let what = format!("time column `{name}`");
+            let t_rounding = super::printed::column_rounding(&t_printed, opts.time_scale);
             sample_time(
                 TimeSource::Stamps {
                     t: &t,
+                    rounding: &t_rounding,
                     fs: opts.fs,
                     what: &what,
                 },

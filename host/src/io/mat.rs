@@ -746,6 +746,7 @@ pub fn read_mat(path: &Path, opts: &MatOptions) -> Result<Log> {
         sample_time(
             TimeSource::Stamps {
                 t: &t,
+                rounding: &[],
                 fs: opts.fs,
                 what: &what,
             },

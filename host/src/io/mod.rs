@@ -10,7 +10,13 @@
 //!   first offending line) and uniform: with `m` the median interval, every interval `dt_k`
 //!   must satisfy `|dt_k - m| <= time_jitter_rel * m + 64 * eps * max(|t_k|, |t_k+1|)`; the
 //!   default `time_jitter_rel` is `1e-3` ([`DEFAULT_TIME_JITTER_REL`]), which accepts the
-//!   rounding of time vectors printed to 6–9 digits. The sample time is then the mean interval
+//!   rounding of time vectors printed to 6–9 digits. **Printed rounding** (CSV): stamps that
+//!   fail the interval rule are still accepted when some uniform grid `a + k T` passes within
+//!   `r_k + time_jitter_rel * T` of every stamp `t_k`, where `r_k` is the stamp's rounding as
+//!   printed (half a unit in the last digit of its column's format, capped at
+//!   [`MAX_PRINTED_ROUNDING_REL`]` * T`; rules in `printed.rs`) — so a long log whose stamps
+//!   were written with 9 significant digits at t = 1000 s is read, while a dropped, doubled or
+//!   shifted sample is still refused. The sample time is then the mean interval
 //!   `(t_last - t_first) / (n - 1)` (rounding averages out). A log that fails names the line
 //!   and the two options that fix it: a larger tolerance, or an explicit sample rate.
 //! * **Explicit sample rate with a time column.** The rate takes precedence: the log uses
@@ -35,6 +41,7 @@ use crate::error::{Error, Result};
 pub mod csv;
 pub mod file_safety;
 pub mod mat;
+mod printed;
 pub mod text;
 
 pub use self::csv::{read_csv, CsvOptions};
@@ -52,6 +59,10 @@ pub const FS_AGREEMENT_REL: f64 = 1e-3;
 /// Largest accepted jitter tolerance: beyond half an interval a time column does not describe
 /// a uniform sampling at all.
 pub const MAX_TIME_JITTER_REL: f64 = 0.5;
+/// Largest share of the sample interval that the printed rounding of the time stamps may add
+/// to the grid tolerance (see the module documentation): stamps printed more coarsely cannot
+/// tell a uniform grid from a dropped sample.
+pub const MAX_PRINTED_ROUNDING_REL: f64 = 0.25;
 /// Default run length (samples) of identical extreme output values flagged as clipping.
 pub const DEFAULT_CLIP_RUN: usize = 4;
 
@@ -228,6 +239,9 @@ pub(crate) enum TimeSource<'a> {
     /// (`loc(k)` names sample k, e.g. "line 12" or "sample 12").
     Stamps {
         t: &'a [f64],
+        /// Rounding of each stamp as printed, s (half a unit in its last printed digit);
+        /// empty when the stamps are exact binary numbers.
+        rounding: &'a [f64],
         fs: Option<f64>,
         what: &'a str,
     },
@@ -260,7 +274,12 @@ pub(crate) fn sample_time(
             check_fs(fs)?;
             Ok((1.0 / fs, None))
         }
-        TimeSource::Stamps { t, fs, what } => {
+        TimeSource::Stamps {
+            t,
+            rounding,
+            fs,
+            what,
+        } => {
             let n = t.len();
             if n < 2 {
                 return match fs {
@@ -304,7 +323,9 @@ pub(crate) fn sample_time(
                     (k, dt, (dt - median).abs() / tol.max(f64::MIN_POSITIVE))
                 })
                 .max_by(|a, b| a.2.total_cmp(&b.2));
-            let irregular = worst.filter(|w| w.2 > 1.0);
+            let irregular = worst
+                .filter(|w| w.2 > 1.0)
+                .filter(|_| !printed::on_uniform_grid(t, rounding, mean, tol_rel));
             if let Some(fs) = fs {
                 check_fs(fs)?;
                 // An explicit rate takes precedence over the time column; the column must
@@ -333,7 +354,9 @@ pub(crate) fn sample_time(
                     k + 1,
                     format!(
                         "non-uniform sampling in {what}: interval {dt:e} s, median interval \
-                         {median:e} s (relative deviation {:.3e} exceeds the tolerance {:e}); \
+                         {median:e} s (relative deviation {:.3e} exceeds the tolerance {:e}, \
+                         and the stamps are off a uniform grid by more than their printed \
+                         rounding); \
                          if the time stamps are rounded or jittered, raise the tolerance \
                          (--time-jitter REL, pipeline `[signals] time_jitter`) or give the sample \
                          rate (--fs HZ, pipeline `fs`), which then takes precedence over the \
