@@ -200,3 +200,49 @@ fn fleet_errors_are_per_unit_and_empty_dirs_are_errors() {
     assert_eq!(st.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&st.stderr).contains("pipeline.toml"));
 }
+
+#[test]
+fn fleet_output_dirs_are_checked_before_any_unit_is_computed() {
+    let src = fleet_dir();
+    let d = sup::scratch("fleet-foreign");
+    for sn in ["SN0001", "SN0002"] {
+        std::fs::create_dir_all(d.join(sn)).expect("mkdir");
+        for f in ["low.csv", "high.csv"] {
+            std::fs::copy(src.join(sn).join(f), d.join(sn).join(f)).expect("copy");
+        }
+    }
+    // The user keeps a report of their own where the LAST unit's report would go.
+    let out = sup::scratch("fleet-foreign-out");
+    std::fs::create_dir_all(out.join("SN0002")).expect("mkdir");
+    let mine = out.join("SN0002/report.html");
+    std::fs::write(&mine, "<p>my notes</p>").expect("write");
+    let template = LoadedConfig::load(&src.join("pipeline.toml")).expect("template");
+    let computed = std::sync::atomic::AtomicUsize::new(0);
+    let opts = FleetOptions {
+        out_dir: Some(out.clone()),
+        ..FleetOptions::default()
+    };
+    let err = run_fleet(&d, &template, &opts, &|_| {
+        computed.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    })
+    .expect_err("a foreign file in a unit's output directory");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("report.html") && msg.contains("SN0002"),
+        "{msg}"
+    );
+    // Refused before any unit ran: nothing computed, nothing written, the user's file intact.
+    assert_eq!(computed.load(std::sync::atomic::Ordering::SeqCst), 0);
+    assert!(!out.join("SN0001/report.html").exists());
+    assert!(!out.join("fleet.json").exists());
+    assert_eq!(std::fs::read_to_string(&mine).unwrap(), "<p>my notes</p>");
+    // A fleet.json ferrosid did not write is not replaced either.
+    std::fs::remove_file(&mine).unwrap();
+    std::fs::write(out.join("fleet.json"), "{\"mine\": true}").unwrap();
+    let err = run_fleet(&d, &template, &opts, &|_| {}).expect_err("foreign fleet.json");
+    assert!(err.to_string().contains("fleet.json"), "{err}");
+    assert_eq!(
+        std::fs::read_to_string(out.join("fleet.json")).unwrap(),
+        "{\"mine\": true}"
+    );
+}

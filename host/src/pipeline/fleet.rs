@@ -23,9 +23,9 @@
 //! damped pair in increasing frequency).
 use super::config::LoadedConfig;
 use super::document::{weight_high_gain, weight_low_gain};
-use super::{run_pipeline, write_outputs, Mode, PipelineRun};
+use super::{run_pipeline, Mode, PipelineRun};
 use crate::error::{Error, Result};
-use crate::io::file_safety::{check_dir_writable, write_atomic};
+use crate::io::file_safety::OutputDir;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -391,6 +391,9 @@ pub struct FleetOptions {
     pub out_dir: Option<PathBuf>,
 }
 
+/// The fleet summary written at the top of the output directory.
+pub const FLEET_SUMMARY_FILE: &str = "fleet.json";
+
 /// Most worker threads [`run_fleet`] starts, whatever `--jobs` asks for.
 pub const MAX_JOBS: usize = 256;
 
@@ -414,7 +417,9 @@ pub fn worker_threads(jobs: Option<usize>, units: usize) -> Result<usize> {
 
 /// Runs the template on every unit of `dir` (see the module docs). `on_unit_done` is called
 /// (from worker threads) with each serial number as its pipeline finishes. Errors only for an
-/// unreadable fleet directory, a bad template, or an unwritable output directory; per-unit
+/// unreadable fleet directory, a bad template, or an output directory that cannot be taken
+/// (unwritable, locked by another run, or holding a file ferrosid did not write where an
+/// output goes — checked for every unit before any unit is computed); per-unit
 /// failures are in the summary.
 pub fn run_fleet(
     dir: &Path,
@@ -423,9 +428,24 @@ pub fn run_fleet(
     on_unit_done: &(dyn Fn(&str) + Sync),
 ) -> Result<FleetSummary> {
     let (layout, serials) = discover_units(dir)?;
-    if let Some(o) = &opts.out_dir {
-        check_dir_writable(o)?;
-    }
+    // Every output directory is taken (locked, and checked for files ferrosid did not write)
+    // before any unit is computed: a foreign file in the last unit's directory stops the fleet
+    // before the first minute of work, not after it.
+    let mut top = match &opts.out_dir {
+        Some(o) => {
+            let top = OutputDir::acquire(o)?;
+            top.check_replaceable([Path::new(FLEET_SUMMARY_FILE)])?;
+            Some(top)
+        }
+        None => None,
+    };
+    let mut unit_dirs: Vec<Option<OutputDir>> = match &opts.out_dir {
+        Some(o) => serials
+            .iter()
+            .map(|serial| super::prepare_output_dir(&o.join(serial)).map(Some))
+            .collect::<Result<_>>()?,
+        None => serials.iter().map(|_| None).collect(),
+    };
     let threads = worker_threads(opts.jobs, serials.len())?;
     let builder = rayon::ThreadPoolBuilder::new().num_threads(threads);
     let pool = builder.build().map_err(|e| {
@@ -434,14 +454,14 @@ pub fn run_fleet(
     let units: Vec<UnitResult> = pool.install(|| {
         serials
             .par_iter()
-            .map(|serial| {
+            .zip(unit_dirs.par_iter_mut())
+            .map(|(serial, unit_dir)| {
                 let r = unit_config(template, dir, layout, serial).and_then(|cfg| {
                     let run = run_pipeline(&cfg, &|_| {})?;
-                    let out = match &opts.out_dir {
-                        Some(o) => {
-                            let d = o.join(serial);
-                            write_outputs(&run, &d)?;
-                            Some(d.to_string_lossy().replace('\\', "/"))
+                    let out = match unit_dir {
+                        Some(d) => {
+                            super::write_outputs_to(&run, d)?;
+                            Some(d.path().to_string_lossy().replace('\\', "/"))
                         }
                         None => None,
                     };
@@ -455,16 +475,13 @@ pub fn run_fleet(
             })
             .collect()
     });
+    drop(unit_dirs);
     let s = &template.config.signals;
     let summary = FleetSummary::new(layout, units, &s.output_unit, &s.input_unit);
-    if let Some(o) = &opts.out_dir {
-        std::fs::create_dir_all(o).map_err(|source| Error::Io {
-            file: o.clone(),
-            source,
-        })?;
-        write_atomic(
-            &o.join("fleet.json"),
-            super::json_pretty(&summary)?.as_bytes(),
+    if let Some(top) = &mut top {
+        top.write(
+            Path::new(FLEET_SUMMARY_FILE),
+            &super::json_pretty(&summary)?,
         )?;
     }
     Ok(summary)
