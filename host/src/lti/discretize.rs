@@ -8,7 +8,6 @@ use crate::error::{Error, Result};
 use faer::Mat;
 
 impl StateSpace {
-
     /// Zero-order-hold discretisation with sample time `ts` seconds: exp([[A, B], [0, 0]]·ts)
     /// = [[Ad, Bd], [0, I]]; C and D unchanged. Refuses a discrete model.
     pub fn c2d_zoh(&self, ts: f64) -> Result<StateSpace> {

@@ -1,11 +1,10 @@
 //! Interconnections of state-space models: series, parallel and negative feedback.
-use super::dense::{hstack, same_ts, solve_square, vstack, block2x2};
+use super::dense::{block2x2, hstack, same_ts, solve_square, vstack};
 use super::state_space::StateSpace;
 use crate::error::{Error, Result};
 use faer::Mat;
 
 impl StateSpace {
-
     fn check_compatible(&self, other: &StateSpace, op: &str) -> Result<()> {
         if !same_ts(self.ts, other.ts) {
             return Err(Error::InvalidArgument(format!(

@@ -10,7 +10,6 @@ use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 
 impl StateSpace {
-
     /// Transfer function of a SISO model, from det(sI − A + BC) = det(sI − A)(1 + C(sI − A)⁻¹B):
     /// num = D·χ_A + χ_{A−BC} − χ_A, den = χ_A (monic). Polynomial coefficients lose accuracy for
     /// high orders; prefer the state space for computation.
