@@ -18,6 +18,7 @@
 //!
 //! Every malformed line is an [`Error::Parse`] naming the file and the 1-based line.
 use crate::error::{Error, Result};
+use ferrosid_frame::{self as frame, Keyword};
 use num_complex::Complex64;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -113,8 +114,6 @@ fn ser_c64_vec<S: serde::Serializer>(
     s.collect_seq(v.iter().map(|z| [z.re, z.im]))
 }
 
-const KEYWORDS: [&str; 5] = ["FRAME_BEGIN", "FRAME", "FRAME_END", "RECEIPT", "VERDICT"];
-
 fn parse_num<T: std::str::FromStr>(
     tok: Option<&str>,
     what: &str,
@@ -138,6 +137,231 @@ fn parse_f64(tok: Option<&str>, what: &str, file: &Path, line: usize) -> Result<
     parse_num::<f64>(tok, what, file, line)
 }
 
+/// The state of [`TargetFrame::parse`] between lines.
+struct FrameParser<'a> {
+    file: &'a Path,
+    frame: Option<TargetFrame>,
+    open: bool,
+    closed: bool,
+    receipt: Vec<ReceiptRow>,
+    verdict: Option<String>,
+}
+
+impl<'a> FrameParser<'a> {
+    fn perr(&self, line: usize, msg: String) -> Error {
+        Error::Parse {
+            file: self.file.to_path_buf(),
+            line,
+            msg,
+        }
+    }
+
+    /// The frame still open at line `ln`, or the error naming `what` outside a frame.
+    fn open_frame(&mut self, ln: usize, what: &str) -> Result<&mut TargetFrame> {
+        match (&mut self.frame, self.open) {
+            (Some(f), true) => Ok(f),
+            _ => Err(Error::Parse {
+                file: self.file.to_path_buf(),
+                line: ln,
+                msg: what.to_string(),
+            }),
+        }
+    }
+
+    fn begin(&mut self, ln: usize, rest: &[&str]) -> Result<()> {
+        let file = self.file;
+        if self.frame.is_some() {
+            return Err(self.perr(ln, "a second FRAME_BEGIN: one frame per log".into()));
+        }
+        let mut header = Vec::new();
+        for t in rest {
+            let (k, v) = frame::header_field(t).ok_or_else(|| {
+                self.perr(
+                    ln,
+                    format!(
+                        "FRAME_BEGIN field \"{}\" is not key=value",
+                        crate::error::excerpt(t)
+                    ),
+                )
+            })?;
+            header.push((k.to_string(), v.to_string()));
+        }
+        let get = |k: &str| {
+            header
+                .iter()
+                .find(|(hk, _)| hk == k)
+                .map(|(_, v)| v.as_str())
+        };
+        let fs_hz: f64 = parse_num(get(frame::KEY_FS), frame::KEY_FS, file, ln)?;
+        if !(fs_hz.is_finite() && fs_hz > 0.0) {
+            return Err(self.perr(ln, format!("fs = {fs_hz} Hz must be finite and > 0")));
+        }
+        let n: usize = parse_num(get(frame::KEY_N), frame::KEY_N, file, ln)?;
+        if !frame::segment_length_ok(n) {
+            return Err(self.perr(
+                ln,
+                format!(
+                    "n = {n} is not a power of two in {}..={}",
+                    frame::MIN_SEGMENT,
+                    frame::MAX_SEGMENT
+                ),
+            ));
+        }
+        let optional = |key: &'static str| get(key).map(|v| (v, key));
+        let averages = optional(frame::KEY_AVERAGES)
+            .map(|(v, k)| parse_num::<u64>(Some(v), k, file, ln))
+            .transpose()?;
+        let excited_max_bin = optional(frame::KEY_EXCITED_MAX_BIN)
+            .map(|(v, k)| parse_num::<usize>(Some(v), k, file, ln))
+            .transpose()?;
+        let gate = optional(frame::KEY_GATE)
+            .map(|(v, k)| parse_num::<f64>(Some(v), k, file, ln))
+            .transpose()?;
+        if let Some(g) = gate {
+            if !(0.0..=1.0).contains(&g) {
+                return Err(self.perr(ln, format!("gate = {g} is not a coherence in [0, 1]")));
+            }
+        }
+        self.frame = Some(TargetFrame {
+            source: file.to_path_buf(),
+            fs_hz,
+            n,
+            averages,
+            excited_max_bin,
+            gate,
+            header,
+            bins: Vec::with_capacity(frame::bin_count(n)),
+            receipt: Vec::new(),
+            verdict: None,
+        });
+        self.open = true;
+        Ok(())
+    }
+
+    fn bin(&mut self, ln: usize, rest: &[&str]) -> Result<()> {
+        let file = self.file;
+        let (expect, half) = {
+            let f = self.open_frame(ln, "FRAME line outside FRAME_BEGIN..FRAME_END")?;
+            (f.bins.len(), f.n / 2)
+        };
+        let perr = |msg: String| Error::Parse {
+            file: file.to_path_buf(),
+            line: ln,
+            msg,
+        };
+        if rest.len() != frame::BIN_FIELDS.len() {
+            return Err(perr(format!(
+                "FRAME needs {} fields (bin S_uu S_yy ReS_uy ImS_uy coherence), got {}",
+                frame::BIN_FIELDS.len(),
+                rest.len()
+            )));
+        }
+        let names = &frame::BIN_FIELDS[1..];
+        let bin: usize = parse_num(Some(rest[0]), frame::BIN_FIELDS[0], file, ln)?;
+        if bin != expect {
+            return Err(perr(format!(
+                "bin {bin} out of order: expected bin {expect}"
+            )));
+        }
+        if bin > half {
+            return Err(perr(format!("bin {bin} is beyond N/2 = {half}")));
+        }
+        let mut v = [0.0f64; 5];
+        for (j, slot) in v.iter_mut().enumerate() {
+            *slot = parse_f64(Some(rest[j + 1]), names[j], file, ln)?;
+            if !slot.is_finite() {
+                return Err(perr(format!("{} = {} is not finite", names[j], slot)));
+            }
+        }
+        if v[0] < 0.0 || v[1] < 0.0 {
+            return Err(perr("an auto-spectral density is negative".into()));
+        }
+        if !(0.0..=1.0 + 1e-6).contains(&v[4]) {
+            return Err(perr(format!("coherence {} is outside [0, 1]", v[4])));
+        }
+        let f = self.open_frame(ln, "FRAME line outside FRAME_BEGIN..FRAME_END")?;
+        f.bins.push(FrameBin {
+            bin,
+            suu: v[0],
+            syy: v[1],
+            suy: Complex64::new(v[2], v[3]),
+            coherence: v[4].min(1.0),
+        });
+        Ok(())
+    }
+
+    fn end(&mut self, ln: usize, rest: &[&str]) -> Result<()> {
+        let file = self.file;
+        let (have, n) = {
+            let f = self.open_frame(ln, "FRAME_END without FRAME_BEGIN")?;
+            (f.bins.len(), f.n)
+        };
+        let want = frame::bin_count(n);
+        if have != want {
+            return Err(self.perr(ln, format!("frame holds {have} bins, N = {n} needs {want}")));
+        }
+        if let Some(t) = rest.first() {
+            let count: usize = parse_num(
+                t.strip_prefix(frame::END_COUNT_PREFIX),
+                "FRAME_END bins=",
+                file,
+                ln,
+            )?;
+            if count != want {
+                return Err(self.perr(ln, format!("FRAME_END says {count} bins, expected {want}")));
+            }
+        }
+        self.open = false;
+        self.closed = true;
+        Ok(())
+    }
+
+    fn receipt(&mut self, ln: usize, rest: &[&str]) -> Result<()> {
+        let file = self.file;
+        let names = frame::RECEIPT_FIELDS;
+        if rest.len() != names.len() {
+            return Err(self.perr(
+                ln,
+                format!("RECEIPT needs {} fields, got {}", names.len(), rest.len()),
+            ));
+        }
+        let g = |j: usize| parse_f64(Some(rest[j]), names[j], file, ln);
+        self.receipt.push(ReceiptRow {
+            bin: parse_num(Some(rest[0]), names[0], file, ln)?,
+            hz: g(1)?,
+            coherence: g(2)?,
+            g0: Complex64::new(g(3)?, g(4)?),
+            g_meas: Complex64::new(g(5)?, g(6)?),
+            rel_error: g(7)?,
+            wm: g(8)?,
+            sigma: g(9)?,
+            verdict: rest[10].to_string(),
+        });
+        Ok(())
+    }
+
+    fn finish(self) -> Result<TargetFrame> {
+        let file = self.file;
+        let mut f = self.frame.ok_or_else(|| Error::Data {
+            file: file.to_path_buf(),
+            msg: "no FRAME_BEGIN line: not a target spectra log".into(),
+        })?;
+        if !self.closed {
+            return Err(Error::Data {
+                file: file.to_path_buf(),
+                msg: format!(
+                    "the frame ends after {} of {} bins without FRAME_END (truncated log?)",
+                    f.bins.len(),
+                    frame::bin_count(f.n)
+                ),
+            });
+        }
+        f.receipt = self.receipt;
+        f.verdict = self.verdict;
+        Ok(f)
+    }
+}
+
 impl TargetFrame {
     /// Reads a frame from a text file of decoded target log lines.
     pub fn read(path: &Path) -> Result<Self> {
@@ -148,7 +372,8 @@ impl TargetFrame {
         Self::parse(&text, path)
     }
 
-    /// Parses decoded target log lines; `source` names the origin in errors.
+    /// Parses decoded target log lines; `source` names the origin in errors. The wire format
+    /// (keywords, header keys, fields) is defined once in the `ferrosid-frame` crate.
     ///
     /// Errors ([`Error::Parse`] with the line, or [`Error::Data`] for the whole stream): no
     /// `FRAME_BEGIN`; a second frame; `fs` not finite and positive; `n` not a power of two in
@@ -157,214 +382,29 @@ impl TargetFrame {
     /// bin out of order; `FRAME_END` count not matching; a frame without `FRAME_END`
     /// (truncated log); a `RECEIPT` line without exactly eleven fields.
     pub fn parse(text: &str, source: &Path) -> Result<Self> {
-        let file = source;
-        let perr = |line: usize, msg: String| Error::Parse {
-            file: file.to_path_buf(),
-            line,
-            msg,
+        let mut p = FrameParser {
+            file: source,
+            frame: None,
+            open: false,
+            closed: false,
+            receipt: Vec::new(),
+            verdict: None,
         };
-        let mut frame: Option<TargetFrame> = None;
-        let mut open = false;
-        let mut closed = false;
-        let mut receipt = Vec::new();
-        let mut verdict = None;
         for (idx, raw) in text.lines().enumerate() {
             let ln = idx + 1;
-            let toks: Vec<&str> = raw.split_whitespace().collect();
-            let Some(pos) = toks.iter().position(|t| KEYWORDS.contains(t)) else {
+            let Some((kw, tokens)) = frame::split_line(raw) else {
                 continue;
             };
-            let kw = toks[pos];
-            let rest = &toks[pos + 1..];
+            let rest: Vec<&str> = tokens.collect();
             match kw {
-                "FRAME_BEGIN" => {
-                    if frame.is_some() {
-                        return Err(perr(ln, "a second FRAME_BEGIN: one frame per log".into()));
-                    }
-                    let mut header = Vec::new();
-                    for t in rest {
-                        let (k, v) = t.split_once('=').ok_or_else(|| {
-                            perr(
-                                ln,
-                                format!(
-                                    "FRAME_BEGIN field \"{}\" is not key=value",
-                                    crate::error::excerpt(t)
-                                ),
-                            )
-                        })?;
-                        header.push((k.to_string(), v.to_string()));
-                    }
-                    let get = |k: &str| {
-                        header
-                            .iter()
-                            .find(|(hk, _)| hk == k)
-                            .map(|(_, v)| v.as_str())
-                    };
-                    let fs_hz: f64 = parse_num(get("fs"), "fs", file, ln)?;
-                    if !(fs_hz.is_finite() && fs_hz > 0.0) {
-                        return Err(perr(ln, format!("fs = {fs_hz} Hz must be finite and > 0")));
-                    }
-                    let n: usize = parse_num(get("n"), "n", file, ln)?;
-                    if !(n.is_power_of_two() && (64..=4096).contains(&n)) {
-                        return Err(perr(
-                            ln,
-                            format!("n = {n} is not a power of two in 64..=4096"),
-                        ));
-                    }
-                    let averages = get("averages")
-                        .map(|v| parse_num::<u64>(Some(v), "averages", file, ln))
-                        .transpose()?;
-                    let excited_max_bin = get("excited_max_bin")
-                        .map(|v| parse_num::<usize>(Some(v), "excited_max_bin", file, ln))
-                        .transpose()?;
-                    let gate = get("gate")
-                        .map(|v| parse_num::<f64>(Some(v), "gate", file, ln))
-                        .transpose()?;
-                    if let Some(g) = gate {
-                        if !(0.0..=1.0).contains(&g) {
-                            return Err(perr(
-                                ln,
-                                format!("gate = {g} is not a coherence in [0, 1]"),
-                            ));
-                        }
-                    }
-                    frame = Some(TargetFrame {
-                        source: file.to_path_buf(),
-                        fs_hz,
-                        n,
-                        averages,
-                        excited_max_bin,
-                        gate,
-                        header,
-                        bins: Vec::with_capacity(n / 2 + 1),
-                        receipt: Vec::new(),
-                        verdict: None,
-                    });
-                    open = true;
-                }
-                "FRAME" => {
-                    let f = match (&mut frame, open) {
-                        (Some(f), true) => f,
-                        _ => {
-                            return Err(perr(
-                                ln,
-                                "FRAME line outside FRAME_BEGIN..FRAME_END".into(),
-                            ))
-                        }
-                    };
-                    if rest.len() != 6 {
-                        return Err(perr(
-                            ln,
-                            format!(
-                                "FRAME needs 6 fields (bin S_uu S_yy ReS_uy ImS_uy coherence), got {}",
-                                rest.len()
-                            ),
-                        ));
-                    }
-                    let bin: usize = parse_num(Some(rest[0]), "bin", file, ln)?;
-                    let expect = f.bins.len();
-                    if bin != expect {
-                        return Err(perr(
-                            ln,
-                            format!("bin {bin} out of order: expected bin {expect}"),
-                        ));
-                    }
-                    if bin > f.n / 2 {
-                        return Err(perr(ln, format!("bin {bin} is beyond N/2 = {}", f.n / 2)));
-                    }
-                    let names = ["S_uu", "S_yy", "Re S_uy", "Im S_uy", "coherence"];
-                    let mut v = [0.0f64; 5];
-                    for (j, slot) in v.iter_mut().enumerate() {
-                        *slot = parse_f64(Some(rest[j + 1]), names[j], file, ln)?;
-                        if !slot.is_finite() {
-                            return Err(perr(ln, format!("{} = {} is not finite", names[j], slot)));
-                        }
-                    }
-                    if v[0] < 0.0 || v[1] < 0.0 {
-                        return Err(perr(ln, "an auto-spectral density is negative".into()));
-                    }
-                    if !(0.0..=1.0 + 1e-6).contains(&v[4]) {
-                        return Err(perr(ln, format!("coherence {} is outside [0, 1]", v[4])));
-                    }
-                    f.bins.push(FrameBin {
-                        bin,
-                        suu: v[0],
-                        syy: v[1],
-                        suy: Complex64::new(v[2], v[3]),
-                        coherence: v[4].min(1.0),
-                    });
-                }
-                "FRAME_END" => {
-                    let f = match (&frame, open) {
-                        (Some(f), true) => f,
-                        _ => return Err(perr(ln, "FRAME_END without FRAME_BEGIN".into())),
-                    };
-                    let want = f.n / 2 + 1;
-                    if f.bins.len() != want {
-                        return Err(perr(
-                            ln,
-                            format!(
-                                "frame holds {} bins, N = {} needs {want}",
-                                f.bins.len(),
-                                f.n
-                            ),
-                        ));
-                    }
-                    if let Some(t) = rest.first() {
-                        let count: usize =
-                            parse_num(t.strip_prefix("bins="), "FRAME_END bins=", file, ln)?;
-                        if count != want {
-                            return Err(perr(
-                                ln,
-                                format!("FRAME_END says {count} bins, expected {want}"),
-                            ));
-                        }
-                    }
-                    open = false;
-                    closed = true;
-                }
-                "RECEIPT" => {
-                    if rest.len() != 11 {
-                        return Err(perr(
-                            ln,
-                            format!("RECEIPT needs 11 fields, got {}", rest.len()),
-                        ));
-                    }
-                    let g = |j: usize, what: &str| parse_f64(Some(rest[j]), what, file, ln);
-                    receipt.push(ReceiptRow {
-                        bin: parse_num(Some(rest[0]), "bin", file, ln)?,
-                        hz: g(1, "hz")?,
-                        coherence: g(2, "coherence")?,
-                        g0: Complex64::new(g(3, "G0 re")?, g(4, "G0 im")?),
-                        g_meas: Complex64::new(g(5, "Gmeas re")?, g(6, "Gmeas im")?),
-                        rel_error: g(7, "relative error")?,
-                        wm: g(8, "|W_m|")?,
-                        sigma: g(9, "sigma")?,
-                        verdict: rest[10].to_string(),
-                    });
-                }
-                _ => {
-                    verdict = rest.first().map(|s| s.to_string());
-                }
+                Keyword::Begin => p.begin(ln, &rest)?,
+                Keyword::Bin => p.bin(ln, &rest)?,
+                Keyword::End => p.end(ln, &rest)?,
+                Keyword::Receipt => p.receipt(ln, &rest)?,
+                Keyword::Verdict => p.verdict = rest.first().map(|s| s.to_string()),
             }
         }
-        let mut f = frame.ok_or_else(|| Error::Data {
-            file: file.to_path_buf(),
-            msg: "no FRAME_BEGIN line: not a target spectra log".into(),
-        })?;
-        if !closed {
-            return Err(Error::Data {
-                file: file.to_path_buf(),
-                msg: format!(
-                    "the frame ends after {} of {} bins without FRAME_END (truncated log?)",
-                    f.bins.len(),
-                    f.n / 2 + 1
-                ),
-            });
-        }
-        f.receipt = receipt;
-        f.verdict = verdict;
-        Ok(f)
+        p.finish()
     }
 
     /// Frequency of bin `k`, Hz.

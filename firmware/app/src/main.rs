@@ -70,6 +70,10 @@ const EXIT_PANIC: i32 = 101;
 
 const _: () = assert!(flashed::N_INPUTS >= 1 && flashed::N_OUTPUTS >= 1);
 const _: () = assert!(LINES >= 1 && LINES < N / 2);
+// The spectra frame's wire format (ferrosid-frame, shared with the host parser): the segment
+// length must be one the host accepts. The defmt format strings below must be literals; the
+// frame crate's test `firmware_emitter` checks them against the same definition.
+const _: () = assert!(ferrosid_frame::segment_length_ok(N));
 
 fn exit(code: i32) -> ! {
     semihosting::process::exit(code)

@@ -40,8 +40,9 @@ use crate::preprocess::{preprocess, Preprocessing};
 use crate::robust::audit::{audit_nonlinearity, AuditOptions, FrfRun, NonlinearityAudit};
 use crate::robust::pid::{implemented_loop, tune_pid, PidTuningSpec, TunedPid};
 use crate::robust::receipts::{
-    compute_receipts, loop_curves, phase_agreement, Comparison, CrossValidation, EtfeView,
-    LoopCurves, Receipt, ReceiptInputs, ReceiptLimits, Receipts, ReceiptsReport,
+    compute_receipts, cross_validation_receipt, etfe_phase_receipt, loop_curves,
+    missing_cross_validation_receipt, phase_agreement, Comparison, CrossValidation, EtfeView,
+    LoopCurves, Receipt, ReceiptInputs, ReceiptKind, ReceiptLimits, Receipts, ReceiptsReport,
 };
 use crate::robust::uncertainty::{
     fit_uncertainty_weight, multiplicative_envelope, UncertaintyWeight, WeightFitOptions,
@@ -563,7 +564,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     };
     let min_fc = k.min_crossover_scale * fc_target;
     receipts.push(Receipt::new(
-        "controller_design",
+        ReceiptKind::ControllerDesign,
         "achieved design crossover of the robust PID (highest crossover meeting M_s, ‖W_m T‖∞ \
          < 1 and the actuator limit)",
         tuned.as_ref().map_or(f64::NAN, |t| t.design.crossover_hz),
@@ -666,18 +667,9 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             // Without a controller the loop receipts cannot be issued (they are absent and the
             // failing `controller_design` receipt says why); the model receipts still are.
             let p = phase_agreement(&model, &view, limits.etfe_max_freq_factor * fc)?;
-            receipts.push(Receipt::new(
-                "etfe_phase_agreement",
-                "largest |phase(G0) − phase(ETFE)| at coherence-gated bins up to the stated \
-                 multiple of crossover",
-                if p.bins_used == 0 {
-                    f64::NAN
-                } else {
-                    p.max_abs_error_deg
-                },
-                Comparison::AtMost,
+            receipts.push(etfe_phase_receipt(
+                &p,
                 limits.etfe_phase_error_deg_max,
-                "deg",
                 format!(
                     "{} gated bins up to {} Hz (target crossover; no controller)",
                     p.bins_used,
@@ -685,29 +677,13 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
                 ),
             ));
             if let Some(cv) = &cross_validation {
-                receipts.push(Receipt::new(
-                    "cross_validation_fit",
-                    "model fit on fresh (validation) data",
-                    cv.fit_percent,
-                    Comparison::AtLeast,
-                    cv.limit_percent,
-                    "%",
-                    cv.detail.clone(),
-                ));
+                receipts.push(cross_validation_receipt(cv));
             }
             (None, None)
         }
     };
     if cross_validation.is_none() {
-        receipts.push(Receipt::new(
-            "cross_validation_fit",
-            "model fit on fresh (validation) data",
-            f64::NAN,
-            Comparison::AtLeast,
-            cv_min,
-            "%",
-            "no `[validation]` log given: the model was not checked on fresh data".into(),
-        ));
+        receipts.push(missing_cross_validation_receipt(cv_min));
     }
     progress("done");
     Ok(PipelineRun {
@@ -767,7 +743,7 @@ fn push_audit_receipts(
 ) {
     let Some(au) = audit else {
         rs.push(Receipt::new(
-            "nonlinearity_audit",
+            ReceiptKind::NonlinearityAudit,
             "dual-amplitude nonlinearity audit near crossover",
             f64::NAN,
             Comparison::AtLeast,
@@ -781,7 +757,7 @@ fn push_audit_receipts(
     };
     let g = &au.worst_gain_shift_db;
     rs.push(Receipt::new(
-        "audit_gain_shift",
+        ReceiptKind::AuditGainShift,
         "largest gain shift between excitation amplitudes within the audit band",
         g.value.abs(),
         Comparison::AtMost,
@@ -801,7 +777,7 @@ fn push_audit_receipts(
     ));
     let p = &au.worst_phase_shift_deg;
     rs.push(Receipt::new(
-        "audit_phase_shift",
+        ReceiptKind::AuditPhaseShift,
         "largest phase shift between excitation amplitudes within the audit band",
         p.value.abs(),
         Comparison::AtMost,
@@ -823,7 +799,7 @@ fn push_audit_receipts(
         }
     }
     rs.push(Receipt::new(
-        "audit_coherence",
+        ReceiptKind::AuditCoherence,
         "lowest coherence of any run near crossover",
         if worst.0.is_finite() {
             worst.0

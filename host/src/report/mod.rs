@@ -25,6 +25,7 @@ pub mod plot;
 use crate::error::Result;
 use crate::pipeline::document::{weight_high_gain, weight_low_gain};
 use crate::pipeline::{fmt_num, log_grid, PipelineRun};
+use crate::robust::receipts::ReceiptKind;
 use num_complex::Complex64;
 use plot::{colors, Band, Kind, LegendAt, Panel, RefLine, Series};
 use std::fmt::Write as _;
@@ -74,9 +75,9 @@ fn with_unit(v: f64, unit: &str) -> String {
     }
 }
 
-fn receipt_value(run: &PipelineRun, name: &str) -> String {
+fn receipt_value(run: &PipelineRun, kind: ReceiptKind) -> String {
     run.receipts
-        .get(name)
+        .of_kind(kind)
         .map_or("-".to_string(), |r| with_unit(r.value, &r.unit))
 }
 
@@ -440,7 +441,7 @@ fn fig_robustness(run: &PipelineRun) -> Result<Option<Figure>> {
         .fold(0.0, f64::max);
     p.y_range = Some(((hi * 1e-5).max(1e-9), hi * 2.0));
     p.legend = LegendAt::LowerLeft;
-    let value = receipt_value(run, "robust_stability");
+    let value = receipt_value(run, ReceiptKind::RobustStability);
     Ok(Some(Figure {
         name: "robustness",
         caption: format!(
@@ -540,7 +541,7 @@ fn fig_sensitivity(run: &PipelineRun) -> Result<Option<Figure>> {
         .fold(0.0, f64::min);
     p.y_range = Some((lo.max(-80.0) - 3.0, db(ms).max(0.0) + 4.0));
     p.legend = LegendAt::LowerRight;
-    let value = receipt_value(run, "sensitivity_peak");
+    let value = receipt_value(run, ReceiptKind::SensitivityPeak);
     Ok(Some(Figure {
         name: "sensitivity",
         caption: format!(
@@ -956,13 +957,16 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
     } else {
         facts.push("no controller: tuning infeasible".into());
     }
-    if rs.get("sensitivity_peak").is_some() {
-        facts.push(format!("M_s {}", receipt_value(run, "sensitivity_peak")));
+    if rs.of_kind(ReceiptKind::SensitivityPeak).is_some() {
+        facts.push(format!(
+            "M_s {}",
+            receipt_value(run, ReceiptKind::SensitivityPeak)
+        ));
     }
-    if rs.get("robust_stability").is_some() {
+    if rs.of_kind(ReceiptKind::RobustStability).is_some() {
         facts.push(format!(
             "‖W_m T‖∞ {}",
-            receipt_value(run, "robust_stability")
+            receipt_value(run, ReceiptKind::RobustStability)
         ));
     }
     if let Some(f) = &run.validation_fit {

@@ -73,10 +73,114 @@ impl Comparison {
     }
 }
 
+/// The kind of a receipt: the one list of receipt identifiers. [`Receipt::name`] carries
+/// [`ReceiptKind::name`] (the stable snake_case identifier in JSON, reports and headers).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ReceiptKind {
+    /// `closed_loop_stable`: closed-loop stability (pole abscissa or modulus).
+    ClosedLoopStable,
+    /// `gain_margin`: gain margin.
+    GainMargin,
+    /// `phase_margin`: phase margin.
+    PhaseMargin,
+    /// `sensitivity_peak`: M_s = ‖S‖∞.
+    SensitivityPeak,
+    /// `complementary_sensitivity_peak`: M_t = ‖T‖∞.
+    ComplementarySensitivityPeak,
+    /// `robust_stability`: ‖W_m T‖∞ < 1.
+    RobustStability,
+    /// `disturbance_rejection_bandwidth`: first frequency where |S| rises through −3 dB.
+    DisturbanceRejectionBandwidth,
+    /// `peak_control_effort`: ‖KS‖∞ times the reference amplitude.
+    PeakControlEffort,
+    /// `step_actuator_demand`: saturated step: demand over the actuator rail.
+    StepActuatorDemand,
+    /// `step_overshoot`: saturated step overshoot.
+    StepOvershoot,
+    /// `step_settling_time`: saturated step 2 % settling time.
+    StepSettlingTime,
+    /// `etfe_phase_agreement`: largest phase error of G0 against the gated ETFE.
+    EtfePhaseAgreement,
+    /// `cross_validation_fit`: model fit on fresh (validation) data.
+    CrossValidationFit,
+    /// `controller_design`: achieved design crossover of the robust PID.
+    ControllerDesign,
+    /// `nonlinearity_audit`: dual-amplitude audit not possible (fewer than two runs).
+    NonlinearityAudit,
+    /// `audit_gain_shift`: largest gain shift between excitation amplitudes.
+    AuditGainShift,
+    /// `audit_phase_shift`: largest phase shift between excitation amplitudes.
+    AuditPhaseShift,
+    /// `audit_coherence`: lowest coherence of any run near crossover.
+    AuditCoherence,
+}
+
+impl ReceiptKind {
+    /// Every kind, loop receipts first (the order of the module table), then the pipeline's
+    /// model receipts.
+    pub const ALL: [ReceiptKind; 18] = [
+        ReceiptKind::ClosedLoopStable,
+        ReceiptKind::GainMargin,
+        ReceiptKind::PhaseMargin,
+        ReceiptKind::SensitivityPeak,
+        ReceiptKind::ComplementarySensitivityPeak,
+        ReceiptKind::RobustStability,
+        ReceiptKind::DisturbanceRejectionBandwidth,
+        ReceiptKind::PeakControlEffort,
+        ReceiptKind::StepActuatorDemand,
+        ReceiptKind::StepOvershoot,
+        ReceiptKind::StepSettlingTime,
+        ReceiptKind::EtfePhaseAgreement,
+        ReceiptKind::CrossValidationFit,
+        ReceiptKind::ControllerDesign,
+        ReceiptKind::NonlinearityAudit,
+        ReceiptKind::AuditGainShift,
+        ReceiptKind::AuditPhaseShift,
+        ReceiptKind::AuditCoherence,
+    ];
+
+    /// The stable identifier (snake_case).
+    pub const fn name(self) -> &'static str {
+        match self {
+            ReceiptKind::ClosedLoopStable => "closed_loop_stable",
+            ReceiptKind::GainMargin => "gain_margin",
+            ReceiptKind::PhaseMargin => "phase_margin",
+            ReceiptKind::SensitivityPeak => "sensitivity_peak",
+            ReceiptKind::ComplementarySensitivityPeak => "complementary_sensitivity_peak",
+            ReceiptKind::RobustStability => "robust_stability",
+            ReceiptKind::DisturbanceRejectionBandwidth => "disturbance_rejection_bandwidth",
+            ReceiptKind::PeakControlEffort => "peak_control_effort",
+            ReceiptKind::StepActuatorDemand => "step_actuator_demand",
+            ReceiptKind::StepOvershoot => "step_overshoot",
+            ReceiptKind::StepSettlingTime => "step_settling_time",
+            ReceiptKind::EtfePhaseAgreement => "etfe_phase_agreement",
+            ReceiptKind::CrossValidationFit => "cross_validation_fit",
+            ReceiptKind::ControllerDesign => "controller_design",
+            ReceiptKind::NonlinearityAudit => "nonlinearity_audit",
+            ReceiptKind::AuditGainShift => "audit_gain_shift",
+            ReceiptKind::AuditPhaseShift => "audit_phase_shift",
+            ReceiptKind::AuditCoherence => "audit_coherence",
+        }
+    }
+
+    /// The kind whose [`Self::name`] is `name`, if any.
+    pub fn from_name(name: &str) -> Option<ReceiptKind> {
+        ReceiptKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+impl std::fmt::Display for ReceiptKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// One verified claim: `value` compared with `limit` by `comparison`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Receipt {
-    /// Stable identifier (snake_case, see the module table).
+    /// Stable identifier (snake_case, see the module table): [`ReceiptKind::name`] of
+    /// [`Self::kind`]. Kept as text so receipts files of other versions still load.
     pub name: String,
     /// What is measured, in words.
     pub description: String,
@@ -97,9 +201,15 @@ pub struct Receipt {
 }
 
 impl Receipt {
-    /// Builds a receipt and evaluates `pass`.
+    /// The kind of this receipt (`None` for a name this version does not know, e.g. from a
+    /// newer receipts file).
+    pub fn kind(&self) -> Option<ReceiptKind> {
+        ReceiptKind::from_name(&self.name)
+    }
+
+    /// Builds a receipt of kind `kind` and evaluates `pass`.
     pub fn new(
-        name: &str,
+        kind: ReceiptKind,
         description: &str,
         value: f64,
         comparison: Comparison,
@@ -117,7 +227,7 @@ impl Receipt {
             format!("-inf {unit}")
         };
         Self {
-            name: name.into(),
+            name: kind.name().into(),
             description: description.into(),
             value,
             value_text,
@@ -167,9 +277,13 @@ impl Receipts {
         self.all_pass &= r.pass;
         self.receipts.push(r);
     }
-    /// The receipt named `name`, if present.
+    /// The receipt named `name`, if present (prefer [`Self::of_kind`]).
     pub fn get(&self, name: &str) -> Option<&Receipt> {
         self.receipts.iter().find(|r| r.name == name)
+    }
+    /// The receipt of kind `kind`, if present.
+    pub fn of_kind(&self, kind: ReceiptKind) -> Option<&Receipt> {
+        self.get(kind.name())
     }
     /// The failing receipts.
     pub fn failed(&self) -> impl Iterator<Item = &Receipt> {
@@ -478,7 +592,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
     let abscissa = lp.stability_abscissa()?;
     let stable = lp.is_stable()?;
     rs.push(Receipt::new(
-        "closed_loop_stable",
+        ReceiptKind::ClosedLoopStable,
         if lp.is_discrete() {
             "largest closed-loop pole modulus (stable when < 1)"
         } else {
@@ -495,7 +609,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
     match &m {
         Some(m) => {
             rs.push(Receipt::new(
-                "gain_margin",
+                ReceiptKind::GainMargin,
                 "gain margin (smallest |GM| over phase crossovers)",
                 if m.gain_margin.is_finite() {
                     m.gain_margin_db.abs()
@@ -516,7 +630,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
                 },
             ));
             rs.push(Receipt::new(
-                "phase_margin",
+                ReceiptKind::PhaseMargin,
                 "phase margin (smallest over gain crossovers)",
                 m.phase_margin_deg,
                 Comparison::AtLeast,
@@ -535,9 +649,14 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         }
         None => {
             for (n, d, l, u) in [
-                ("gain_margin", "gain margin", lim.gain_margin_db_min, "dB"),
                 (
-                    "phase_margin",
+                    ReceiptKind::GainMargin,
+                    "gain margin",
+                    lim.gain_margin_db_min,
+                    "dB",
+                ),
+                (
+                    ReceiptKind::PhaseMargin,
                     "phase margin",
                     lim.phase_margin_deg_min,
                     "deg",
@@ -578,7 +697,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
     };
     let val = |h: &Option<HinfNorm>| h.map_or(f64::INFINITY, |h| h.gamma);
     rs.push(Receipt::new(
-        "sensitivity_peak",
+        ReceiptKind::SensitivityPeak,
         "M_s = ‖S‖∞, S = 1/(1 + GK)",
         val(&ms),
         Comparison::AtMost,
@@ -587,7 +706,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         peak_detail(&ms),
     ));
     rs.push(Receipt::new(
-        "complementary_sensitivity_peak",
+        ReceiptKind::ComplementarySensitivityPeak,
         "M_t = ‖T‖∞, T = GK/(1 + GK)",
         val(&mt),
         Comparison::AtMost,
@@ -624,7 +743,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
             _ => f64::INFINITY,
         };
         rs.push(Receipt::new(
-            "robust_stability",
+            ReceiptKind::RobustStability,
             "‖W_m T‖∞ (robust stability against the measured multiplicative uncertainty)",
             value,
             Comparison::LessThan,
@@ -654,7 +773,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         None
     };
     rs.push(Receipt::new(
-        "disturbance_rejection_bandwidth",
+        ReceiptKind::DisturbanceRejectionBandwidth,
         "first frequency where |S| rises through −3 dB",
         dbw.unwrap_or(0.0),
         Comparison::AtLeast,
@@ -666,7 +785,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         },
     ));
     rs.push(Receipt::new(
-        "peak_control_effort",
+        ReceiptKind::PeakControlEffort,
         "‖KS‖∞ × reference amplitude: largest actuator command amplitude for a sinusoidal \
          reference (or noise) of that amplitude",
         val(&ks) * inp.reference_amplitude,
@@ -711,7 +830,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
     match &step {
         Ok(s) => {
             rs.push(Receipt::new(
-                "step_actuator_demand",
+                ReceiptKind::StepActuatorDemand,
                 "largest controller demand / actuator limit during the saturated step (> 1: \
                  the command hits the rail)",
                 s.peak_demand_ratio,
@@ -727,7 +846,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
                 ),
             ));
             rs.push(Receipt::new(
-                "step_overshoot",
+                ReceiptKind::StepOvershoot,
                 "overshoot of the saturated closed-loop step",
                 s.overshoot_pct,
                 Comparison::AtMost,
@@ -736,7 +855,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
                 format!("rise time 10–90 %: {:?} s", s.rise_time_s),
             ));
             rs.push(Receipt::new(
-                "step_settling_time",
+                ReceiptKind::StepSettlingTime,
                 "2 % settling time of the saturated closed-loop step",
                 s.settling_time_s.unwrap_or(f64::INFINITY),
                 Comparison::AtMost,
@@ -752,19 +871,19 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         Err(e) => {
             for (n, d, l, u) in [
                 (
-                    "step_actuator_demand",
+                    ReceiptKind::StepActuatorDemand,
                     "saturated step: demand / rail",
                     1.0,
                     "1",
                 ),
                 (
-                    "step_overshoot",
+                    ReceiptKind::StepOvershoot,
                     "saturated step overshoot",
                     lim.overshoot_pct_max,
                     "%",
                 ),
                 (
-                    "step_settling_time",
+                    ReceiptKind::StepSettlingTime,
                     "saturated step settling time",
                     lim.settling_time_s_max,
                     "s",
@@ -785,18 +904,9 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
     let pa = match &inp.etfe {
         Some(e) => {
             let p = phase_agreement(inp.plant, e, lim.etfe_max_freq_factor * fc)?;
-            rs.push(Receipt::new(
-                "etfe_phase_agreement",
-                "largest |phase(G0) − phase(ETFE)| at coherence-gated bins up to the stated \
-                 multiple of crossover",
-                if p.bins_used == 0 {
-                    f64::NAN
-                } else {
-                    p.max_abs_error_deg
-                },
-                Comparison::AtMost,
+            rs.push(etfe_phase_receipt(
+                &p,
                 lim.etfe_phase_error_deg_max,
-                "deg",
                 if p.bins_used == 0 {
                     format!("no gated ETFE bin below {} Hz", fmt_sig(p.f_max_hz))
                 } else {
@@ -824,15 +934,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         None => None,
     };
     if let Some(cv) = &inp.cross_validation {
-        rs.push(Receipt::new(
-            "cross_validation_fit",
-            "model fit on fresh (validation) data",
-            cv.fit_percent,
-            Comparison::AtLeast,
-            cv.limit_percent,
-            "%",
-            cv.detail.clone(),
-        ));
+        rs.push(cross_validation_receipt(cv));
     }
     Ok(ReceiptsReport {
         receipts: rs,
@@ -849,6 +951,54 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         step: step.ok(),
         phase_agreement: pa,
     })
+}
+
+/// The `cross_validation_fit` receipt of a fit on fresh data.
+pub fn cross_validation_receipt(cv: &CrossValidation) -> Receipt {
+    Receipt::new(
+        ReceiptKind::CrossValidationFit,
+        CROSS_VALIDATION_DESCRIPTION,
+        cv.fit_percent,
+        Comparison::AtLeast,
+        cv.limit_percent,
+        "%",
+        cv.detail.clone(),
+    )
+}
+
+/// The failing `cross_validation_fit` receipt when no validation log was given
+/// (`limit_percent`: the fit the model would have had to reach, %).
+pub fn missing_cross_validation_receipt(limit_percent: f64) -> Receipt {
+    Receipt::new(
+        ReceiptKind::CrossValidationFit,
+        CROSS_VALIDATION_DESCRIPTION,
+        f64::NAN,
+        Comparison::AtLeast,
+        limit_percent,
+        "%",
+        "no `[validation]` log given: the model was not checked on fresh data".into(),
+    )
+}
+
+const CROSS_VALIDATION_DESCRIPTION: &str = "model fit on fresh (validation) data";
+
+/// The `etfe_phase_agreement` receipt of a phase comparison (undefined, hence failing, when no
+/// gated bin was compared); `limit_deg` the largest accepted |phase error|, degrees.
+pub fn etfe_phase_receipt(p: &PhaseAgreement, limit_deg: f64, detail: String) -> Receipt {
+    Receipt::new(
+        ReceiptKind::EtfePhaseAgreement,
+        "largest |phase(G0) − phase(ETFE)| at coherence-gated bins up to the stated multiple \
+         of crossover",
+        if p.bins_used == 0 {
+            f64::NAN
+        } else {
+            p.max_abs_error_deg
+        },
+        Comparison::AtMost,
+        limit_deg,
+        "deg",
+        detail,
+    )
 }
 
 /// Magnitudes of the loop transfers on a frequency list, for plots (|S|, |T|, |KS|, 1/|W_m|).
@@ -904,4 +1054,42 @@ pub fn loop_curves(
         }
     }
     Ok(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn receipt_kinds_have_one_name_each_matching_serde() {
+        let mut names: Vec<&str> = ReceiptKind::ALL.iter().map(|k| k.name()).collect();
+        for k in ReceiptKind::ALL {
+            assert_eq!(ReceiptKind::from_name(k.name()), Some(k));
+            let json = serde_json::to_string(&k).unwrap();
+            assert_eq!(json, format!("\"{}\"", k.name()));
+        }
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), ReceiptKind::ALL.len());
+        assert_eq!(ReceiptKind::from_name("no_such_receipt"), None);
+    }
+
+    #[test]
+    fn receipts_are_found_by_kind_and_keep_the_name_as_text() {
+        let mut rs = Receipts::default();
+        let cv = CrossValidation {
+            fit_percent: 91.0,
+            limit_percent: 80.0,
+            detail: String::new(),
+        };
+        rs.push(cross_validation_receipt(&cv));
+        rs.push(missing_cross_validation_receipt(80.0));
+        let r = rs.of_kind(ReceiptKind::CrossValidationFit).unwrap();
+        assert_eq!(r.name, "cross_validation_fit");
+        assert_eq!(r.kind(), Some(ReceiptKind::CrossValidationFit));
+        assert!(r.pass);
+        // The receipt without validation data is undefined, hence failing.
+        assert!(!rs.all_pass);
+        assert!(rs.of_kind(ReceiptKind::GainMargin).is_none());
+    }
 }

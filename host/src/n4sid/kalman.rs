@@ -1,0 +1,280 @@
+//! Step 8: noise model. Kalman gain from the oblique-projection states and the steady-state
+//! filter Riccati equation solved by doubling.
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+use super::linalg::{dot, lstsq};
+use super::order::OrderFit;
+use crate::error::{Error, Result};
+use crate::lti::eigenvalues;
+use faer::linalg::solvers::Solve;
+use faer::{Mat, MatRef, Side};
+
+/// Step 8 for the chosen fit (scaled units): the Kalman gain K and the innovation covariance,
+/// or `None` and the warning that says why there are none (no estimate possible, or A − KC
+/// not stable). `l` is the LQ factor, `w` = [u; y] the scaled channels (m inputs), `k` the
+/// block rows.
+pub(super) fn innovation_model(
+    l: &Mat<f64>,
+    fit: &OrderFit,
+    w: &[Vec<f64>],
+    k: usize,
+    m: usize,
+) -> Result<(Option<(Mat<f64>, Mat<f64>)>, Option<String>)> {
+    match kalman_gain(l, fit, w, k, m) {
+        Ok((kg, re)) => {
+            let pred = &fit.a - &kg * &fit.c;
+            let ok = eigenvalues(pred.as_ref())?.iter().all(|z| z.norm() < 1.0);
+            if ok {
+                Ok((Some((kg, re)), None))
+            } else {
+                Ok((
+                    None,
+                    Some(
+                        "Kalman gain dropped: A − KC is not stable (predictor would diverge)"
+                            .into(),
+                    ),
+                ))
+            }
+        }
+        Err(e) => Ok((None, Some(format!("Kalman gain not estimated: {e}")))),
+    }
+}
+
+/// Kalman gain from the oblique-projection states (see the module docs); scaled units.
+/// `fit` gives Γ, A, B, C, D; `w` = [u; y] (m inputs), `k` block rows.
+fn kalman_gain(
+    l: &Mat<f64>,
+    fit: &OrderFit,
+    w: &[Vec<f64>],
+    k: usize,
+    m: usize,
+) -> Result<(Mat<f64>, Mat<f64>)> {
+    let (gamma, a, b, c, d) = (&fit.gamma, &fit.a, &fit.b, &fit.c, &fit.d);
+    let p = w.len() - m;
+    let q = m + p;
+    let (uf, wp, yf) = (k * m, k * q, k * p);
+    let n = a.nrows();
+    let len = w[0].len();
+    let l22 = l.as_ref().submatrix(uf, uf, wp, wp);
+    let l32 = l.as_ref().submatrix(uf + wp, uf, yf, wp);
+    let dmax = (0..wp).map(|i| l22[(i, i)].abs()).fold(0.0, f64::max);
+    let dmin = (0..wp)
+        .map(|i| l22[(i, i)].abs())
+        .fold(f64::INFINITY, f64::min);
+    if !(dmin > 1e-8 * dmax) {
+        return Err(Error::Numerical(
+            "past data are rank deficient (noise-free data?)".into(),
+        ));
+    }
+    // X = L32 L22⁻¹  ⇔  L22ᵀ Xᵀ = L32ᵀ.
+    let mut xt = l32.transpose().to_owned();
+    faer::linalg::triangular_solve::solve_upper_triangular_in_place(
+        l22.transpose(),
+        xt.as_mut(),
+        faer::Par::Seq,
+    );
+    let proj = xt.transpose().to_owned(); // yf × wp
+                                          // Γ⁺ by least squares: F = Γ⁺·proj (n × wp).
+    let f = lstsq(gamma.as_ref(), proj.as_ref(), "Γ⁺")?;
+    // x̂(k + s) = F·w_p(s) for s in 0..count: F split per channel times that channel's
+    // Hankel view (k × count, element (j, s) = w[a][s + j]) — one GEMM per channel.
+    let count = len - k + 1;
+    let mut states = Mat::<f64>::zeros(n, count);
+    for (a_, wa) in w.iter().enumerate() {
+        let fa = Mat::from_fn(n, k, |i, j| {
+            let col = if a_ < m {
+                j * m + a_
+            } else {
+                k * m + j * p + (a_ - m)
+            };
+            f[(i, col)]
+        });
+        let hankel = MatRef::from_column_major_slice_with_stride(&wa[..count + k - 1], k, count, 1);
+        faer::linalg::matmul::matmul(
+            states.as_mut(),
+            faer::Accum::Add,
+            fa.as_ref(),
+            hankel,
+            1.0,
+            faer::Par::Seq,
+        );
+    }
+    // Residuals for t = k .. len−2 (x̂(t+1) needed): e = y − C x̂ − D u, ŵ = x̂⁺ − A x̂ − B u,
+    // accumulated into Σŵŵᵀ, Σŵeᵀ, Σeeᵀ without storing them.
+    let nres = count - 1;
+    let rm = |x: &Mat<f64>| -> Vec<f64> {
+        (0..x.nrows() * x.ncols())
+            .map(|k| x[(k / x.ncols(), k % x.ncols())])
+            .collect()
+    };
+    let (ar, br, cr, dr) = (rm(a), rm(b), rm(c), rm(d));
+    let mut qww = Mat::<f64>::zeros(n, n);
+    let mut sww = Mat::<f64>::zeros(n, p);
+    let mut see = Mat::<f64>::zeros(p, p);
+    let (mut qacc, mut sacc, mut racc) = (vec![0.0; n * n], vec![0.0; n * p], vec![0.0; p * p]);
+    let mut e = vec![0.0; p];
+    let mut wv = vec![0.0; n];
+    let mut ut = vec![0.0; m];
+    for s_ in 0..nres {
+        let t = k + s_;
+        let xs = states.col_as_slice(s_);
+        let xs1 = states.col_as_slice(s_ + 1);
+        for (j, v) in ut.iter_mut().enumerate() {
+            *v = w[j][t];
+        }
+        for i in 0..p {
+            e[i] =
+                w[m + i][t] - dot(&cr[i * n..(i + 1) * n], xs) - dot(&dr[i * m..(i + 1) * m], &ut);
+        }
+        for i in 0..n {
+            wv[i] = xs1[i] - dot(&ar[i * n..(i + 1) * n], xs) - dot(&br[i * m..(i + 1) * m], &ut);
+        }
+        for i in 0..n {
+            for j in 0..n {
+                qacc[i * n + j] += wv[i] * wv[j];
+            }
+            for j in 0..p {
+                sacc[i * p + j] += wv[i] * e[j];
+            }
+        }
+        for i in 0..p {
+            for j in 0..p {
+                racc[i * p + j] += e[i] * e[j];
+            }
+        }
+    }
+    for i in 0..n {
+        for j in 0..n {
+            qww[(i, j)] = qacc[i * n + j];
+        }
+        for j in 0..p {
+            sww[(i, j)] = sacc[i * p + j];
+        }
+    }
+    for i in 0..p {
+        for j in 0..p {
+            see[(i, j)] = racc[i * p + j];
+        }
+    }
+    let inv = 1.0 / nres as f64;
+    let q = Mat::from_fn(n, n, |i, j| qww[(i, j)] * inv);
+    let s = Mat::from_fn(n, p, |i, j| sww[(i, j)] * inv);
+    let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
+    let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
+    Ok((kf.gain, kf.innovation_cov))
+}
+
+/// Steady-state Kalman filter (innovation form) of x⁺ = Ax + w, y = Cx + v with
+/// E[wwᵀ] = Q (n×n), E[wvᵀ] = S (n×p), E[vvᵀ] = R (p×p, positive definite).
+#[derive(Debug, Clone)]
+pub struct KalmanFilter {
+    /// Stabilising solution P (n×n) of the filter Riccati equation
+    /// P = APAᵀ + Q − (APCᵀ + S)(CPCᵀ + R)⁻¹(APCᵀ + S)ᵀ.
+    pub p: Mat<f64>,
+    /// Gain K = (APCᵀ + S)(CPCᵀ + R)⁻¹ (n×p) of the predictor x⁺ = Ax + K(y − Cx).
+    pub gain: Mat<f64>,
+    /// Innovation covariance CPCᵀ + R (p×p).
+    pub innovation_cov: Mat<f64>,
+}
+
+/// Solves the filter DARE by the structure-preserving doubling algorithm (Chu, Fan & Lin
+/// 2005) after removing the cross term (Ā = A − SR⁻¹C, Q̄ = Q − SR⁻¹Sᵀ, with Q̄'s negative
+/// eigenvalues, which only estimation error produces, clipped to 0). Converges quadratically;
+/// errors if R is not positive definite, if the iteration does not converge in 100 steps, or
+/// if A − KC is not stable.
+pub fn kalman_filter_gain(
+    a: MatRef<'_, f64>,
+    c: MatRef<'_, f64>,
+    q: MatRef<'_, f64>,
+    s: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+) -> Result<KalmanFilter> {
+    let n = a.nrows();
+    let p = c.nrows();
+    let shapes_ok = a.ncols() == n
+        && c.ncols() == n
+        && q.nrows() == n
+        && q.ncols() == n
+        && s.nrows() == n
+        && s.ncols() == p
+        && r.nrows() == p
+        && r.ncols() == p;
+    if !shapes_ok {
+        return Err(Error::InvalidArgument(format!(
+            "kalman_filter_gain: shapes must be A {n}x{n}, C {p}x{n}, Q {n}x{n}, S {n}x{p},              R {p}x{p}"
+        )));
+    }
+    let sym =
+        |m: &Mat<f64>| Mat::from_fn(m.nrows(), m.ncols(), |i, j| 0.5 * (m[(i, j)] + m[(j, i)]));
+    let r = sym(&r.to_owned());
+    let r_llt = r.llt(Side::Lower).map_err(|_| {
+        Error::Numerical("measurement noise covariance R is not positive definite".into())
+    })?;
+    // R⁻¹C and R⁻¹Sᵀ.
+    let rinv_c = r_llt.solve(c);
+    let rinv_st = r_llt.solve(s.transpose());
+    let abar = a - s * &rinv_c;
+    let qbar = sym(&(q - s * &rinv_st));
+    // Clip Q̄ to the positive semidefinite cone.
+    let eig = qbar
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| Error::Numerical(format!("eigendecomposition of Q failed: {e:?}")))?;
+    let (uq, sq) = (eig.U(), eig.S().column_vector());
+    let qbar = Mat::from_fn(n, n, |i, j| {
+        (0..n)
+            .map(|k| uq[(i, k)] * sq[k].max(0.0) * uq[(j, k)])
+            .sum::<f64>()
+    });
+    // Dual control-form data: A_k = Āᵀ, G_k = CᵀR⁻¹C, H_k = Q̄; H_k → P.
+    let id = Mat::<f64>::identity(n, n);
+    let mut ak = abar.transpose().to_owned();
+    let mut gk = sym(&(c.transpose() * &rinv_c));
+    let mut hk = qbar;
+    let mut converged = false;
+    for _ in 0..100 {
+        let wmat = &id + &gk * &hk;
+        let lu = wmat.partial_piv_lu();
+        let w_a = lu.solve(&ak); // W⁻¹A_k
+        let w_g = lu.solve(&gk); // W⁻¹G_k
+        let a_next = &ak * &w_a;
+        let g_next = sym(&(&gk + &ak * &w_g * ak.transpose()));
+        let h_next = sym(&(&hk + ak.transpose() * &hk * &w_a));
+        let diff = crate::lti::norm1((&h_next - &hk).as_ref());
+        let scale = crate::lti::norm1(h_next.as_ref()).max(f64::MIN_POSITIVE);
+        let finite = (0..n).all(|i| (0..n).all(|j| h_next[(i, j)].is_finite()));
+        if !finite {
+            return Err(Error::Numerical(
+                "Riccati doubling iteration diverged".into(),
+            ));
+        }
+        ak = a_next;
+        gk = g_next;
+        hk = h_next;
+        if diff <= 1e-13 * scale {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return Err(Error::Numerical(
+            "Riccati doubling iteration did not converge (is (A, C) detectable?)".into(),
+        ));
+    }
+    let pmat = hk;
+    let re = sym(&(&(c * &pmat) * c.transpose() + &r));
+    let apct_s = &(a * &pmat) * c.transpose() + s;
+    // K = (APCᵀ + S) Re⁻¹  ⇔  Re Kᵀ = (APCᵀ + S)ᵀ.
+    let kt = crate::lti::solve_square(re.as_ref(), apct_s.transpose(), "innovation covariance")?;
+    let gain = kt.transpose().to_owned();
+    let closed = a - &gain * c;
+    if !eigenvalues(closed.as_ref())?.iter().all(|z| z.norm() < 1.0) {
+        return Err(Error::Numerical(
+            "Kalman predictor A − KC is not stable (no stabilising Riccati solution)".into(),
+        ));
+    }
+    Ok(KalmanFilter {
+        p: pmat,
+        gain,
+        innovation_cov: re,
+    })
+}

@@ -1,0 +1,181 @@
+//! Step 7: B, D and x0 by output-error least squares for a given (A, C), the significance
+//! test on D, and [`estimate_x0`] for a finished model.
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+use super::linalg::lstsq;
+use crate::error::{Error, Result};
+use crate::lti::StateSpace;
+use faer::{Mat, MatRef};
+
+/// Output-error regressors for (x0, B, D) given (A, C) over `len` samples, column-major in a
+/// flat buffer: (len·p) rows × (n + n·m + p·m) columns (x0 entries if `with_x0`, B entries
+/// column-major by input, D entries if `with_d`), rows ordered output-major (row = i·len + t).
+/// Returns (buffer, rows, cols); view it with `MatRef::from_column_major_slice`.
+pub(super) fn oe_regressors(
+    a: &Mat<f64>,
+    c: &Mat<f64>,
+    u: &[Vec<f64>],
+    len: usize,
+    with_x0: bool,
+    with_d: bool,
+) -> (Vec<f64>, usize, usize) {
+    let n = a.nrows();
+    let p = c.nrows();
+    let m = u.len();
+    let rows = len * p;
+    let ncols = if with_x0 { n } else { 0 } + n * m + if with_d { p * m } else { 0 };
+    let mut buf = vec![0.0; rows * ncols];
+    let ar: Vec<f64> = (0..n * n).map(|k| a[(k / n, k % n)]).collect();
+    let cr: Vec<f64> = (0..p * n).map(|k| c[(k / n, k % n)]).collect();
+    if rows == 0 || ncols == 0 {
+        return (buf, rows, ncols);
+    }
+    let mut cols = buf.chunks_mut(rows);
+    if with_x0 {
+        let mut block: Vec<&mut [f64]> = cols.by_ref().take(n).collect();
+        unit_direction_responses(&ar, &cr, n, p, None, len, &mut block);
+    }
+    for uj in u {
+        let mut block: Vec<&mut [f64]> = cols.by_ref().take(n).collect();
+        unit_direction_responses(&ar, &cr, n, p, Some(uj), len, &mut block);
+    }
+    if with_d {
+        for uj in u {
+            for i in 0..p {
+                if let Some(col) = cols.next() {
+                    col[i * len..(i + 1) * len].copy_from_slice(uj);
+                }
+            }
+        }
+    }
+    (buf, rows, ncols)
+}
+
+/// Output-error regressors of one input (or of the initial state) for every state direction:
+/// `cols[d][i·len + t]`, d in 0..n. `ar`, `cr` are row-major.
+///
+/// With `input = Some(u)`: the response of output i at time t to u entering state d,
+/// Σ_{τ<t} (C A^{t−1−τ})[i, d]·u(τ); with `None`: the free response (C Aᵗ)[i, d] from
+/// x(0) = e_d. Both are rows of R(t) = C·X(t) where X(t) is a polynomial in A, so X commutes
+/// with A and R obeys the p×n recursion R(t+1) = R(t)·A + u(t)·C (R(0) = 0), resp.
+/// R(t+1) = R(t)·A (R(0) = C): O(p·n²) per sample instead of simulating n systems.
+pub(super) fn unit_direction_responses(
+    ar: &[f64],
+    cr: &[f64],
+    n: usize,
+    p: usize,
+    input: Option<&[f64]>,
+    len: usize,
+    cols: &mut [&mut [f64]],
+) {
+    let mut r = if input.is_none() {
+        cr.to_vec()
+    } else {
+        vec![0.0; p * n]
+    };
+    let mut rn = vec![0.0; p * n];
+    for t in 0..len {
+        for i in 0..p {
+            for (d, col) in cols.iter_mut().enumerate() {
+                col[i * len + t] = r[i * n + d];
+            }
+        }
+        let ut = input.map_or(0.0, |s| s[t]);
+        for i in 0..p {
+            let ri = &r[i * n..(i + 1) * n];
+            let row = &mut rn[i * n..(i + 1) * n];
+            for (d, v) in row.iter_mut().enumerate() {
+                *v = ut * cr[i * n + d];
+            }
+            for (k, &rik) in ri.iter().enumerate() {
+                let ak = &ar[k * n..(k + 1) * n];
+                for (v, &akd) in row.iter_mut().zip(ak) {
+                    *v += rik * akd;
+                }
+            }
+        }
+        std::mem::swap(&mut r, &mut rn);
+    }
+}
+
+/// Estimates the initial state x0 (state coordinates of `model`) that makes the free-run
+/// simulation of the discrete `model` driven by `u` best match `y` in least squares.
+/// `u[j]`, `y[i]` are channels of equal length.
+pub fn estimate_x0<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
+    model: &StateSpace,
+    u: &[U],
+    y: &[Y],
+) -> Result<Vec<f64>> {
+    if !model.is_discrete() {
+        return Err(Error::InvalidArgument(
+            "estimate_x0 needs a discrete-time model".into(),
+        ));
+    }
+    let (n, p) = (model.n_states(), model.n_outputs());
+    if y.len() != p {
+        return Err(Error::InvalidArgument(format!(
+            "estimate_x0: model has {p} outputs, {} output channels given",
+            y.len()
+        )));
+    }
+    let y0 = model.simulate(u, None)?;
+    let len = y0[0].len();
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    for (i, yi) in y.iter().enumerate() {
+        let yi = yi.as_ref();
+        if yi.len() != len {
+            return Err(Error::InvalidArgument(format!(
+                "estimate_x0: output channel {i} has {} samples, inputs have {len}",
+                yi.len()
+            )));
+        }
+        if let Some(k) = yi.iter().position(|v| !v.is_finite()) {
+            return Err(Error::InvalidArgument(format!(
+                "estimate_x0: output channel {i} sample {k} is not finite"
+            )));
+        }
+    }
+    let (buf, rows, cols) = oe_regressors(&model.a, &model.c, &[], len, true, false);
+    let phi = MatRef::from_column_major_slice(&buf, rows, cols);
+    let rhs = Mat::from_fn(len * p, 1, |r, _| {
+        let (i, t) = (r / len, r % len);
+        y[i].as_ref()[t] - y0[i][t]
+    });
+    let x = lstsq(phi.as_ref(), rhs.as_ref(), "estimate_x0")?;
+    Ok((0..n).map(|i| x[(i, 0)]).collect())
+}
+
+/// Largest |θ_k|/SE(θ_k) over the last `n_d` parameters (the D entries) of the least-squares fit
+/// `phi · theta ≈ y` with residual `resid` = y − Φθ: SE² = σ²·[(ΦᵀΦ)⁻¹]_kk, σ² the residual
+/// variance (rows − cols degrees of freedom). `None` when there are no D entries or no residual
+/// degrees of freedom.
+pub(super) fn d_t_ratio(
+    phi: MatRef<'_, f64>,
+    resid: MatRef<'_, f64>,
+    theta: MatRef<'_, f64>,
+    n_d: usize,
+) -> Result<Option<f64>> {
+    let (rows, cols) = (phi.nrows(), phi.ncols());
+    if n_d == 0 || n_d > cols || rows <= cols {
+        return Ok(None);
+    }
+    let s2 = resid.col(0).iter().map(|r| r * r).sum::<f64>() / (rows - cols) as f64;
+    let gram = phi.transpose() * phi;
+    let inv = crate::lti::solve_square(
+        gram.as_ref(),
+        Mat::<f64>::identity(cols, cols).as_ref(),
+        "B/D least squares: normal matrix for the D significance test",
+    )?;
+    let mut worst = 0.0f64;
+    for k in cols - n_d..cols {
+        let se = (s2 * inv[(k, k)]).sqrt();
+        let t = theta[(k, 0)].abs() / se;
+        if !t.is_finite() {
+            return Ok(None);
+        }
+        worst = worst.max(t);
+    }
+    Ok(Some(worst))
+}
