@@ -147,6 +147,41 @@ pub fn output_deviation(op: Option<&OperatingPoint>, y: &[&[f64]]) -> Vec<Vec<f6
         .collect()
 }
 
+/// Raw logs brought to where a model with operating point `op` applies: inputs `u − u0`,
+/// outputs `y − y0` ([`output_deviation`]), then decimated by `decimate` (default: the factor
+/// `op` records) — what `ferrosid gap` and the pipeline's gap stage hand the diagnosis. Returns
+/// the decimation factor applied (1 for none).
+///
+/// # Errors
+/// As [`crate::preprocess::preprocess`] (a log too short to decimate).
+pub fn logs_at_model_point(
+    op: Option<&OperatingPoint>,
+    decimate: Option<usize>,
+    logs: &mut [crate::data::Log],
+) -> Result<usize> {
+    if let Some(op) = op {
+        for log in logs.iter_mut() {
+            let y: Vec<&[f64]> = log.outputs.iter().map(|c| c.data.as_slice()).collect();
+            let y_dev = output_deviation(Some(op), &y);
+            for (c, d) in log.outputs.iter_mut().zip(y_dev) {
+                c.data = d;
+            }
+            for (j, c) in log.inputs.iter_mut().enumerate() {
+                let u0 = op.input_offset(j);
+                c.data.iter_mut().for_each(|v| *v -= u0);
+            }
+        }
+    }
+    let factor = decimate.or_else(|| op.map(|o| o.decimation)).unwrap_or(1);
+    if factor > 1 {
+        let steps = [crate::preprocess::Step::Decimate { factor }];
+        for log in logs.iter_mut() {
+            *log = crate::preprocess::preprocess(log, &steps)?.0;
+        }
+    }
+    Ok(factor.max(1))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

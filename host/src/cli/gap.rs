@@ -11,8 +11,7 @@ use super::ExitCode;
 use crate::error::{Error, Result};
 use crate::gap::simfile::{discretise_for_logs, load_sim_with_operating_point};
 use crate::gap::{diagnose, EffectKind, GapOptions};
-use crate::operating_point::output_deviation;
-use crate::preprocess::{preprocess, Step};
+use crate::operating_point::logs_at_model_point;
 use std::path::PathBuf;
 
 /// Arguments of `ferrosid gap`.
@@ -180,17 +179,6 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     // A model written by `identify`/`run` maps deviations from the operating point it was
     // identified at: compare it with the logs' deviations (u − u0, y − y0), at the model's rate.
     if let Some(op) = &op {
-        for log in train.iter_mut().chain(std::iter::once(&mut validate)) {
-            let y: Vec<&[f64]> = log.outputs.iter().map(|c| c.data.as_slice()).collect();
-            let y_dev = output_deviation(Some(op), &y);
-            for (c, d) in log.outputs.iter_mut().zip(y_dev) {
-                c.data = d;
-            }
-            for (j, c) in log.inputs.iter_mut().enumerate() {
-                let u0 = op.input_offset(j);
-                c.data.iter_mut().for_each(|v| *v -= u0);
-            }
-        }
         eprintln!(
             "note: {} carries an operating point (u0 = {:?}, y0 = {:?}, {}); the logs are compared \
              as deviations from it",
@@ -200,17 +188,17 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             op.detrend
         );
     }
-    let decimate = args
-        .decimate
-        .or_else(|| op.as_ref().map(|o| o.decimation).filter(|&q| q > 1));
-    if let (Some(q), None) = (decimate, args.decimate) {
-        eprintln!("note: decimating the logs by {q} as the model file's preprocessing records");
-    }
-    if let Some(factor) = decimate {
-        let steps = [Step::Decimate { factor }];
-        for log in train.iter_mut().chain(std::iter::once(&mut validate)) {
-            *log = preprocess(log, &steps)?.0;
+    if let (None, Some(q)) = (args.decimate, op.as_ref().map(|o| o.decimation)) {
+        if q > 1 {
+            eprintln!("note: decimating the logs by {q} as the model file's preprocessing records");
         }
+    }
+    {
+        let mut all: Vec<crate::data::Log> = std::mem::take(&mut train);
+        all.push(validate);
+        logs_at_model_point(op.as_ref(), args.decimate, &mut all)?;
+        validate = all.pop().expect("validation log");
+        train = all;
     }
     let sim_d = discretise_for_logs(&sim, validate.ts, &args.sim)?;
     let spinner = output::spinner("diagnosing the sim-to-real gap");

@@ -478,6 +478,18 @@ pub struct PipelineConfig {
     /// Receipt limits.
     #[serde(default)]
     pub receipts: ReceiptSettings,
+    /// When to run the gap diagnosis of G0 (see [`super::gap_stage`]).
+    #[serde(default)]
+    pub gap: GapSettings,
+}
+
+/// `[gap]`: the pipeline's gap-diagnosis stage ([`super::gap_stage`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GapSettings {
+    /// `auto` (default: when the audit or a model receipt flags), `always` or `never`.
+    #[serde(default)]
+    pub run: super::gap_stage::GapRun,
 }
 
 /// Default minimum cross-validation fit, percent.

@@ -234,6 +234,10 @@ pub struct ReceiptsDocument {
     pub controller_error: Option<String>,
     /// Inputs and settings.
     pub provenance: Provenance,
+    /// The gap diagnosis stage: `{"status": "skipped", "reason"}`, `{"status": "diagnosed",
+    /// "triggered_by", "report"}` (the `ferrosid gap --json` report) or `{"status": "failed",
+    /// "triggered_by", "error"}`.
+    pub gap_diagnosis: super::gap_stage::GapStage,
 }
 
 impl ReceiptsDocument {
@@ -367,6 +371,7 @@ impl ReceiptsDocument {
                 etfe,
                 settings: run.config.clone(),
             },
+            gap_diagnosis: run.gap.clone(),
         }
     }
 

@@ -29,6 +29,7 @@
 pub mod config;
 pub mod document;
 pub mod fleet;
+pub mod gap_stage;
 
 use crate::data::Log;
 use crate::error::{Error, Result};
@@ -96,6 +97,9 @@ pub struct LogData {
     pub amplitude_is_rms: bool,
     /// The preprocessed log.
     pub log: Log,
+    /// The log as read, before preprocessing (the gap stage compares G0 with it through the
+    /// operating point, as `ferrosid gap` does with a model file).
+    pub raw: Log,
     /// What preprocessing did.
     pub preprocessing: Preprocessing,
     /// Welch H1 estimate with coherence.
@@ -207,6 +211,8 @@ pub struct PipelineRun {
     pub receipts_crossover_hz: f64,
     /// All receipts and the verdict.
     pub receipts: Receipts,
+    /// The gap diagnosis of G0 ([`gap_stage`]): run when the audit or a model receipt flags.
+    pub gap: gap_stage::GapStage,
 }
 
 impl PipelineRun {
@@ -408,7 +414,8 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     let steps = c.preprocess.steps();
     let welch = c.etfe.welch();
     let prep = |name: String, amp: Option<f64>, log: Log, written: String| -> Result<LogData> {
-        let (log, mut record) = preprocess(&log, &steps)?;
+        let raw = log;
+        let (log, mut record) = preprocess(&raw, &steps)?;
         // Record the path as written in the pipeline file, not as resolved from the current
         // directory, so receipts.json does not depend on where `ferrosid run` was started.
         record.source = written;
@@ -422,6 +429,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             amplitude,
             amplitude_is_rms: is_rms,
             log,
+            raw,
             preprocessing: record,
             etfe,
         })
@@ -685,6 +693,29 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     if cross_validation.is_none() {
         receipts.push(missing_cross_validation_receipt(cv_min));
     }
+    let flags = gap_stage::triggers(
+        audit
+            .as_ref()
+            .is_some_and(|a| a.verdict == crate::robust::audit::Verdict::NotLinear),
+        &receipts.receipts,
+    );
+    if c.gap.run == gap_stage::GapRun::Always || !flags.is_empty() {
+        progress("gap diagnosis");
+    }
+    let op = crate::operating_point::operating_point_of(
+        std::slice::from_ref(&runs[nominal].preprocessing),
+        runs[nominal].log.inputs.len(),
+        runs[nominal].log.outputs.len(),
+    )
+    .ok();
+    let gap = gap_stage::run_gap_stage(
+        c.gap.run,
+        flags,
+        &model,
+        op.as_ref(),
+        &runs,
+        validation.as_ref(),
+    );
     progress("done");
     Ok(PipelineRun {
         title,
@@ -709,6 +740,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         curves,
         receipts_crossover_hz: fc,
         receipts,
+        gap,
     })
 }
 

@@ -20,6 +20,7 @@
 //! and the corresponding report section says why. Section ids (stable, tested):
 //! `verdict`, `receipts`, `frequency-response`, `coherence`, `order`, `robustness`,
 //! `sensitivity`, `step`, `audit`, `validation`, `controller`, `provenance`.
+mod gap_section;
 pub mod plot;
 
 use crate::error::Result;
@@ -985,7 +986,8 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
         "<nav><a href=\"#receipts\">Receipts</a><a href=\"#frequency-response\">Frequency \
          response</a><a href=\"#coherence\">Coherence</a><a href=\"#order\">Order</a><a \
          href=\"#robustness\">Robustness</a><a href=\"#sensitivity\">Sensitivity</a><a \
-         href=\"#step\">Step</a><a href=\"#audit\">Audit</a><a href=\"#validation\">Validation</a>\
+         href=\"#step\">Step</a><a href=\"#audit\">Audit</a><a href=\"#gap\">Gap</a><a \
+         href=\"#validation\">Validation</a>\
          <a href=\"#controller\">Controller</a><a href=\"#provenance\">Provenance</a></nav>\n<main>\n",
     );
 
@@ -1246,6 +1248,8 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
         ),
     }
     h.push_str("</section>\n");
+
+    gap_section::render(&mut h, &run.gap);
 
     // Validation.
     h.push_str("<section id=\"validation\">\n<h2>Validation on fresh data</h2>\n");
