@@ -8,6 +8,7 @@
 //! Units: time in seconds, frequency in Hz unless a name says `_rad_s`. All numerics are f64.
 #![forbid(unsafe_code)]
 
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod data;
 pub mod error;

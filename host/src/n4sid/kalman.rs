@@ -9,6 +9,14 @@ use crate::lti::eigenvalues;
 use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef, Side};
 
+/// The innovation form's noise model (scaled units).
+pub(super) struct Innovation {
+    /// Kalman gain K, n×p.
+    pub(super) gain: Mat<f64>,
+    /// Innovation covariance, p×p.
+    pub(super) cov: Mat<f64>,
+}
+
 /// Step 8 for the chosen fit (scaled units): the Kalman gain K and the innovation covariance,
 /// or `None` and the warning that says why there are none (no estimate possible, or A − KC
 /// not stable). `l` is the LQ factor, `w` = [u; y] the scaled channels (m inputs), `k` the
@@ -19,13 +27,13 @@ pub(super) fn innovation_model(
     w: &[Vec<f64>],
     k: usize,
     m: usize,
-) -> Result<(Option<(Mat<f64>, Mat<f64>)>, Option<String>)> {
+) -> Result<(Option<Innovation>, Option<String>)> {
     match kalman_gain(l, fit, w, k, m) {
-        Ok((kg, re)) => {
-            let pred = &fit.a - &kg * &fit.c;
+        Ok((gain, cov)) => {
+            let pred = &fit.a - &gain * &fit.c;
             let ok = eigenvalues(pred.as_ref())?.iter().all(|z| z.norm() < 1.0);
             if ok {
-                Ok((Some((kg, re)), None))
+                Ok((Some(Innovation { gain, cov }), None))
             } else {
                 Ok((
                     None,

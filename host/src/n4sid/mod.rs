@@ -189,9 +189,9 @@ pub fn identify(data: &ChannelSet<'_>, opts: &N4sidOptions) -> Result<N4sidResul
     let d = Mat::from_fn(p, m, |i, j| fit.d[(i, j)] * (sy[i] / su[j]));
     let model = StateSpace::new(fit.a, b, c, d, data.ts)?;
     let (kalman_gain, innovation_cov) = match kalman {
-        Some((kg, re)) => (
-            Some(Mat::from_fn(n, p, |i, j| kg[(i, j)] / sy[j])),
-            Some(Mat::from_fn(p, p, |i, j| re[(i, j)] * sy[i] * sy[j])),
+        Some(inn) => (
+            Some(Mat::from_fn(n, p, |i, j| inn.gain[(i, j)] / sy[j])),
+            Some(Mat::from_fn(p, p, |i, j| inn.cov[(i, j)] * sy[i] * sy[j])),
         ),
         None => (None, None),
     };
