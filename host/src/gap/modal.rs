@@ -594,12 +594,13 @@ impl ModalModel {
             for (t, (&wk, &yk)) in w.iter().zip(y).enumerate() {
                 if t >= set.warmup && keep.is_none_or(|m| m.get(t).copied().unwrap_or(true)) {
                     self.regressors(&x, wk, &mut phi);
-                    for i in 0..k {
-                        let pi = phi[i];
-                        hl[i] += pi * yk;
-                        let row = &mut gl[i * k..i * k + k];
-                        for j in i..k {
-                            row[j] += pi * phi[j];
+                    // Upper triangle of φφᵀ, row by row (iterators: no bounds checks).
+                    for (i, ((row, h), &pi)) in
+                        gl.chunks_exact_mut(k).zip(hl.iter_mut()).zip(&phi).enumerate()
+                    {
+                        *h += pi * yk;
+                        for (g, &pj) in row[i..].iter_mut().zip(&phi[i..]) {
+                            *g += pi * pj;
                         }
                     }
                     yl += yk * yk;
