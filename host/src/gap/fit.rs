@@ -473,7 +473,6 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
             None => wd,
         });
     }
-    let set = td.base.with_input(w);
     let cost = match clip {
         Some(limit) => {
             let mask: Vec<Vec<bool>> = td
@@ -486,9 +485,11 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
                         .collect()
                 })
                 .collect();
-            model.linear.fit_linear_params_masked(&set, Some(&mask))?
+            model
+                .linear
+                .fit_linear_params_with_input(&td.base, &w, Some(&mask))?
         }
-        None => model.linear.fit_linear_params(&set)?,
+        None => model.linear.fit_linear_params_with_input(&td.base, &w, None)?,
     };
     if only_drive {
         return cost.is_finite().then_some(Fitted {
@@ -1118,7 +1119,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
             for u in &td.u {
                 w.push(model.drive_input(u).ok()?);
             }
-            model.linear.fit_linear_params(&td.base.with_input(w))?;
+            model.linear.fit_linear_params_with_input(&td.base, &w, None)?;
         }
         let mut r = Vec::new();
         for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
@@ -1140,7 +1141,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         for u in &td.u {
             w.push(model.drive_input(u).ok()?);
         }
-        model.linear.fit_linear_params(&td.base.with_input(w))?;
+        model.linear.fit_linear_params_with_input(&td.base, &w, None)?;
     }
     let train_cost = model.cost(&td.base, &td.u);
     train_cost
