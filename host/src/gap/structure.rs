@@ -504,6 +504,11 @@ impl TwoMassStructure {
 /// Sets the two-mass model's offset to its least-squares value on the training logs and
 /// returns the cost Σ NRMSE², or `None` when a simulation fails.
 fn fit_offset_cost(td: &TrainData, model: &mut AugmentedModel) -> Option<f64> {
+    fit_offset_sims(td, model).map(|(c, _)| c)
+}
+
+/// [`fit_offset_cost`] and the simulated outputs of the training logs at offset zero.
+fn fit_offset_sims(td: &TrainData, model: &mut AugmentedModel) -> Option<(f64, Vec<Vec<f64>>)> {
     let tm = model.two_mass.as_mut()?;
     tm.offset = 0.0;
     let mut sims = Vec::with_capacity(td.u.len());
@@ -529,7 +534,7 @@ fn fit_offset_cost(td: &TrainData, model: &mut AugmentedModel) -> Option<f64> {
                 .map(|(a, b)| (a - b - off).powi(2))
                 .sum::<f64>();
     }
-    c.is_finite().then_some(c)
+    c.is_finite().then_some((c, sims))
 }
 
 /// Evaluates a model on a two-mass plant with its offset re-fitted.
@@ -839,12 +844,22 @@ fn joint_fit_two_mass_opt(
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
+    let scored: usize = td.base.y.iter().map(|y| y.len().saturating_sub(td.base.warmup)).sum();
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
-        fit_offset_cost(td, &mut model)?;
-        let mut r = Vec::new();
-        for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
-            let yh = model.simulate(u).ok()?;
+        let (_, sims) = fit_offset_sims(td, &mut model)?;
+        let off = model.two_mass.as_ref().map_or(0.0, |tm| tm.offset);
+        // Without a sensor effect the output at the fitted offset is the offset-free one
+        // shifted (the plant adds the offset last); a sensor effect acts after the offset, so
+        // those models are simulated again.
+        let resim = model.effects().iter().any(|p| p.place == Place::Sensor);
+        let mut r = Vec::with_capacity(scored);
+        for (((u, y), &wt), y0) in td.u.iter().zip(&td.base.y).zip(&td.base.weight).zip(sims) {
+            let yh = if resim {
+                model.simulate(u).ok()?
+            } else {
+                y0.iter().map(|v| v + off).collect()
+            };
             let sw = wt.sqrt();
             r.extend(
                 y.iter()
