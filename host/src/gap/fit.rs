@@ -1112,6 +1112,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
+    let scored: usize = td.base.y.iter().map(|y| y.len().saturating_sub(td.base.warmup)).sum();
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
         if projectable {
@@ -1121,7 +1122,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
             }
             model.linear.fit_linear_params_with_input(&td.base, &w, None)?;
         }
-        let mut r = Vec::new();
+        let mut r = Vec::with_capacity(scored);
         for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
             let yh = model.simulate(u).ok()?;
             let sw = wt.sqrt();
