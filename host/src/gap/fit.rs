@@ -473,7 +473,6 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
             None => wd,
         });
     }
-    let set = td.base.with_input(w);
     let cost = match clip {
         Some(limit) => {
             let mask: Vec<Vec<bool>> = td
@@ -486,9 +485,11 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
                         .collect()
                 })
                 .collect();
-            model.linear.fit_linear_params_masked(&set, Some(&mask))?
+            model
+                .linear
+                .fit_linear_params_with_input(&td.base, &w, Some(&mask))?
         }
-        None => model.linear.fit_linear_params(&set)?,
+        None => model.linear.fit_linear_params_with_input(&td.base, &w, None)?,
     };
     if only_drive {
         return cost.is_finite().then_some(Fitted {
@@ -1111,6 +1112,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
+    let scored: usize = td.base.y.iter().map(|y| y.len().saturating_sub(td.base.warmup)).sum();
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
         if projectable {
@@ -1118,9 +1120,9 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
             for u in &td.u {
                 w.push(model.drive_input(u).ok()?);
             }
-            model.linear.fit_linear_params(&td.base.with_input(w))?;
+            model.linear.fit_linear_params_with_input(&td.base, &w, None)?;
         }
-        let mut r = Vec::new();
+        let mut r = Vec::with_capacity(scored);
         for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
             let yh = model.simulate(u).ok()?;
             let sw = wt.sqrt();
@@ -1140,7 +1142,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         for u in &td.u {
             w.push(model.drive_input(u).ok()?);
         }
-        model.linear.fit_linear_params(&td.base.with_input(w))?;
+        model.linear.fit_linear_params_with_input(&td.base, &w, None)?;
     }
     let train_cost = model.cost(&td.base, &td.u);
     train_cost
@@ -1181,9 +1183,10 @@ fn residual_peaks_hz(td: &TrainData, base: &AugmentedModel, k: usize) -> Vec<f64
         let w0 = td.base.warmup;
         let r: Vec<f64> = y.iter().zip(&yh).skip(w0).map(|(a, b)| a - b).collect();
         let yy: Vec<f64> = y[w0..].to_vec();
+        let hann = hann_window(r.len());
         for (i, &f) in freqs.iter().enumerate() {
-            let pr = dft_power(&r, f * td.ts);
-            let py = dft_power(&yy, f * td.ts);
+            let pr = dft_power(&r, &hann, f * td.ts);
+            let py = dft_power(&yy, &hann, f * td.ts);
             if py > 0.0 {
                 score[i] += pr / py;
             }
@@ -1203,9 +1206,19 @@ fn residual_peaks_hz(td: &TrainData, base: &AugmentedModel, k: usize) -> Vec<f64
     out
 }
 
+/// The Hann window of [`dft_power`] for a signal of `n` samples: its value at every
+/// `(n / 8192).max(1)`-th sample (the samples the DFT uses).
+fn hann_window(n: usize) -> Vec<f64> {
+    let step = (n / 8192).max(1);
+    (0..n / step)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * (i * step) as f64 / n as f64).cos())
+        .collect()
+}
+
 /// |Σ x_t e^{−j2πνt}|² with a Hann window over a band of ±2 % of ν (cycles per sample),
-/// averaged over 5 frequencies so a line between grid points is not missed.
-fn dft_power(x: &[f64], nu: f64) -> f64 {
+/// averaged over 5 frequencies so a line between grid points is not missed. `hann`: the
+/// window from [`hann_window`] for `x.len()` samples.
+fn dft_power(x: &[f64], hann: &[f64], nu: f64) -> f64 {
     let n = x.len();
     if n < 2 {
         return 0.0;
@@ -1218,15 +1231,16 @@ fn dft_power(x: &[f64], nu: f64) -> f64 {
         let w = 2.0 * std::f64::consts::PI * f;
         let (s, c) = w.sin_cos();
         let (mut cr, mut ci) = (1.0f64, 0.0f64);
-        for (t, &v) in x.iter().enumerate().take(step * (n / step)) {
-            if t % step == 0 {
-                let hann = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * t as f64 / n as f64).cos();
-                re += hann * v * cr;
-                im -= hann * v * ci;
+        // Every `step`-th sample enters the sum; the rotation advances at every sample.
+        for (chunk, &hw) in x[..step * (n / step)].chunks_exact(step).zip(hann) {
+            let v = chunk[0];
+            re += hw * v * cr;
+            im -= hw * v * ci;
+            for _ in 0..step {
+                let nr = cr * c - ci * s;
+                ci = cr * s + ci * c;
+                cr = nr;
             }
-            let nr = cr * c - ci * s;
-            ci = cr * s + ci * c;
-            cr = nr;
         }
         acc += re * re + im * im;
     }

@@ -500,12 +500,47 @@ impl ModalModel {
 
     /// Free-run output (from zero state) for input `w`, including feedthrough and offset.
     pub fn simulate(&self, w: &[f64]) -> Vec<f64> {
+        macro_rules! fixed {
+            ($($n:literal)*) => {
+                match self.n_states() {
+                    $($n => return self.simulate_fixed::<$n>(w),)*
+                    _ => {}
+                }
+            };
+        }
+        if self.residues.len() == self.n_states() {
+            fixed!(1 2 3 4 5 6 7 8 9 10 11 12 13 14);
+        }
         let st = self.stepper();
         let mut x = self.zero_state();
         let mut y = Vec::with_capacity(w.len());
         for &wk in w {
             y.push(self.state_output(&x) + self.d * wk + self.offset);
             st.step(&mut x, wk);
+        }
+        y
+    }
+
+    /// [`Self::simulate`] for exactly `N` states: the state on the stack, the same
+    /// arithmetic as [`Stepper::step`] and [`Self::state_output`] (so the same bits).
+    fn simulate_fixed<const N: usize>(&self, w: &[f64]) -> Vec<f64> {
+        let nr = self.real.len();
+        let c: [f64; N] = std::array::from_fn(|i| self.residues[i]);
+        let p: [f64; N] = std::array::from_fn(|i| if i < nr { self.real[i] } else { 0.0 });
+        let rot = self.stepper().rot;
+        let mut x = [0.0; N];
+        let mut y = Vec::with_capacity(w.len());
+        for &wk in w {
+            let so: f64 = x.iter().zip(&c).map(|(a, b)| a * b).sum();
+            y.push(so + self.d * wk + self.offset);
+            for (xi, pi) in x[..nr].iter_mut().zip(&p[..nr]) {
+                *xi = pi * *xi + wk;
+            }
+            for (xp, &(rc, rs)) in x[nr..].chunks_exact_mut(2).zip(&rot) {
+                let (x1, x2) = (xp[0], xp[1]);
+                xp[0] = rc * x1 - rs * x2 + wk;
+                xp[1] = rs * x1 + rc * x2;
+            }
         }
         y
     }
@@ -552,6 +587,86 @@ impl ModalModel {
         phi[k] = 1.0;
     }
 
+    /// One log's unweighted normal equations of the variable-projection step: the upper
+    /// triangle of Σ φφᵀ (row-major, k×k), Σ φ·y and Σ y² over the scored samples (`keep`: a
+    /// flag per sample, missing flags count as kept). Fixed-size kernels for up to 16
+    /// regressors (the sums in the same order as the generic loop, so the same bits).
+    fn normal_equations_of_log(
+        &self,
+        st: &Stepper<'_>,
+        w: &[f64],
+        y: &[f64],
+        warmup: usize,
+        keep: Option<&[bool]>,
+    ) -> (Vec<f64>, Vec<f64>, f64) {
+        macro_rules! fixed {
+            ($($k:literal)*) => {
+                match self.n_regressors() {
+                    $($k => {
+                        let (g, h, yl) = self.normal_equations_fixed::<$k>(st, w, y, warmup, keep);
+                        return (g.iter().flatten().copied().collect(), h.to_vec(), yl);
+                    })*
+                    _ => {}
+                }
+            };
+        }
+        fixed!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16);
+        let k = self.n_regressors();
+        let mut x = self.zero_state();
+        let mut phi = vec![0.0; k];
+        let mut gl = vec![0.0; k * k];
+        let mut hl = vec![0.0; k];
+        let mut yl = 0.0;
+        for (t, (&wk, &yk)) in w.iter().zip(y).enumerate() {
+            if t >= warmup && keep.is_none_or(|m| m.get(t).copied().unwrap_or(true)) {
+                self.regressors(&x, wk, &mut phi);
+                for i in 0..k {
+                    let pi = phi[i];
+                    hl[i] += pi * yk;
+                    let row = &mut gl[i * k..i * k + k];
+                    for j in i..k {
+                        row[j] += pi * phi[j];
+                    }
+                }
+                yl += yk * yk;
+            }
+            st.step(&mut x, wk);
+        }
+        (gl, hl, yl)
+    }
+
+    /// [`Self::normal_equations_of_log`] for exactly `K` regressors.
+    #[allow(clippy::needless_range_loop)]
+    fn normal_equations_fixed<const K: usize>(
+        &self,
+        st: &Stepper<'_>,
+        w: &[f64],
+        y: &[f64],
+        warmup: usize,
+        keep: Option<&[bool]>,
+    ) -> ([[f64; K]; K], [f64; K], f64) {
+        let mut x = self.zero_state();
+        let mut phi = [0.0; K];
+        let mut gl = [[0.0; K]; K];
+        let mut hl = [0.0; K];
+        let mut yl = 0.0;
+        for (t, (&wk, &yk)) in w.iter().zip(y).enumerate() {
+            if t >= warmup && keep.is_none_or(|m| m.get(t).copied().unwrap_or(true)) {
+                self.regressors(&x, wk, &mut phi);
+                for i in 0..K {
+                    let pi = phi[i];
+                    hl[i] += pi * yk;
+                    for j in i..K {
+                        gl[i][j] += pi * phi[j];
+                    }
+                }
+                yl += yk * yk;
+            }
+            st.step(&mut x, wk);
+        }
+        (gl, hl, yl)
+    }
+
     fn set_linear_params(&mut self, c: &[f64]) {
         let n = self.n_states();
         self.residues.copy_from_slice(&c[..n]);
@@ -579,33 +694,25 @@ impl ModalModel {
         set: &FitSet,
         mask: Option<&[Vec<bool>]>,
     ) -> Option<f64> {
+        self.fit_linear_params_with_input(set, &set.w, mask)
+    }
+
+    /// [`Self::fit_linear_params_masked`] with the inputs `w` (one per log) in place of
+    /// `set.w`: the same result as on `set.with_input(w)`, without copying the outputs.
+    pub fn fit_linear_params_with_input(
+        &mut self,
+        set: &FitSet,
+        w: &[Vec<f64>],
+        mask: Option<&[Vec<bool>]>,
+    ) -> Option<f64> {
         let k = self.n_regressors();
         let mut g = Mat::<f64>::zeros(k, k);
         let mut h = Mat::<f64>::zeros(k, 1);
         let mut yy = 0.0;
-        let mut phi = vec![0.0; k];
         let st = self.stepper();
-        for (l, ((w, y), &wt)) in set.w.iter().zip(&set.y).zip(&set.weight).enumerate() {
-            let mut x = self.zero_state();
-            let mut gl = vec![0.0; k * k];
-            let mut hl = vec![0.0; k];
-            let mut yl = 0.0;
-            let keep = mask.and_then(|m| m.get(l));
-            for (t, (&wk, &yk)) in w.iter().zip(y).enumerate() {
-                if t >= set.warmup && keep.is_none_or(|m| m.get(t).copied().unwrap_or(true)) {
-                    self.regressors(&x, wk, &mut phi);
-                    for i in 0..k {
-                        let pi = phi[i];
-                        hl[i] += pi * yk;
-                        let row = &mut gl[i * k..i * k + k];
-                        for j in i..k {
-                            row[j] += pi * phi[j];
-                        }
-                    }
-                    yl += yk * yk;
-                }
-                st.step(&mut x, wk);
-            }
+        for (l, ((w, y), &wt)) in w.iter().zip(&set.y).zip(&set.weight).enumerate() {
+            let keep = mask.and_then(|m| m.get(l)).map(Vec::as_slice);
+            let (gl, hl, yl) = self.normal_equations_of_log(&st, w, y, set.warmup, keep);
             for i in 0..k {
                 for j in i..k {
                     g[(i, j)] += wt * gl[i * k + j];
@@ -635,7 +742,8 @@ impl ModalModel {
     /// Levenberg–Marquardt).
     pub fn projected_residuals(&mut self, set: &FitSet) -> Option<Vec<f64>> {
         self.fit_linear_params(set)?;
-        let mut r = Vec::new();
+        let scored: usize = set.y.iter().map(|y| y.len().saturating_sub(set.warmup)).sum();
+        let mut r = Vec::with_capacity(scored);
         for ((w, y), &wt) in set.w.iter().zip(&set.y).zip(&set.weight) {
             let sw = wt.sqrt();
             let yh = self.simulate(w);

@@ -185,9 +185,7 @@ impl TwoMassModel {
 
     /// [`Self::simulate`] and the RMS of the shaft twist.
     pub fn simulate_states(&self, w: &[f64], effects: &[PlacedEffect]) -> Result<(Vec<f64>, f64)> {
-        let m = TWO_MASS_SUBSTEPS;
-        let d = self.discretise(m)?;
-        let n = d.n;
+        let d = self.discretise(TWO_MASS_SUBSTEPS)?;
         let mut half = 0.0;
         let mut fric: Option<(StickSlip, usize, usize)> = None;
         for p in effects {
@@ -206,9 +204,38 @@ impl TwoMassModel {
                 _ => {}
             }
         }
-        let out_i = if n == 4 { 3 } else { 1 };
-        let mut x = vec![0.0; n];
-        let mut xn = vec![0.0; n];
+        // The state count is 3 or 4: fixed-size arrays let the compiler unroll the sub-step.
+        let (y, tw) = match d.n {
+            3 => self.run_substeps::<3>(&d, w, half, fric),
+            _ => self.run_substeps::<4>(&d, w, half, fric),
+        };
+        if y.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Numerical(
+                "two-mass simulation produced a non-finite output".into(),
+            ));
+        }
+        Ok((y, (tw / w.len().max(1) as f64).sqrt()))
+    }
+
+    /// The sub-step loop of [`Self::simulate_states`] for `N` states: the output and the sum of
+    /// squared twists. `half`: half the drivetrain gap; `fric`: friction law, the index of the
+    /// speed it opposes and its input column.
+    fn run_substeps<const N: usize>(
+        &self,
+        d: &Discrete,
+        w: &[f64],
+        half: f64,
+        mut fric: Option<(StickSlip, usize, usize)>,
+    ) -> (Vec<f64>, f64) {
+        let m = TWO_MASS_SUBSTEPS;
+        let mat = |mode: usize| -> [[f64; N]; N] {
+            std::array::from_fn(|i| std::array::from_fn(|j| d.a[mode][i * N + j]))
+        };
+        let col = |mode: usize| -> [[f64; 4]; N] { std::array::from_fn(|i| d.b[mode][i]) };
+        let a: [[[f64; N]; N]; 3] = [mat(0), mat(1), mat(2)];
+        let b: [[[f64; 4]; N]; 3] = [col(0), col(1), col(2)];
+        let out_i = if N == 4 { 3 } else { 1 };
+        let mut x = [0.0; N];
         let mut y = Vec::with_capacity(w.len());
         let mut tw = 0.0;
         let kh = self.k * half;
@@ -228,25 +255,22 @@ impl TwoMassModel {
                 _ => 0.0,
             }
         };
-        let step = |mode: usize, x: &[f64], xn: &mut [f64], wk: f64| {
-            let a = &d.a[mode];
-            let b = &d.b[mode];
+        let step = |mode: usize, x: &[f64; N], wk: f64| -> [f64; N] {
+            let (a, b) = (&a[mode], &b[mode]);
             let bias = bias_of(mode);
-            for i in 0..n {
-                let row = &a[i * n..(i + 1) * n];
-                xn[i] = row.iter().zip(x).map(|(p, q)| p * q).sum::<f64>()
+            std::array::from_fn(|i| {
+                a[i].iter().zip(x).map(|(p, q)| p * q).sum::<f64>()
                     + b[i][0] * wk
-                    + b[i][3] * bias;
-            }
+                    + b[i][3] * bias
+            })
         };
-        let mut xa = vec![0.0; n];
         for &wk in w {
             y.push(x[out_i] + self.offset);
             tw += x[0] * x[0];
             for _ in 0..m {
                 let th0 = x[0];
                 let m0 = mode_of(th0);
-                step(m0, &x, &mut xn, wk);
+                let mut xn = step(m0, &x, wk);
                 let m1 = mode_of(xn[0]);
                 if m1 != m0 {
                     // The twist crossed a contact boundary inside the sub-step: blend the
@@ -271,28 +295,23 @@ impl TwoMassModel {
                     } else {
                         1.0
                     };
-                    step(m1, &x, &mut xa, wk);
-                    for i in 0..n {
+                    let xa = step(m1, &x, wk);
+                    for i in 0..N {
                         xn[i] = alpha * xn[i] + (1.0 - alpha) * xa[i];
                     }
                 }
                 if let Some((fr, vi, col)) = fric.as_mut() {
-                    let b = &d.b[mode_of(xn[0])];
+                    let b = &b[mode_of(xn[0])];
                     let g = b[*vi][*col];
                     let f = fr.force(xn[*vi], -g);
-                    for i in 0..n {
+                    for i in 0..N {
                         xn[i] += b[i][*col] * f;
                     }
                 }
-                std::mem::swap(&mut x, &mut xn);
+                x = xn;
             }
         }
-        if y.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical(
-                "two-mass simulation produced a non-finite output".into(),
-            ));
-        }
-        Ok((y, (tw / w.len().max(1) as f64).sqrt()))
+        (y, tw)
     }
 
     /// Inverts the two-mass transfer function (module docs) of a continuous SISO model with
@@ -485,6 +504,11 @@ impl TwoMassStructure {
 /// Sets the two-mass model's offset to its least-squares value on the training logs and
 /// returns the cost Σ NRMSE², or `None` when a simulation fails.
 fn fit_offset_cost(td: &TrainData, model: &mut AugmentedModel) -> Option<f64> {
+    fit_offset_sims(td, model).map(|(c, _)| c)
+}
+
+/// [`fit_offset_cost`] and the simulated outputs of the training logs at offset zero.
+fn fit_offset_sims(td: &TrainData, model: &mut AugmentedModel) -> Option<(f64, Vec<Vec<f64>>)> {
     let tm = model.two_mass.as_mut()?;
     tm.offset = 0.0;
     let mut sims = Vec::with_capacity(td.u.len());
@@ -510,7 +534,7 @@ fn fit_offset_cost(td: &TrainData, model: &mut AugmentedModel) -> Option<f64> {
                 .map(|(a, b)| (a - b - off).powi(2))
                 .sum::<f64>();
     }
-    c.is_finite().then_some(c)
+    c.is_finite().then_some((c, sims))
 }
 
 /// Evaluates a model on a two-mass plant with its offset re-fitted.
@@ -820,12 +844,22 @@ fn joint_fit_two_mass_opt(
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
+    let scored: usize = td.base.y.iter().map(|y| y.len().saturating_sub(td.base.warmup)).sum();
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
-        fit_offset_cost(td, &mut model)?;
-        let mut r = Vec::new();
-        for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
-            let yh = model.simulate(u).ok()?;
+        let (_, sims) = fit_offset_sims(td, &mut model)?;
+        let off = model.two_mass.as_ref().map_or(0.0, |tm| tm.offset);
+        // Without a sensor effect the output at the fitted offset is the offset-free one
+        // shifted (the plant adds the offset last); a sensor effect acts after the offset, so
+        // those models are simulated again.
+        let resim = model.effects().iter().any(|p| p.place == Place::Sensor);
+        let mut r = Vec::with_capacity(scored);
+        for (((u, y), &wt), y0) in td.u.iter().zip(&td.base.y).zip(&td.base.weight).zip(sims) {
+            let yh = if resim {
+                model.simulate(u).ok()?
+            } else {
+                y0.iter().map(|v| v + off).collect()
+            };
             let sw = wt.sqrt();
             r.extend(
                 y.iter()
