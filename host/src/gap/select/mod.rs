@@ -10,8 +10,11 @@
 //!    ((gap_linear − gap)/gap_linear); stiction and Coulomb friction (nested) are told apart by
 //!    the dwell evidence and the nested margin;
 //! 3. each of the next best singles is fitted again on top of the selected one (a model with
-//!    two effects, in place order); the best pair is kept if it improves the validation NRMSE of
-//!    the single by `pair_margin` (relative);
+//!    two effects, in place order), and Coulomb friction at the motor always (its single fit is
+//!    masked by a stronger first effect); the best pair is kept if it improves the validation
+//!    NRMSE of the single by `pair_margin` (relative), a pair with Coulomb friction at the motor
+//!    weighed against its stiction variant as the singles are; no pair is sought once the
+//!    single is within [`PAIR_FLOOR_FACTOR`] of the noise floor;
 //! 4. a lattice in the measured outputs ([`lattice_evidence`]) decides quantization by itself:
 //!    a sensor whose readings sit on a lattice quantizes, whatever the margin says.
 //!
@@ -41,6 +44,7 @@ mod conditioning;
 
 pub use dwell::{dwell_evidence, DwellEvidence, MIN_DWELLS, MIN_DWELL_SAMPLES};
 pub use lattice::{lattice_evidence, LatticeEvidence, LATTICE_TOL_STEPS, MIN_LATTICE_SHARE};
+pub use nested::NESTED_FLOOR_FACTOR;
 use nested::resolve_nested;
 
 /// Settings of [`select_effects`].
@@ -339,6 +343,7 @@ pub fn select_effects(
         td,
         dwell.as_ref(),
         opts.nested_margin,
+        opts.noise_floor,
         &mut notes,
     );
     // 2. Best single.
@@ -391,11 +396,11 @@ pub fn select_effects(
             .take(opts.pair_partners)
             .collect();
         let mut partners = partners;
-        if dwell.is_some()
-            && !k1.is_some_and(|k| k.is_friction())
-            && !partners.iter().any(|c| c.kind.is_friction())
+        if !k1.is_some_and(|k| k.is_friction()) && !partners.iter().any(|c| c.kind.is_friction())
         {
-            // Dwells at zero velocity: friction is a partner whatever its single score.
+            // Friction is a partner whatever its single score: alone it is fitted against the
+            // gap of the stronger effect too (a saturated drive, a delay), which can pull its
+            // level to zero, so its single score says nothing about it as a second effect.
             partners.push(Candidate::new(EffectKind::CoulombFriction, Place::Motor));
         }
         // Polish the single first, so a pair is credited only with what its second effect
@@ -437,10 +442,21 @@ pub fn select_effects(
             }
         }
         pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
-        if let Some(p) = pairs.first() {
+        if let Some(p) = pairs.first().cloned() {
             let rel = (first.gap - p.gap) / first.gap;
             if rel >= opts.pair_margin {
-                selected_models.push(p.clone());
+                let p = pair_stiction_variant(
+                    p,
+                    td,
+                    &base,
+                    sim_poles,
+                    &hints,
+                    (val_u, val_y, warmup, gap_linear),
+                    dwell.as_ref(),
+                    opts,
+                    &mut notes,
+                );
+                selected_models.push(p);
             } else {
                 notes.push(format!(
                     "best pair improves on the single by {rel:.3} < pair margin {}",
@@ -491,6 +507,64 @@ pub fn select_effects(
         dwell,
         notes,
     })
+}
+
+/// A selected pair with Coulomb friction at the motor against its stiction variant (started
+/// from it, the other effect kept; see [`resolve_nested`] for the decision): the better-ranked
+/// of the two.
+#[allow(clippy::too_many_arguments)]
+fn pair_stiction_variant(
+    pair: Scored,
+    td: &TrainData,
+    base: &AugmentedModel,
+    sim_poles: &[Complex64],
+    hints: &FitHints,
+    (val_u, val_y, warmup, gap_linear): (&[f64], &[f64], usize, f64),
+    dwell: Option<&DwellEvidence>,
+    opts: &SelectOptions,
+    notes: &mut Vec<String>,
+) -> Scored {
+    let has_coulomb = pair
+        .effects
+        .iter()
+        .any(|p| p.effect.kind() == EffectKind::CoulombFriction && p.place == Place::Motor);
+    if !has_coulomb {
+        return pair;
+    }
+    let c = Fitted {
+        model: pair.model.clone(),
+        train_cost: pair.train_cost,
+    };
+    let cand = Candidate::new(EffectKind::Stiction, Place::Motor);
+    let Some(f) = fit_placed(
+        cand,
+        td,
+        std::slice::from_ref(base),
+        Some(&c),
+        sim_poles,
+        hints,
+    ) else {
+        return pair;
+    };
+    let s = score(f, val_u, val_y, warmup, gap_linear);
+    if !s
+        .effects
+        .iter()
+        .any(|p| p.effect.kind() == EffectKind::Stiction)
+    {
+        return pair;
+    }
+    let mut two = vec![pair, s];
+    two.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+    resolve_nested(
+        &mut two,
+        td,
+        dwell,
+        opts.nested_margin,
+        opts.noise_floor,
+        notes,
+    );
+    two.swap_remove(0)
 }
 
 /// The selected effects with their forward-selection shares: each step's model adds one effect
