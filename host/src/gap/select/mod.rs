@@ -44,8 +44,8 @@ mod conditioning;
 
 pub use dwell::{dwell_evidence, DwellEvidence, MIN_DWELLS, MIN_DWELL_SAMPLES};
 pub use lattice::{lattice_evidence, LatticeEvidence, LATTICE_TOL_STEPS, MIN_LATTICE_SHARE};
-pub use nested::NESTED_FLOOR_FACTOR;
 use nested::resolve_nested;
+pub use nested::NESTED_FLOOR_FACTOR;
 
 /// Settings of [`select_effects`].
 #[derive(Debug, Clone, PartialEq)]
@@ -396,8 +396,7 @@ pub fn select_effects(
             .take(opts.pair_partners)
             .collect();
         let mut partners = partners;
-        if !k1.is_some_and(|k| k.is_friction()) && !partners.iter().any(|c| c.kind.is_friction())
-        {
+        if !k1.is_some_and(|k| k.is_friction()) && !partners.iter().any(|c| c.kind.is_friction()) {
             // Friction is a partner whatever its single score: alone it is fitted against the
             // gap of the stronger effect too (a saturated drive, a delay), which can pull its
             // level to zero, so its single score says nothing about it as a second effect.
