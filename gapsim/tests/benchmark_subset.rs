@@ -8,10 +8,11 @@
 //! are measured with exactly this subset and length, not with the full benchmark).
 //!
 //! The assertions hold the figures as measured on the diagnosis of the day (they can fail: a
-//! change that loses verdicts drops below them). The issue's targets are NOT yet met and are
-//! not asserted here: ≥ 95 % right verdicts overall, ≥ 90 % on the cross-family split, place
-//! right in ≥ 90 % of right verdicts, zero `none` verdicts above twice the noise floor, zero
-//! linear re-fits worse than the nominal. Raise the thresholds as the diagnosis improves.
+//! change that loses verdicts drops below them), and the issue's targets this subset meets:
+//! zero `none` verdicts above twice the noise floor, zero linear re-fits worse than the nominal,
+//! place right in ≥ 90 % of right verdicts, median parameter error ≤ 10 %. NOT yet met and not
+//! asserted: ≥ 95 % right verdicts overall, ≥ 90 % on the cross-family split, worst parameter
+//! error ≤ 25 %. Raise the thresholds as the diagnosis improves.
 use ferrosid::gap::GapOptions;
 use ferrosid_gapsim::bench::{all_cases, run_all, AnyCase};
 use ferrosid_gapsim::score::{aggregate, markdown, Family};
@@ -81,25 +82,37 @@ fn benchmark_subset_holds_the_measured_aggregates() {
         "cross-family: {} right",
         cross.right
     );
-    assert!(
-        all.none_above_floor <= NONE_ABOVE_FLOOR + 1,
+    // Honesty invariants of the issue: exactly zero.
+    assert_eq!(
+        all.none_above_floor, 0,
         "{} none verdicts above 2x floor",
         all.none_above_floor
     );
-    assert!(
-        all.linear_worse <= LINEAR_WORSE + 1,
+    assert_eq!(
+        all.linear_worse, 0,
         "{} linear re-fits worse than nominal",
         all.linear_worse
     );
+    // Issue targets met on this subset: place right in >= 90 % of right verdicts, median
+    // parameter error <= 10 %.
+    assert!(
+        10 * all.place_right >= 9 * all.placed,
+        "place right in {}/{} right verdicts",
+        all.place_right,
+        all.placed
+    );
+    assert!(
+        all.param_median <= 0.10,
+        "median parameter error {:.3}",
+        all.param_median
+    );
 }
 
-// Measured on the diagnosis of main at 5e6f936 (issue 9 not yet done), 46 cases:
-// same 7/8, indep 19/38 (50 %), cross-family 6/15 (40 %), 5 `none` verdicts above twice the
-// noise floor, 3 linear re-fits worse than the nominal. NOT MET (issue 9 targets): ≥ 95 %
-// overall (here 26/46 = 57 %), ≥ 90 % cross-family (40 %), zero `none` above 2× floor (5),
-// zero linear re-fits worse than nominal (3).
-const SAME_RIGHT: usize = 7;
-const INDEP_RIGHT: usize = 19;
-const CROSS_RIGHT: usize = 6;
-const NONE_ABOVE_FLOOR: usize = 5;
-const LINEAR_WORSE: usize = 3;
+// Measured on the diagnosis of h/gapacc (issue 9, session 4), 46 cases: same 8/8, indep 28/38
+// (74 %), cross-family 9/15 (60 %), 0 `none` verdicts above twice the noise floor, 0 linear
+// re-fits worse than the nominal, place right 30/30, median (worst) parameter error 0.9 %
+// (103 %). NOT MET (issue 9 targets): >= 95 % overall (here 36/46 = 78 %), >= 90 %
+// cross-family (60 %), worst parameter error <= 25 % (103 %).
+const SAME_RIGHT: usize = 8;
+const INDEP_RIGHT: usize = 28;
+const CROSS_RIGHT: usize = 9;

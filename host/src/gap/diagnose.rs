@@ -594,7 +594,7 @@ pub fn diagnose(
     let linear = AugmentedModel::linear(lin.clone());
     let gap_linear = nrmse(&vy, &linear.simulate(&vu)?, warmup);
 
-    // WHICH: forward selection (host/src/gap/select.rs) from the linear model first, then the
+    // WHICH: forward selection (host/src/gap/select/) from the linear model first, then the
     // other of {re-fit, nominal sim in modal form}.
     let mut starts = vec![lin.clone()];
     if linear_source == "nominal" {
@@ -612,29 +612,6 @@ pub fn diagnose(
             .filter(|c| opts.candidates.contains(&c.kind))
             .collect()
     };
-    let selection = select_effects(
-        &td,
-        &starts,
-        &poles,
-        structure.as_ref(),
-        &vu,
-        &vy,
-        warmup,
-        &SelectOptions {
-            margin: opts.margin,
-            nested_margin: opts.nested_margin,
-            candidates: candidates_opt,
-            ..SelectOptions::default()
-        },
-    )?;
-    notes.extend(selection.notes.iter().cloned());
-    if profile {
-        eprintln!(
-            "profile: candidates done {:.3} s",
-            t_start.elapsed().as_secs_f64()
-        );
-    }
-
     // Residuals of the linear model (training and validation) and of the nominal (training).
     let resid =
         |y: &[f64], yh: &[f64]| -> Vec<f64> { y.iter().zip(yh).map(|(a, b)| a - b).collect() };
@@ -670,6 +647,33 @@ pub fn diagnose(
         warmup,
         1.0 / ts,
     )?;
+
+    // WHICH (continued): the selection, with the noise floor known.
+    let selection = select_effects(
+        &td,
+        &starts,
+        &poles,
+        structure.as_ref(),
+        &vu,
+        &vy,
+        warmup,
+        &SelectOptions {
+            margin: opts.margin,
+            nested_margin: opts.nested_margin,
+            candidates: candidates_opt,
+            // The validation NRMSE noise alone leaves: within twice it, the validation log
+            // cannot separate nested effects nor credit a second one.
+            noise_floor: noise_floor.available().then_some(noise_floor.nrmse),
+            ..SelectOptions::default()
+        },
+    )?;
+    notes.extend(selection.notes.iter().cloned());
+    if profile {
+        eprintln!(
+            "profile: candidates done {:.3} s",
+            t_start.elapsed().as_secs_f64()
+        );
+    }
 
     // WHERE, and the evidence.
     let paths: Vec<PathBuf> = train.iter().map(|l| l.path.clone()).collect();

@@ -1,0 +1,606 @@
+//! Which effects explain the gap: evidence read off the data (the output lattice of a
+//! quantizing sensor, dwells at zero velocity of a sticking axis), every candidate fitted alone,
+//! and forward selection of a second effect on top of the best one, decided on the validation
+//! log.
+//!
+//! Forward selection ([`select_effects`]):
+//! 1. every candidate (an effect kind at a place, [`Candidate`]) is fitted alone on the
+//!    training logs ([`fit_placed`]) and scored by its free-run NRMSE on the validation log;
+//! 2. the best single is selected if it improves on the linear re-fit by `margin`
+//!    ((gap_linear − gap)/gap_linear); stiction and Coulomb friction (nested) are told apart by
+//!    the dwell evidence and the nested margin;
+//! 3. each of the next best singles is fitted again on top of the selected one (a model with
+//!    two effects, in place order), and Coulomb friction at the motor always (its single fit is
+//!    masked by a stronger first effect); the best pair is kept if it improves the validation
+//!    NRMSE of the single by `pair_margin` (relative), a pair with Coulomb friction at the motor
+//!    weighed against its stiction variant as the singles are; no pair is sought once the
+//!    single is within [`PAIR_FLOOR_FACTOR`] of the noise floor;
+//! 4. a lattice in the measured outputs ([`lattice_evidence`]) decides quantization by itself:
+//!    a sensor whose readings sit on a lattice quantizes, whatever the margin says.
+//!
+//! Each selected effect reports its own share of the shrink (gap_linear − gap_after): the
+//! forward-selection deltas, clipped at zero and normalised to sum to 1.
+use super::effect::{Effect, EffectKind};
+use super::fit::{
+    fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
+    JOINT_MAX_ITER,
+};
+use super::modal::{nrmse, ModalModel};
+use super::place::{Candidate, Place, PlacedEffect};
+use super::structure::TwoMassStructure;
+use crate::error::{Error, Result};
+use num_complex::Complex64;
+
+mod dwell;
+mod lattice;
+mod nested;
+
+#[cfg(test)]
+mod cases;
+#[cfg(test)]
+mod checks;
+#[cfg(test)]
+mod conditioning;
+
+pub use dwell::{dwell_evidence, DwellEvidence, MIN_DWELLS, MIN_DWELL_SAMPLES};
+pub use lattice::{lattice_evidence, LatticeEvidence, LATTICE_TOL_STEPS, MIN_LATTICE_SHARE};
+use nested::resolve_nested;
+pub use nested::NESTED_FLOOR_FACTOR;
+
+/// Settings of [`select_effects`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SelectOptions {
+    /// Relative validation improvement over the linear re-fit for the first effect.
+    pub margin: f64,
+    /// Relative validation improvement over the selected single for a second effect.
+    pub pair_margin: f64,
+    /// Relative validation improvement stiction needs over Coulomb friction without dwell
+    /// evidence.
+    pub nested_margin: f64,
+    /// How many of the next best singles are tried on top of the best one.
+    pub pair_partners: usize,
+    /// Candidates (an empty list means [`default_candidates`]).
+    pub candidates: Vec<Candidate>,
+    /// The measured training outputs as logged, before any averaging (the lattice of a
+    /// quantizing sensor is only in the raw values: averaging over periods fills it in).
+    /// Empty: the outputs of the training data.
+    pub raw_outputs: Vec<Vec<f64>>,
+    /// Validation NRMSE a perfect model would still leave (the noise floor), when known: no
+    /// pair is tried once the selected single is within [`PAIR_FLOOR_FACTOR`] of it.
+    pub noise_floor: Option<f64>,
+}
+
+/// A second effect is not sought once the best single's validation NRMSE is within this
+/// factor of the noise floor.
+pub const PAIR_FLOOR_FACTOR: f64 = 2.0;
+
+impl Default for SelectOptions {
+    fn default() -> Self {
+        Self {
+            margin: 0.10,
+            pair_margin: 0.10,
+            nested_margin: 0.03,
+            pair_partners: 2,
+            candidates: Vec::new(),
+            raw_outputs: Vec::new(),
+            noise_floor: None,
+        }
+    }
+}
+
+/// Pairs are tried only when the best single leaves more than this share of the linear
+/// re-fit's validation NRMSE unexplained: improvement (gap_linear − gap)/gap_linear below it.
+pub const PAIR_WORTH_TRYING: f64 = 0.9;
+
+/// The candidates tried by default: every kind at each place it may act, the two-mass places
+/// only when a structure is known.
+pub fn default_candidates(two_mass: bool) -> Vec<Candidate> {
+    use EffectKind as K;
+    let mut v = vec![
+        Candidate::new(K::CoulombFriction, Place::Motor),
+        Candidate::new(K::Stiction, Place::Motor),
+        Candidate::new(K::Backlash, Place::Drive),
+        Candidate::new(K::Deadzone, Place::Drive),
+        Candidate::new(K::Saturation, Place::Drive),
+        Candidate::new(K::Saturation, Place::Sensor),
+        Candidate::new(K::TimeDelay, Place::Drive),
+        Candidate::new(K::Resonance, Place::Drive),
+        Candidate::new(K::Quantization, Place::Sensor),
+        Candidate::new(K::SlewRate, Place::Drive),
+    ];
+    if two_mass {
+        v.push(Candidate::new(K::Backlash, Place::Drivetrain));
+        v.push(Candidate::new(K::CoulombFriction, Place::Load));
+    }
+    v
+}
+
+/// A fitted and scored model (one or more effects).
+#[derive(Debug, Clone)]
+pub struct Scored {
+    /// The model.
+    pub model: AugmentedModel,
+    /// Its effects in selection order.
+    pub effects: Vec<PlacedEffect>,
+    /// Training cost Σ NRMSE².
+    pub train_cost: f64,
+    /// Free-run NRMSE on the validation log.
+    pub gap: f64,
+    /// (gap_linear − gap)/gap_linear.
+    pub improvement: f64,
+}
+
+/// One selected effect.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SelectedEffect {
+    /// The effect and its parameters.
+    pub effect: Effect,
+    /// Where it acts.
+    pub place: Place,
+    /// Its own share of the shrink (sums to 1 over the selected effects).
+    pub share: f64,
+    /// Validation NRMSE once this effect (and the ones selected before it) is added.
+    pub gap_after: f64,
+}
+
+/// Result of [`select_effects`].
+#[derive(Debug, Clone)]
+pub struct Selection {
+    /// Validation NRMSE of the linear part (the first start).
+    pub gap_linear: f64,
+    /// Every single candidate, best validation NRMSE first.
+    pub singles: Vec<Scored>,
+    /// Every pair tried, best first.
+    pub pairs: Vec<Scored>,
+    /// The selected effects in selection order (empty: none).
+    pub selected: Vec<SelectedEffect>,
+    /// The model of the selection (the linear part when nothing is selected).
+    pub model: AugmentedModel,
+    /// Lattice evidence of the measured outputs.
+    pub lattice: Option<LatticeEvidence>,
+    /// Dwell evidence of the training logs.
+    pub dwell: Option<DwellEvidence>,
+    /// What was decided and why.
+    pub notes: Vec<String>,
+}
+
+/// CPU seconds of the calling thread (from /proc, Linux) when `GAP_PROFILE` is set, else 0:
+/// per-candidate timing that a loaded machine does not inflate.
+fn profile_seconds() -> f64 {
+    if std::env::var_os("GAP_PROFILE").is_none() {
+        return 0.0;
+    }
+    std::fs::read_to_string("/proc/thread-self/stat")
+        .ok()
+        .and_then(|s| {
+            let rest = s.rsplit(')').next()?.to_string();
+            let f: Vec<&str> = rest.split_whitespace().collect();
+            let ut: f64 = f.get(11)?.parse().ok()?;
+            let st: f64 = f.get(12)?.parse().ok()?;
+            Some((ut + st) / 100.0)
+        })
+        .unwrap_or(0.0)
+}
+
+fn score(f: Fitted, val_u: &[f64], val_y: &[f64], warmup: usize, gap_linear: f64) -> Scored {
+    let gap = match f.model.simulate(val_u) {
+        Ok(yh) => {
+            let g = nrmse(val_y, &yh, warmup);
+            if g.is_finite() {
+                g
+            } else {
+                f64::INFINITY
+            }
+        }
+        Err(_) => f64::INFINITY,
+    };
+    Scored {
+        effects: f.model.effects_in_selection_order(),
+        model: f.model,
+        train_cost: f.train_cost,
+        gap,
+        improvement: (gap_linear - gap) / gap_linear,
+    }
+}
+
+fn kind_of(s: &Scored) -> Option<EffectKind> {
+    s.effects.first().map(|p| p.effect.kind())
+}
+
+/// Forward selection of at most two effects (module docs). `starts`: linear parts to start from
+/// (first the linear re-fit, whose validation NRMSE is `gap_linear`; then e.g. the nominal sim
+/// in modal form); `sim_poles`: the nominal's discrete poles (labels an added mode);
+/// `structure`: a two-mass structure of the nominal, enabling the drivetrain and load places.
+///
+/// Errors: [`Error::InvalidArgument`] for no start or a validation log not longer than the
+/// warm-up.
+#[allow(clippy::too_many_arguments)]
+pub fn select_effects(
+    td: &TrainData,
+    starts: &[ModalModel],
+    sim_poles: &[Complex64],
+    structure: Option<&TwoMassStructure>,
+    val_u: &[f64],
+    val_y: &[f64],
+    warmup: usize,
+    opts: &SelectOptions,
+) -> Result<Selection> {
+    let lin = starts.first().ok_or_else(|| {
+        Error::InvalidArgument("select_effects needs at least one linear start".into())
+    })?;
+    if val_u.len() != val_y.len() || val_y.len() <= warmup + 1 {
+        return Err(Error::InvalidArgument(format!(
+            "validation log of {} samples (input {}) is not longer than the warm-up of {warmup}",
+            val_y.len(),
+            val_u.len()
+        )));
+    }
+    let mut notes = Vec::new();
+    let linear = AugmentedModel::linear(lin.clone());
+    let gap_linear = nrmse(val_y, &linear.simulate(val_u)?, warmup);
+    let lattice = if opts.raw_outputs.is_empty() {
+        lattice_evidence(&td.base.y)
+    } else {
+        lattice_evidence(&opts.raw_outputs)
+    };
+    let position_output = lin.real.iter().any(|&p| p >= 1.0 - 1e-9);
+    let vel = if position_output {
+        VelocitySource::OutputDerivative
+    } else {
+        VelocitySource::Output
+    };
+    let dwell = dwell_evidence(&td.u, &td.base.y, td.ts, vel, td.base.warmup);
+    let hints = FitHints {
+        lattice_step: lattice.map(|l| l.step),
+        breakaway: dwell.as_ref().map(|d| d.breakaway),
+    };
+    let mut bases: Vec<AugmentedModel> = starts
+        .iter()
+        .map(|l| AugmentedModel::linear(l.clone()))
+        .collect();
+    if let Some(s) = structure {
+        // The nominal's two-mass plant as a further start for the structure's places.
+        let mut b = AugmentedModel::linear(lin.clone());
+        let mut tm = s.model.clone();
+        tm.offset = lin.offset;
+        b.two_mass = Some(tm);
+        bases.push(b);
+    }
+    let cands = if opts.candidates.is_empty() {
+        default_candidates(structure.is_some())
+    } else {
+        opts.candidates.clone()
+    };
+    // 1. Singles.
+    let mut singles: Vec<Scored> = Vec::new();
+    let mut coulomb: Option<Fitted> = None;
+    let mut order = cands.clone();
+    order.sort();
+    for c in &order {
+        // Inside a two-mass structure: the re-fit mapped to physical coordinates and the
+        // nominal's structure (the nominal in modal form maps to the same plant).
+        let use_bases: Vec<AugmentedModel> = if c.place.needs_two_mass() {
+            bases
+                .iter()
+                .enumerate()
+                .filter(|(i, b)| *i == 0 || b.two_mass.is_some())
+                .map(|(_, b)| b.clone())
+                .collect()
+        } else {
+            bases
+                .iter()
+                .filter(|b| b.two_mass.is_none())
+                .cloned()
+                .collect()
+        };
+        let hint = if c.kind == EffectKind::Stiction && c.place == Place::Motor {
+            coulomb.as_ref()
+        } else {
+            None
+        };
+        let t0 = profile_seconds();
+        let fc = fit_placed(*c, td, &use_bases, hint, sim_poles, &hints);
+        if std::env::var_os("GAP_PROFILE").is_some() {
+            eprintln!("profile: {c} {:.3} s (cpu)", profile_seconds() - t0);
+        }
+        match fc {
+            Some(f) => {
+                if c.kind == EffectKind::CoulombFriction && c.place == Place::Motor {
+                    coulomb = Some(f.clone());
+                }
+                singles.push(score(f, val_u, val_y, warmup, gap_linear));
+            }
+            None => notes.push(format!("{c}: no fit")),
+        }
+    }
+    singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+    // Friction on the load wins: its stiction variant, started from it.
+    if singles
+        .first()
+        .and_then(|s| s.effects.first())
+        .is_some_and(|p| p.place == Place::Load && p.effect.kind() == EffectKind::CoulombFriction)
+    {
+        let c = Fitted {
+            model: singles[0].model.clone(),
+            train_cost: singles[0].train_cost,
+        };
+        let cand = Candidate::new(EffectKind::Stiction, Place::Load);
+        if let Some(f) = fit_placed(
+            cand,
+            td,
+            std::slice::from_ref(&c.model),
+            Some(&c),
+            sim_poles,
+            &hints,
+        ) {
+            singles.push(score(f, val_u, val_y, warmup, gap_linear));
+            singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+        }
+    }
+    // Nested: stiction vs Coulomb friction at the same place.
+    resolve_nested(
+        &mut singles,
+        td,
+        dwell.as_ref(),
+        opts.nested_margin,
+        opts.noise_floor,
+        &mut notes,
+    );
+    // 2. Best single.
+    let mut selected_models: Vec<Scored> = Vec::new();
+    if let Some(best) = singles.first() {
+        if best.improvement >= opts.margin {
+            selected_models.push(best.clone());
+        } else {
+            notes.push(format!(
+                "best single {} improves the validation NRMSE by {:.3} < margin {}",
+                best.effects
+                    .first()
+                    .map_or("?".to_string(), |p| p.to_string()),
+                best.improvement,
+                opts.margin
+            ));
+        }
+    }
+    // 3. Pairs on top of the selected single.
+    let mut pairs: Vec<Scored> = Vec::new();
+    let try_pairs = selected_models.first().is_some_and(|f| {
+        f.improvement < PAIR_WORTH_TRYING
+            && opts.noise_floor.is_none_or(|fl| {
+                f.gap.partial_cmp(&(PAIR_FLOOR_FACTOR * fl)) != Some(std::cmp::Ordering::Less)
+                    && f.gap != PAIR_FLOOR_FACTOR * fl
+            })
+    });
+    if !try_pairs && !selected_models.is_empty() {
+        notes.push(format!(
+            "no pair tried: the best single closes more than {:.0} % of the linear gap or \
+             is within {PAIR_FLOOR_FACTOR}x the noise floor",
+            100.0 * PAIR_WORTH_TRYING
+        ));
+    }
+    if let Some(first) = selected_models.first().cloned().filter(|_| try_pairs) {
+        let k1 = kind_of(&first);
+        let partners: Vec<Candidate> = singles
+            .iter()
+            .skip(1)
+            .filter(|s| s.improvement >= 0.5 * opts.margin)
+            .filter_map(|s| {
+                s.effects
+                    .first()
+                    .map(|p| Candidate::new(p.effect.kind(), p.place))
+            })
+            .filter(|c| {
+                Some(c.kind) != k1 && !(c.kind.is_friction() && k1.is_some_and(|k| k.is_friction()))
+            })
+            .filter(|c| c.kind != EffectKind::Quantization && c.kind != EffectKind::Stiction)
+            .take(opts.pair_partners)
+            .collect();
+        let mut partners = partners;
+        if !k1.is_some_and(|k| k.is_friction()) && !partners.iter().any(|c| c.kind.is_friction()) {
+            // Friction is a partner whatever its single score: alone it is fitted against the
+            // gap of the stronger effect too (a saturated drive, a delay), which can pull its
+            // level to zero, so its single score says nothing about it as a second effect.
+            partners.push(Candidate::new(EffectKind::CoulombFriction, Place::Motor));
+        }
+        // Polish the single first, so a pair is credited only with what its second effect
+        // adds (not with further iterations on the first).
+        let first = match joint_fit(
+            td,
+            &Fitted {
+                model: first.model.clone(),
+                train_cost: first.train_cost,
+            },
+            JOINT_MAX_ITER,
+        ) {
+            Some(j) if j.train_cost < first.train_cost => {
+                let s = score(j, val_u, val_y, warmup, gap_linear);
+                if s.gap <= first.gap {
+                    selected_models[0] = s.clone();
+                    s
+                } else {
+                    first
+                }
+            }
+            _ => first,
+        };
+        let base = first.model.clone();
+        for c in partners {
+            if c.place.needs_two_mass()
+                && base.two_mass.is_none()
+                && base.motor_friction().is_some()
+            {
+                continue;
+            }
+            let t0 = profile_seconds();
+            let fc = fit_placed(c, td, std::slice::from_ref(&base), None, sim_poles, &hints);
+            if std::env::var_os("GAP_PROFILE").is_some() {
+                eprintln!("profile: pair + {c} {:.3} s (cpu)", profile_seconds() - t0);
+            }
+            if let Some(f) = fc {
+                pairs.push(score(f, val_u, val_y, warmup, gap_linear));
+            }
+        }
+        pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+        if let Some(p) = pairs.first().cloned() {
+            let rel = (first.gap - p.gap) / first.gap;
+            if rel >= opts.pair_margin {
+                let p = pair_stiction_variant(
+                    p,
+                    td,
+                    &base,
+                    sim_poles,
+                    &hints,
+                    (val_u, val_y, warmup, gap_linear),
+                    dwell.as_ref(),
+                    opts,
+                    &mut notes,
+                );
+                selected_models.push(p);
+            } else {
+                notes.push(format!(
+                    "best pair improves on the single by {rel:.3} < pair margin {}",
+                    opts.pair_margin
+                ));
+            }
+        }
+    }
+    // 4. Lattice evidence decides quantization.
+    let mut model = selected_models
+        .last()
+        .map_or(linear.clone(), |s| s.model.clone());
+    if let Some(l) = lattice {
+        let has_q = model
+            .effects()
+            .iter()
+            .any(|p| p.effect.kind() == EffectKind::Quantization);
+        if !has_q {
+            let m = model.with_added(PlacedEffect {
+                effect: Effect::Quantization { step: l.step },
+                place: Place::Sensor,
+            });
+            let f = Fitted {
+                train_cost: m.cost(&td.base, &td.u),
+                model: m,
+            };
+            let s = score(f, val_u, val_y, warmup, gap_linear);
+            model = s.model.clone();
+            selected_models.push(s);
+        }
+        notes.push(format!(
+            "outputs sit on a lattice: step {:.6e} ({:.1} % of the output std), {:.1} % of the \
+             samples on it, {} levels",
+            l.step,
+            100.0 * l.step_over_std,
+            100.0 * l.share_on_lattice,
+            l.levels
+        ));
+    }
+    let selected = shares(&selected_models, gap_linear);
+    Ok(Selection {
+        gap_linear,
+        singles,
+        pairs,
+        selected,
+        model,
+        lattice,
+        dwell,
+        notes,
+    })
+}
+
+/// A selected pair with Coulomb friction at the motor against its stiction variant (started
+/// from it, the other effect kept; see [`resolve_nested`] for the decision): the better-ranked
+/// of the two.
+#[allow(clippy::too_many_arguments)]
+fn pair_stiction_variant(
+    pair: Scored,
+    td: &TrainData,
+    base: &AugmentedModel,
+    sim_poles: &[Complex64],
+    hints: &FitHints,
+    (val_u, val_y, warmup, gap_linear): (&[f64], &[f64], usize, f64),
+    dwell: Option<&DwellEvidence>,
+    opts: &SelectOptions,
+    notes: &mut Vec<String>,
+) -> Scored {
+    let has_coulomb = pair
+        .effects
+        .iter()
+        .any(|p| p.effect.kind() == EffectKind::CoulombFriction && p.place == Place::Motor);
+    if !has_coulomb {
+        return pair;
+    }
+    let c = Fitted {
+        model: pair.model.clone(),
+        train_cost: pair.train_cost,
+    };
+    let cand = Candidate::new(EffectKind::Stiction, Place::Motor);
+    let Some(f) = fit_placed(
+        cand,
+        td,
+        std::slice::from_ref(base),
+        Some(&c),
+        sim_poles,
+        hints,
+    ) else {
+        return pair;
+    };
+    let s = score(f, val_u, val_y, warmup, gap_linear);
+    if !s
+        .effects
+        .iter()
+        .any(|p| p.effect.kind() == EffectKind::Stiction)
+    {
+        return pair;
+    }
+    let mut two = vec![pair, s];
+    two.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+    resolve_nested(
+        &mut two,
+        td,
+        dwell,
+        opts.nested_margin,
+        opts.noise_floor,
+        notes,
+    );
+    two.swap_remove(0)
+}
+
+/// The selected effects with their forward-selection shares: each step's model adds one effect
+/// to the previous one; its share is its drop of the validation NRMSE, clipped at zero,
+/// normalised to sum to 1 (equal shares when nothing dropped).
+fn shares(steps: &[Scored], gap_linear: f64) -> Vec<SelectedEffect> {
+    let mut prev = gap_linear;
+    let mut deltas = Vec::new();
+    let mut out = Vec::new();
+    for s in steps {
+        let Some(pe) = s.effects.last() else { continue };
+        // The effect this step added: the last in selection order whose kind/place is new.
+        deltas.push((prev - s.gap).max(0.0));
+        prev = s.gap;
+        out.push(SelectedEffect {
+            effect: pe.effect,
+            place: pe.place,
+            share: 0.0,
+            gap_after: s.gap,
+        });
+    }
+    // Effects of the final model carry the refined parameters.
+    if let Some(last) = steps.last() {
+        for o in out.iter_mut() {
+            if let Some(p) = last
+                .effects
+                .iter()
+                .find(|p| p.effect.kind() == o.effect.kind() && p.place == o.place)
+            {
+                o.effect = p.effect;
+            }
+        }
+    }
+    let total: f64 = deltas.iter().sum();
+    let n = out.len().max(1) as f64;
+    for (o, d) in out.iter_mut().zip(&deltas) {
+        o.share = if total > 0.0 { d / total } else { 1.0 / n };
+    }
+    out
+}
