@@ -100,6 +100,21 @@ struct Barrier<'a> {
     /// Constraint rows a_c (row-major, m × d) and offsets b_c.
     a: Vec<f64>,
     b: Vec<f64>,
+    /// `a` column-major (d × m) and `xpow` column-major ((n + 1) × bins), for the vectorised
+    /// passes of the Newton iteration.
+    acol: Vec<f64>,
+    xcol: Vec<f64>,
+}
+
+/// Scratch vectors of one path (no allocation inside the Newton iteration).
+struct Scratch {
+    /// Constraint values at a trial point (m).
+    cons: Vec<f64>,
+    /// Per-constraint or per-bin weights (max(m, bins)).
+    tmp: Vec<f64>,
+    /// P and Q at the bins.
+    p: Vec<f64>,
+    q: Vec<f64>,
 }
 
 impl<'a> Barrier<'a> {
@@ -152,7 +167,14 @@ impl<'a> Barrier<'a> {
         lead[n] = 1.0;
         a.extend_from_slice(&lead);
         b.push(0.0);
+        let mc = b.len();
+        let acol = (0..d * mc).map(|k| a[(k % mc) * d + k / mc]).collect();
+        let xcol = (0..(n + 1) * m)
+            .map(|k| xpow[(k % m) * (n + 1) + k / m])
+            .collect();
         Self {
+            acol,
+            xcol,
             band,
             n,
             d,
@@ -201,14 +223,54 @@ impl<'a> Barrier<'a> {
         Some(f)
     }
 
-    /// φ_μ(θ), or None when a constraint is not strictly satisfied.
-    fn phi(&self, th: &[f64], mu: f64) -> Option<f64> {
-        let scale = mu / self.m() as f64;
+    fn scratch(&self) -> Scratch {
+        let bins = self.l2.len();
+        Scratch {
+            cons: vec![0.0; self.m()],
+            tmp: vec![0.0; self.m().max(bins)],
+            p: vec![0.0; bins],
+            q: vec![0.0; bins],
+        }
+    }
+
+    /// All constraint values a_cᵀθ + b_c into `out` (column sweeps).
+    fn constraints_into(&self, th: &[f64], out: &mut [f64]) {
+        let m = self.m();
+        out.copy_from_slice(&self.b);
+        for (j, &t) in th.iter().enumerate() {
+            for (o, a) in out.iter_mut().zip(&self.acol[j * m..(j + 1) * m]) {
+                *o += t * a;
+            }
+        }
+    }
+
+    /// P and Q at every bin into `p`, `q` (column sweeps).
+    fn pq_into(&self, th: &[f64], p: &mut [f64], q: &mut [f64]) {
+        let (n, bins) = (self.n, self.l2.len());
+        let col = |j: usize| &self.xcol[j * bins..(j + 1) * bins];
+        p.fill(0.0);
+        q.copy_from_slice(col(n));
+        for (j, &t) in th[..=n].iter().enumerate() {
+            for (o, x) in p.iter_mut().zip(col(j)) {
+                *o += t * x;
+            }
+        }
+        for j in 0..n {
+            let t = th[n + 1 + j];
+            for (o, x) in q.iter_mut().zip(col(j)) {
+                *o += t * x;
+            }
+        }
+    }
+
+    /// φ_μ(θ) using `ws`, or None when a constraint is not strictly satisfied (or P, Q not
+    /// positive at a bin).
+    fn phi_ws(&self, th: &[f64], mu: f64, ws: &mut Scratch) -> Option<f64> {
+        self.constraints_into(th, &mut ws.cons);
         // Σ ln c as ln of running products (one logarithm per few constraints), renormalised
         // well inside the f64 range.
         let (mut bar, mut prod) = (0.0, 1.0f64);
-        for c in 0..self.m() {
-            let v = self.constraint(th, c);
+        for &v in &ws.cons {
             if !positive(v) {
                 return None;
             }
@@ -219,7 +281,15 @@ impl<'a> Barrier<'a> {
             }
         }
         bar += prod.ln();
-        Some(self.objective(th)? - scale * bar)
+        self.pq_into(th, &mut ws.p, &mut ws.q);
+        let mut f = 0.0;
+        for ((&w, &p), &q) in self.wbar.iter().zip(&ws.p).zip(&ws.q) {
+            if !(positive(p) && positive(q)) {
+                return None;
+            }
+            f += w * (p / q).ln();
+        }
+        Some(f - mu / self.m() as f64 * bar)
     }
 
     /// The start of a barrier path at a strictly feasible θ (multipliers λ_c = μ_c/c).
@@ -246,7 +316,9 @@ impl<'a> Barrier<'a> {
         let mut th = std::mem::take(&mut pt.th);
         let mut lam = std::mem::take(&mut pt.lam);
         let mut mu = pt.mu;
-        let mut cval: Vec<f64> = (0..m).map(|c| self.constraint(&th, c)).collect();
+        let mut ws = self.scratch();
+        let mut cval = vec![0.0; m];
+        self.constraints_into(&th, &mut cval);
         let mut ad = vec![0.0; m];
         while mu >= mu_stop * 0.999 {
             let muc = mu / m as f64;
@@ -255,10 +327,10 @@ impl<'a> Barrier<'a> {
             let last = mu * MU_FACTOR < MU_END * 0.999;
             let stage_tol = if last { 1e-14 } else { STAGE_TOL * mu };
             for _ in 0..newton_max {
-                let Some(f0) = self.phi(&th, mu) else {
+                let Some(f0) = self.phi_ws(&th, mu, &mut ws) else {
                     break;
                 };
-                let (g, hc, hp) = self.derivatives_pd(&th, muc, &cval, &lam);
+                let (g, hc, hp) = self.derivatives_pd(&th, muc, &cval, &lam, &mut ws);
                 let full: Vec<f64> = hc.iter().zip(&hp).map(|(c, p)| c - p).collect();
                 let fd = newton_direction(&full, &g, d, 0.0);
                 let Some(dir) = fd
@@ -273,11 +345,15 @@ impl<'a> Barrier<'a> {
                 }
                 // Constraint rates and the largest feasible primal step.
                 let mut amax = f64::INFINITY;
-                for c in 0..m {
-                    let row = &self.a[c * d..(c + 1) * d];
-                    ad[c] = row.iter().zip(&dir).map(|(a, t)| a * t).sum();
-                    if ad[c] < 0.0 {
-                        amax = amax.min(-cval[c] / ad[c]);
+                ad.fill(0.0);
+                for (j, &t) in dir.iter().enumerate() {
+                    for (o, a) in ad.iter_mut().zip(&self.acol[j * m..(j + 1) * m]) {
+                        *o += t * a;
+                    }
+                }
+                for (&r, &c) in ad.iter().zip(&cval) {
+                    if r < 0.0 {
+                        amax = amax.min(-c / r);
                     }
                 }
                 let mut alpha = (0.99 * amax).min(1.0);
@@ -285,7 +361,7 @@ impl<'a> Barrier<'a> {
                 let mut f_acc = f0;
                 while alpha > 1e-14 {
                     let trial: Vec<f64> = th.iter().zip(&dir).map(|(t, s)| t + alpha * s).collect();
-                    if let Some(f1) = self.phi(&trial, mu) {
+                    if let Some(f1) = self.phi_ws(&trial, mu, &mut ws) {
                         if f1 <= f0 + 1e-4 * alpha * slope {
                             th = trial;
                             f_acc = f1;
@@ -307,7 +383,7 @@ impl<'a> Barrier<'a> {
                             .zip(&dir)
                             .map(|(t, s)| t + (a - 1.0) * s)
                             .collect();
-                        match self.phi(&trial, mu) {
+                        match self.phi_ws(&trial, mu, &mut ws) {
                             Some(f1) if f1 < f_acc => {
                                 th = trial;
                                 f_acc = f1;
@@ -330,10 +406,10 @@ impl<'a> Barrier<'a> {
                         adual = adual.min(-0.99 * lam[c] / dl[c]);
                     }
                 }
-                for c in 0..m {
-                    lam[c] += adual * dl[c];
-                    cval[c] = self.constraint(&th, c);
+                for (l, d) in lam.iter_mut().zip(&dl) {
+                    *l += adual * d;
                 }
+                self.constraints_into(&th, &mut cval);
                 if -slope < stage_tol * 100.0 {
                     break;
                 }
@@ -352,40 +428,69 @@ impl<'a> Barrier<'a> {
         muc: f64,
         cval: &[f64],
         lam: &[f64],
+        ws: &mut Scratch,
     ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let (n, d) = (self.n, self.d);
+        let (n, d, m, bins) = (self.n, self.d, self.m(), self.l2.len());
         let mut g = vec![0.0; d];
         let mut hc = vec![0.0; d * d];
         let mut hp = vec![0.0; d * d];
-        for (i, &w) in self.wbar.iter().enumerate() {
-            let (p, q) = self.pq(th, i);
-            let v = &self.xpow[i * (n + 1)..(i + 1) * (n + 1)];
-            for j in 0..=n {
-                let uj = v[j] / p;
-                g[j] += w * uj;
-                for k in 0..=j {
-                    hp[j * d + k] += w * uj * v[k] / p;
-                }
+        self.pq_into(th, &mut ws.p, &mut ws.q);
+        let xc = |j: usize| &self.xcol[j * bins..(j + 1) * bins];
+        // Objective: ∂/∂p_j Σ w̄ ln P = Σ w̄ x^j/P; curvature Σ w̄ x^j x^k/P² (and for Q).
+        let tmp = &mut ws.tmp[..bins];
+        for ((t, &w), &p) in tmp.iter_mut().zip(&self.wbar).zip(&ws.p) {
+            *t = w / p;
+        }
+        for (j, gj) in g[..=n].iter_mut().enumerate() {
+            *gj += dot(tmp, xc(j));
+        }
+        for ((t, &w), &p) in tmp.iter_mut().zip(&self.wbar).zip(&ws.p) {
+            *t = w / (p * p);
+        }
+        let mut col = vec![0.0; bins.max(m)];
+        for j in 0..=n {
+            for ((c, &t), &x) in col.iter_mut().zip(tmp.iter()).zip(xc(j)) {
+                *c = t * x;
             }
-            for j in 0..n {
-                let uj = v[j] / q;
-                g[n + 1 + j] -= w * uj;
-                for k in 0..=j {
-                    hc[(n + 1 + j) * d + n + 1 + k] += w * uj * v[k] / q;
-                }
+            for k in 0..=j {
+                hp[j * d + k] = dot(&col[..bins], xc(k));
             }
         }
-        for c in 0..cval.len() {
-            let row = &self.a[c * d..(c + 1) * d];
-            let (gc, hcw) = (muc / cval[c], lam[c] / cval[c]);
-            for j in 0..d {
-                if row[j] == 0.0 {
-                    continue;
-                }
-                g[j] -= gc * row[j];
-                for k in 0..=j {
-                    hc[j * d + k] += hcw * row[j] * row[k];
-                }
+        for ((t, &w), &q) in tmp.iter_mut().zip(&self.wbar).zip(&ws.q) {
+            *t = w / q;
+        }
+        for j in 0..n {
+            g[n + 1 + j] -= dot(tmp, xc(j));
+        }
+        for ((t, &w), &q) in tmp.iter_mut().zip(&self.wbar).zip(&ws.q) {
+            *t = w / (q * q);
+        }
+        for j in 0..n {
+            for ((c, &t), &x) in col.iter_mut().zip(tmp.iter()).zip(xc(j)) {
+                *c = t * x;
+            }
+            for k in 0..=j {
+                hc[(n + 1 + j) * d + n + 1 + k] = dot(&col[..bins], xc(k));
+            }
+        }
+        // Barrier: gradient −μ_c Σ a_c/c, Newton matrix Σ (λ_c/c)·a_c a_cᵀ.
+        let ac = |j: usize| &self.acol[j * m..(j + 1) * m];
+        let tmp = &mut ws.tmp[..m];
+        for (t, &c) in tmp.iter_mut().zip(cval) {
+            *t = muc / c;
+        }
+        for (j, gj) in g.iter_mut().enumerate() {
+            *gj -= dot(tmp, ac(j));
+        }
+        for ((t, &c), &l) in tmp.iter_mut().zip(cval).zip(lam) {
+            *t = l / c;
+        }
+        for j in 0..d {
+            for ((c, &t), &a) in col.iter_mut().zip(tmp.iter()).zip(ac(j)) {
+                *c = t * a;
+            }
+            for k in 0..=j {
+                hc[j * d + k] += dot(&col[..m], ac(k));
             }
         }
         for j in 0..d {
@@ -498,6 +603,22 @@ fn newton_direction(h: &[f64], g: &[f64], d: usize, ridge: f64) -> Option<Vec<f6
     }
     let dir: Vec<f64> = y.iter().zip(&s).map(|(y, s)| y * s).collect();
     dir.iter().all(|v| v.is_finite()).then_some(dir)
+}
+
+/// Dot product with four independent accumulators (the long sums of the Newton matrix are
+/// latency-bound otherwise).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a4, b4) = (a[..n].chunks_exact(4), b[..n].chunks_exact(4));
+    let (ra, rb) = (a4.remainder(), b4.remainder());
+    let mut acc = [0.0f64; 4];
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// True for a number > 0 (false for NaN).
