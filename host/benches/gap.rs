@@ -17,12 +17,12 @@
 //! process, or of the CLI child), which a loaded machine inflates less than wall time.
 //! Run: `cargo bench -p ferrosid --bench gap` (one thread: the diagnosis is sequential).
 use criterion::{criterion_group, BenchmarkId, Criterion};
+use ferrosid::data::{Channel, Log};
 use ferrosid::gap::benchmark::{cases, filtered_noise, generate, multisine, TS};
 use ferrosid::gap::effect::saturation;
 use ferrosid::gap::plant::{simulate, Plant, SimSettings};
 use ferrosid::gap::rng::Rng;
 use ferrosid::gap::{diagnose, Effect, GapOptions};
-use ferrosid::data::{Channel, Log};
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Duration;
@@ -186,7 +186,11 @@ fn describe_pair_case(pair: &Case) {
         .notes
         .iter()
         .any(|n| n.starts_with("best single") && n.contains("< margin"));
-    let skipped = d.report.notes.iter().any(|n| n.starts_with("no pair tried"));
+    let skipped = d
+        .report
+        .notes
+        .iter()
+        .any(|n| n.starts_with("no pair tried"));
     println!(
         "pair case: verdict {}, pair stage {}",
         d.report.verdict,

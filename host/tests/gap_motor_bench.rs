@@ -126,6 +126,35 @@ fn motor_bench_gap_against_an_identified_linear_model() {
     }
     assert!(after <= linear * (1.0 + 1e-12), "{after} > {linear}");
     assert!(linear <= before * 1.01, "{linear} > {before}");
+    // Issue 10: no absurd value in a report. A candidate whose fit went to its no-effect limit
+    // (a dead zone of width 3e-35, a saturation limit of 1e13 on this data) is flagged
+    // `vanished`, and the text prints that instead of the extremes; a resonance keeps a damping
+    // of at least 1e-4.
+    let lin_train = v["linear"]["train_nrmse"]
+        .as_f64()
+        .expect("linear train NRMSE");
+    let mut vanished = 0;
+    for e in v["effects"].as_array().expect("effects") {
+        let same = (e["train_nrmse"].as_f64().unwrap() - lin_train).abs() <= 1e-6 * lin_train
+            && (e["gap_after"].as_f64().unwrap() - linear).abs() <= 1e-6 * linear;
+        assert_eq!(e["vanished"].as_bool(), Some(same), "{e}");
+        vanished += usize::from(same);
+        if e["effect"] == "resonance" {
+            assert!(e["params"]["damping"].as_f64().unwrap() >= 1e-4, "{e}");
+        }
+    }
+    let mut text = gap.clone();
+    text.retain(|a| *a != "--json");
+    let t = ferrosid(&text);
+    assert_eq!(t.code, 0, "{}", t.stderr);
+    assert_eq!(
+        t.stdout
+            .matches("vanished (fit at its no-effect limit")
+            .count(),
+        vanished,
+        "{}",
+        t.stdout
+    );
     let fs = 2500.0;
     let pairs = |x: &Value| -> Vec<[f64; 2]> {
         x.as_array()

@@ -210,7 +210,9 @@ pub fn nested_likelihood_ratio(
             lr += effective_samples(&rs) * (ss / sr).ln();
         }
     }
-    Ok(if lr.is_finite() { lr } else { 0.0 })
+    // The richer model nests the simpler one, so at its optimum the statistic is >= 0; a
+    // negative value means its fit stopped short of the simpler one's: no evidence (0).
+    Ok(if lr.is_finite() { lr.max(0.0) } else { 0.0 })
 }
 
 /// Settings of [`diagnose`]. `Default` gives the documented defaults.
@@ -817,6 +819,7 @@ pub fn diagnose(
                 .kind()
                 .is_friction()
                 .then(|| sc.model.velocity.name().to_string()),
+            vanished: false,
         })
     };
     // Singles in the selection's order (validation NRMSE, nested pair resolved), then the pairs
@@ -856,6 +859,11 @@ pub fn diagnose(
     )?;
 
     let lin_ss = lin.to_state_space()?;
+    let train_linear = (lin_cost / td.u.len() as f64).sqrt();
+    let mut effects = effects;
+    for e in &mut effects {
+        e.vanished = e.reproduces_linear(train_linear, gap_linear);
+    }
     let report = GapReport {
         verdict,
         verdict_effects,
@@ -885,7 +893,7 @@ pub fn diagnose(
                     )
                 })
                 .collect(),
-            train_nrmse: (lin_cost / td.u.len() as f64).sqrt(),
+            train_nrmse: train_linear,
         },
         settings: Settings {
             ts,

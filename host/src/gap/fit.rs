@@ -489,7 +489,9 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
                 .linear
                 .fit_linear_params_with_input(&td.base, &w, Some(&mask))?
         }
-        None => model.linear.fit_linear_params_with_input(&td.base, &w, None)?,
+        None => model
+            .linear
+            .fit_linear_params_with_input(&td.base, &w, None)?,
     };
     if only_drive {
         return cost.is_finite().then_some(Fitted {
@@ -563,6 +565,12 @@ pub fn resonance_range_hz(ts: f64) -> (f64, f64) {
 /// Largest damping ratio a fitted `resonance` may have (a better-damped mode is not a
 /// resonance and would mimic a delay or a lag).
 pub const MAX_RESONANCE_DAMPING: f64 = 0.3;
+
+/// Smallest damping ratio a fitted `resonance` may have: lighter damping than this is below
+/// what any log of practical length resolves (its half-power bandwidth 2ζf would be finer than
+/// the frequency resolution of 10^4 periods of the mode), and an optimiser left free drifts to
+/// absurd values (1e-107 was once reported).
+pub const MIN_RESONANCE_DAMPING: f64 = 1e-4;
 
 /// Longest delay searched, in samples.
 pub const MAX_DELAY_SAMPLES: f64 = 32.0;
@@ -871,7 +879,9 @@ fn relabel_resonance(td: &TrainData, fitted: Fitted, sim_poles: &[Complex64]) ->
     let mut best = fitted.clone();
     for (i, &(r, phi)) in lin.pairs.iter().enumerate() {
         let (f, z) = freq_damping(pair_to_s(r, phi, td.ts));
-        if !(flo..=fhi).contains(&f) || z <= 0.0 || z > MAX_RESONANCE_DAMPING || z.is_nan() {
+        if !(flo..=fhi).contains(&f)
+            || !(MIN_RESONANCE_DAMPING..=MAX_RESONANCE_DAMPING).contains(&z)
+        {
             continue;
         }
         let mut swapped = lin.clone();
@@ -996,7 +1006,9 @@ fn effect_from_coords(kind: EffectKind, c: &[f64], ts: f64) -> Option<Effect> {
         EffectKind::Resonance => {
             let (f, z) = (c[0].exp(), c[1].exp());
             let (flo, fhi) = resonance_range_hz(ts);
-            if !(flo..=fhi).contains(&f) || z > MAX_RESONANCE_DAMPING {
+            if !(flo..=fhi).contains(&f)
+                || !(MIN_RESONANCE_DAMPING..=MAX_RESONANCE_DAMPING).contains(&z)
+            {
                 return None;
             }
             Effect::Resonance {
@@ -1112,7 +1124,12 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
-    let scored: usize = td.base.y.iter().map(|y| y.len().saturating_sub(td.base.warmup)).sum();
+    let scored: usize = td
+        .base
+        .y
+        .iter()
+        .map(|y| y.len().saturating_sub(td.base.warmup))
+        .sum();
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
         if projectable {
@@ -1120,7 +1137,9 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
             for u in &td.u {
                 w.push(model.drive_input(u).ok()?);
             }
-            model.linear.fit_linear_params_with_input(&td.base, &w, None)?;
+            model
+                .linear
+                .fit_linear_params_with_input(&td.base, &w, None)?;
         }
         let mut r = Vec::with_capacity(scored);
         for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
@@ -1142,7 +1161,9 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         for u in &td.u {
             w.push(model.drive_input(u).ok()?);
         }
-        model.linear.fit_linear_params_with_input(&td.base, &w, None)?;
+        model
+            .linear
+            .fit_linear_params_with_input(&td.base, &w, None)?;
     }
     let train_cost = model.cost(&td.base, &td.u);
     train_cost

@@ -742,7 +742,11 @@ impl ModalModel {
     /// Levenberg–Marquardt).
     pub fn projected_residuals(&mut self, set: &FitSet) -> Option<Vec<f64>> {
         self.fit_linear_params(set)?;
-        let scored: usize = set.y.iter().map(|y| y.len().saturating_sub(set.warmup)).sum();
+        let scored: usize = set
+            .y
+            .iter()
+            .map(|y| y.len().saturating_sub(set.warmup))
+            .sum();
         let mut r = Vec::with_capacity(scored);
         for ((w, y), &wt) in set.w.iter().zip(&set.y).zip(&set.weight) {
             let sw = wt.sqrt();

@@ -27,6 +27,24 @@ pub struct EffectReport {
     /// For friction: which model signal stood for the velocity (`output`, `output_derivative`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub velocity_from: Option<String>,
+    /// True when the fit went to the effect's no-effect limit (a dead zone of width ~0, a
+    /// saturation limit far beyond the signal, ...): the augmented model reproduces the linear
+    /// re-fit on training and validation (both NRMSEs within [`VANISHED_REL`] of its). The
+    /// parameters are then meaningless extremes; the text report prints "vanished" instead.
+    pub vanished: bool,
+}
+
+/// Relative NRMSE tolerance under which an effect counts as vanished (see
+/// [`EffectReport::vanished`]).
+pub const VANISHED_REL: f64 = 1e-6;
+
+impl EffectReport {
+    /// Whether this effect's fit reproduces the linear model (`train_linear`, `gap_linear`:
+    /// the linear re-fit's training and validation NRMSE) within [`VANISHED_REL`].
+    pub fn reproduces_linear(&self, train_linear: f64, gap_linear: f64) -> bool {
+        let close = |a: f64, b: f64| (a - b).abs() <= VANISHED_REL * b.abs().max(f64::MIN_POSITIVE);
+        close(self.train_nrmse, train_linear) && close(self.gap_after, gap_linear)
+    }
 }
 
 /// One effect of the verdict.
@@ -415,12 +433,15 @@ impl GapReport {
             "rank", "effect", "place", "val NRMSE", "vs linear", "train NRMSE"
         );
         for (i, e) in self.effects.iter().enumerate() {
-            let p: Vec<String> = e
-                .params
-                .iter()
-                .map(|(k, v)| format!("{k}={v:.4e}"))
-                .chain(e.velocity_from.iter().map(|v| format!("velocity={v}")))
-                .collect();
+            let p: Vec<String> = if e.vanished {
+                vec!["vanished (fit at its no-effect limit: same as the linear model)".into()]
+            } else {
+                e.params
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v:.4e}"))
+                    .chain(e.velocity_from.iter().map(|v| format!("velocity={v}")))
+                    .collect()
+            };
             let _ = writeln!(
                 s,
                 "  {:<4} {:<17} {:<10} {:>10.4} {:>10} {:>11.5}  {}",
@@ -437,5 +458,32 @@ impl GapReport {
             let _ = writeln!(s, "note: {n}");
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod vanished_tests {
+    use super::EffectReport;
+
+    fn effect(train: f64, val: f64) -> EffectReport {
+        EffectReport {
+            effect: "deadzone".into(),
+            place: "drive".into(),
+            params: [("width".to_string(), 3.3e-35)].into_iter().collect(),
+            gap_after: val,
+            improvement: 0.0,
+            train_nrmse: train,
+            velocity_from: None,
+            vanished: false,
+        }
+    }
+
+    #[test]
+    fn an_effect_that_reproduces_the_linear_model_has_vanished() {
+        assert!(effect(0.140450, 0.114100).reproduces_linear(0.140450, 0.114100));
+        assert!(effect(0.140450 * (1.0 + 5e-7), 0.1141).reproduces_linear(0.140450, 0.1141));
+        // A training gain of 1e-4 relative is an effect, however small.
+        assert!(!effect(0.140436, 0.1141).reproduces_linear(0.140450, 0.1141));
+        assert!(!effect(0.14045, 0.1146).reproduces_linear(0.14045, 0.1141));
     }
 }

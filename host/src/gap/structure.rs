@@ -259,9 +259,7 @@ impl TwoMassModel {
             let (a, b) = (&a[mode], &b[mode]);
             let bias = bias_of(mode);
             std::array::from_fn(|i| {
-                a[i].iter().zip(x).map(|(p, q)| p * q).sum::<f64>()
-                    + b[i][0] * wk
-                    + b[i][3] * bias
+                a[i].iter().zip(x).map(|(p, q)| p * q).sum::<f64>() + b[i][0] * wk + b[i][3] * bias
             })
         };
         for &wk in w {
@@ -844,7 +842,12 @@ fn joint_fit_two_mass_opt(
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
-    let scored: usize = td.base.y.iter().map(|y| y.len().saturating_sub(td.base.warmup)).sum();
+    let scored: usize = td
+        .base
+        .y
+        .iter()
+        .map(|y| y.len().saturating_sub(td.base.warmup))
+        .sum();
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
         let (_, sims) = fit_offset_sims(td, &mut model)?;
