@@ -49,10 +49,9 @@ use crate::laws::{Body, Effects, FrictionLaw, Mode};
 use crate::plants::Plant;
 use crate::rng::Xoshiro;
 use crate::simulate::{measure, simulate, RunStats};
-use ferrosid::data::{Channel, Log};
+use ferrosid::data::Log;
 use ferrosid::lti::StateSpace;
 use std::f64::consts::PI;
-use std::path::PathBuf;
 
 /// Sample time, s.
 pub const TS: f64 = 1e-3;
@@ -383,19 +382,7 @@ pub struct CaseData {
 }
 
 fn log_of(name: String, u: Vec<f64>, y: Vec<f64>) -> Log {
-    Log {
-        path: PathBuf::from(name),
-        ts: TS,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u,
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y,
-        }],
-        warnings: Vec::new(),
-    }
+    Log::siso(name, TS, u, y)
 }
 
 /// Bristle stiffness giving a presliding natural frequency of `f_hz` on a body of inverse mass

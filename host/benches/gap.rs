@@ -17,7 +17,7 @@
 //! process, or of the CLI child), which a loaded machine inflates less than wall time.
 //! Run: `cargo bench -p ferrosid --bench gap` (one thread: the diagnosis is sequential).
 use criterion::{criterion_group, BenchmarkId, Criterion};
-use ferrosid::data::{Channel, Log};
+use ferrosid::data::Log;
 use ferrosid::gap::benchmark::{cases, filtered_noise, generate, multisine, TS};
 use ferrosid::gap::effect::saturation;
 use ferrosid::gap::plant::{simulate, Plant, SimSettings};
@@ -30,19 +30,7 @@ use std::time::Duration;
 type Case = (ferrosid::lti::StateSpace, Vec<Log>, Log);
 
 fn log_of(name: &str, u: Vec<f64>, y: Vec<f64>) -> Log {
-    Log {
-        path: PathBuf::from(name),
-        ts: TS,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u,
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y,
-        }],
-        warnings: Vec::new(),
-    }
+    Log::siso(name, TS, u, y)
 }
 
 /// The two-mass pair case with `n` samples per log (module docs): Coulomb friction of 0.3 a

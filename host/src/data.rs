@@ -30,6 +30,24 @@ pub struct Log {
 }
 
 impl Log {
+    /// A single-input single-output log with channels named `u` and `y`, no warnings (the
+    /// caller guarantees the [`Log`] invariants: equal lengths, finite samples, `ts > 0`).
+    pub fn siso(path: impl Into<PathBuf>, ts: f64, u: Vec<f64>, y: Vec<f64>) -> Log {
+        Log {
+            path: path.into(),
+            ts,
+            inputs: vec![Channel {
+                name: "u".into(),
+                data: u,
+            }],
+            outputs: vec![Channel {
+                name: "y".into(),
+                data: y,
+            }],
+            warnings: Vec::new(),
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.inputs.first().map_or(0, |c| c.data.len())

@@ -20,12 +20,17 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// The bundled pipeline with `extra` TOML appended to its `[audit]` section and `gap` added.
+/// The bundled pipeline with its `[audit] max_gain_shift_db` replaced by `audit_extra` and
+/// `[gap] run = gap_run` added.
 fn config(audit_extra: &str, gap_run: &str) -> LoadedConfig {
     let path = examples().join("pipeline.toml");
     let text = std::fs::read_to_string(&path).expect("examples/pipeline.toml");
-    let text = text.replace("[audit]\n", &format!("[audit]\n{audit_extra}"));
+    assert!(
+        text.contains("max_gain_shift_db = 3.0\n"),
+        "example pipeline changed"
+    );
     let text = text.replace("max_gain_shift_db = 3.0\n", "");
+    let text = text.replace("[audit]\n", &format!("[audit]\n{audit_extra}"));
     let text = format!("{text}\n[gap]\nrun = \"{gap_run}\"\n");
     LoadedConfig::from_text(&path, &text).expect("config")
 }

@@ -20,11 +20,10 @@ use super::effect::{Effect, EffectKind};
 use super::plant::{simulate, Plant, SimSettings};
 use super::rng::Rng;
 use super::GapReport;
-use crate::data::{Channel, Log};
+use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::lti::StateSpace;
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
 /// Sample time of all benchmark logs, s.
 pub const TS: f64 = 1e-3;
@@ -222,19 +221,7 @@ fn rms(v: &[f64]) -> f64 {
 }
 
 fn log_of(name: String, u: Vec<f64>, y: Vec<f64>) -> Log {
-    Log {
-        path: PathBuf::from(name),
-        ts: TS,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u,
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y,
-        }],
-        warnings: Vec::new(),
-    }
+    Log::siso(name, TS, u, y)
 }
 
 /// Generates the logs of `case` with `n` samples each (see the module docs).

@@ -100,7 +100,7 @@ pub fn triggers(audit_not_linear: bool, receipts: &[Receipt]) -> Vec<String> {
 
 /// Runs the stage: decides from `mode` and `flags` (see [`triggers`]) whether to diagnose G0
 /// (`model`, discrete, identified at operating point `op`) against the raw logs of the `runs`
-/// (training) and `validation`.
+/// (training) and `validation`; `progress` hears "gap diagnosis" when it runs.
 pub fn run_gap_stage(
     mode: GapRun,
     flags: Vec<String>,
@@ -108,6 +108,7 @@ pub fn run_gap_stage(
     op: Option<&OperatingPoint>,
     runs: &[LogData],
     validation: Option<&LogData>,
+    progress: &dyn Fn(&str),
 ) -> GapStage {
     let triggered_by = match mode {
         GapRun::Never => {
@@ -136,6 +137,7 @@ pub fn run_gap_stage(
             reason: "the gap diagnosis is SISO; this model has several channels".into(),
         };
     }
+    progress("gap diagnosis");
     let mut logs: Vec<Log> = runs
         .iter()
         .chain(std::iter::once(val))
@@ -203,11 +205,19 @@ mod tests {
     fn skipped_without_flag_or_validation() {
         let m = |v: f64| faer::Mat::from_fn(1, 1, |_, _| v);
         let g = StateSpace::new(m(0.5), m(1.0), m(1.0), m(0.0), 1e-3).unwrap();
-        let s = run_gap_stage(GapRun::Auto, vec![], &g, None, &[], None);
+        let s = run_gap_stage(GapRun::Auto, vec![], &g, None, &[], None, &|_| {});
         assert!(matches!(s, GapStage::Skipped { ref reason } if reason.contains("no flag")));
-        let s = run_gap_stage(GapRun::Always, vec![], &g, None, &[], None);
+        let s = run_gap_stage(GapRun::Always, vec![], &g, None, &[], None, &|_| {});
         assert!(matches!(s, GapStage::Skipped { ref reason } if reason.contains("validation")));
-        let s = run_gap_stage(GapRun::Never, vec!["x".into()], &g, None, &[], None);
+        let s = run_gap_stage(
+            GapRun::Never,
+            vec!["x".into()],
+            &g,
+            None,
+            &[],
+            None,
+            &|_| {},
+        );
         assert!(matches!(s, GapStage::Skipped { ref reason } if reason.contains("never")));
     }
 }

@@ -106,6 +106,19 @@ pub struct LogData {
     pub etfe: Etfe,
 }
 
+impl LogData {
+    /// The operating point of a model identified on this run alone (the means its
+    /// preprocessing removed; [`crate::operating_point`]); `None` when it cannot be formed.
+    pub fn operating_point(&self) -> Option<crate::operating_point::OperatingPoint> {
+        crate::operating_point::operating_point_of(
+            std::slice::from_ref(&self.preprocessing),
+            self.log.inputs.len(),
+            self.log.outputs.len(),
+        )
+        .ok()
+    }
+}
+
 /// A continuous-time mode of the identified model, from a discrete pole z via s = ln(z)/ts.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Mode {
@@ -220,13 +233,7 @@ impl PipelineRun {
     /// of the estimation run ([`crate::operating_point`]).
     pub fn model_file(&self) -> crate::lti::StateSpaceData {
         let mut d = crate::lti::StateSpaceData::from(self.model());
-        let run = self.nominal_run();
-        d.operating_point = crate::operating_point::operating_point_of(
-            std::slice::from_ref(&run.preprocessing),
-            run.log.inputs.len(),
-            run.log.outputs.len(),
-        )
-        .ok();
+        d.operating_point = self.nominal_run().operating_point();
         d
     }
 
@@ -699,22 +706,14 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             .is_some_and(|a| a.verdict == crate::robust::audit::Verdict::NotLinear),
         &receipts.receipts,
     );
-    if c.gap.run == gap_stage::GapRun::Always || !flags.is_empty() {
-        progress("gap diagnosis");
-    }
-    let op = crate::operating_point::operating_point_of(
-        std::slice::from_ref(&runs[nominal].preprocessing),
-        runs[nominal].log.inputs.len(),
-        runs[nominal].log.outputs.len(),
-    )
-    .ok();
     let gap = gap_stage::run_gap_stage(
         c.gap.run,
         flags,
         &model,
-        op.as_ref(),
+        runs[nominal].operating_point().as_ref(),
         &runs,
         validation.as_ref(),
+        progress,
     );
     progress("done");
     Ok(PipelineRun {
