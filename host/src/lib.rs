@@ -13,6 +13,7 @@ pub mod cli;
 pub mod data;
 pub mod error;
 pub mod gap;
+pub mod greybox;
 pub mod io;
 pub mod lti;
 pub mod n4sid;
