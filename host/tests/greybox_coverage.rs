@@ -13,7 +13,7 @@
 //!   binomial standard deviation of a 95 % rate is 2.8 %, so a calibrated interval lands
 //!   outside this band with probability below 5 %, a 2× too narrow one almost surely does).
 
-use ferrosid::greybox::{fit, GreyBoxFit, GreyBoxOptions, Measured, Structure};
+use ferrosid::greybox::{fit, GreyBoxFit, GreyBoxOptions, Measured, ParameterStatus, Structure};
 use ferrosid::n4sid::ChannelSet;
 use std::path::Path;
 
@@ -278,6 +278,10 @@ fn point_estimates() {
             }
         }
         assert!(f.converged, "{}", case.structure.name());
+        assert!(f
+            .parameters
+            .iter()
+            .all(|p| p.status != ParameterStatus::Undetermined));
     }
 }
 
@@ -330,7 +334,11 @@ fn mismatch_is_reported() {
         "{}",
         f.interval_method
     );
-    for p in f.parameters.iter().filter(|p| !p.known) {
+    for p in f
+        .parameters
+        .iter()
+        .filter(|p| p.status == ParameterStatus::Estimated)
+    {
         let t = truth(case, &p.name);
         assert!(
             (p.value - t).abs() / t < 0.10,

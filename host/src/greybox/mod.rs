@@ -11,7 +11,9 @@
 //! Identifiability is a rule, not a hope: [`Structure::check_known`] states what one
 //! input/output pair of each structure determines and refuses to fit without the parameters
 //! that fix the rest (`--known NAME=VALUE`); after the fit, a condition number of J'J above
-//! [`MAX_CONDITION`] is an error naming the combination the data does not determine.
+//! [`MAX_CONDITION`] is an error naming the combination the data does not determine — unless
+//! that combination is one parameter alone, which is then reported
+//! [`ParameterStatus::Undetermined`] (never with a number presented as an estimate).
 //!
 //! Assumptions (stated in every report): the structure is right (check the fit's NRMSE and the
 //! residual test of `validate`), the input is known exactly (measurement noise on the output
@@ -124,14 +126,28 @@ pub struct PhysicalParameter {
     pub unit: String,
     /// Meaning.
     pub description: String,
-    /// Estimate (or the given value when `known`).
+    /// Estimate; the given value when known; where the fit left it when undetermined.
     pub value: f64,
-    /// Standard deviation (delta method: value·σ_log); `None` when known.
+    /// Standard deviation (delta method: value·σ_log); `None` unless estimated.
     pub std_dev: Option<f64>,
-    /// Confidence interval [low, high]; `None` when known.
+    /// Confidence interval [low, high]; `None` unless estimated.
     pub interval: Option<[f64; 2]>,
-    /// Whether the value was given (`--known`), not estimated.
-    pub known: bool,
+    /// Estimated, known (given), or undetermined by the data.
+    pub status: ParameterStatus,
+}
+
+/// How a [`PhysicalParameter`]'s value came about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ParameterStatus {
+    /// Estimated from the data, with an interval.
+    Estimated,
+    /// Given (`--known`), held fixed.
+    Known,
+    /// The data do not determine it: alone it spans the weakest direction of J'J (its effect
+    /// is below the noise in the excited band). Held where the fit left it; its value means
+    /// nothing, the other parameters' intervals are conditional on it.
+    Undetermined,
 }
 
 /// Result of [`fit`].
@@ -260,6 +276,9 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
         &N4sidOptions {
             order: OrderSelection::Fixed(structure.order()),
             estimate_d: false,
+            // Rigid-body axes put a pole at (or, from noise, just outside) z = 1; the start
+            // needs the poles' places, not an exact integrator.
+            stability_margin: Some(1e-6),
             ..N4sidOptions::default()
         },
     )
@@ -271,18 +290,40 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
         .map(|k| f_lo * (f_hi / f_lo).powf(k as f64 / 199.0))
         .collect();
     let start = start::start_values(structure, &bb.model, &known, &grid)?;
-    let problem = output_error::Problem {
-        structure,
-        u: data.u[0],
-        y: data.y[0],
-        ts,
-        fixed: known.clone(),
-    };
-    let sol = problem.solve(&start, opts.max_iterations)?;
-    let free: Vec<usize> = (0..known.len()).filter(|&i| known[i].is_none()).collect();
+    // Fit; a parameter the data leave undetermined on its own (it alone spans the weakest
+    // direction of J'J, e.g. a viscous friction whose pole lies below the excited band) is
+    // held where the fit left it and reported `undetermined`, and the rest is re-fitted.
     let specs = structure.parameters();
-    let cov_defined = (0..free.len()).all(|i| sol.cov_log[(i, i)].is_finite());
-    if !(sol.condition <= MAX_CONDITION) || !cov_defined {
+    let mut fixed = known.clone();
+    let mut undetermined = vec![false; specs.len()];
+    let mut current = start.clone();
+    let sol = loop {
+        let problem = output_error::Problem {
+            structure,
+            u: data.u[0],
+            y: data.y[0],
+            ts,
+            fixed: fixed.clone(),
+        };
+        let sol = problem.solve(&current, opts.max_iterations)?;
+        let free: Vec<usize> = (0..fixed.len()).filter(|&i| fixed[i].is_none()).collect();
+        let cov_defined = (0..free.len()).all(|i| sol.cov_log[(i, i)].is_finite());
+        if sol.condition <= MAX_CONDITION && cov_defined {
+            break sol;
+        }
+        let dominant = sol
+            .weakest
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .filter(|(_, w)| w.abs() > 0.95 && free.len() > 1);
+        if let Some((k, _)) = dominant {
+            let i = free[k];
+            undetermined[i] = true;
+            fixed[i] = Some(sol.params[i]);
+            current = sol.params.clone();
+            continue;
+        }
         let combo: Vec<String> = free
             .iter()
             .zip(&sol.weakest)
@@ -299,13 +340,20 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             MAX_CONDITION,
             combo.join(" ")
         )));
-    }
+    };
     let z = normal_quantile_two_sided(opts.confidence);
     let mut parameters = Vec::with_capacity(specs.len());
     let mut fi = 0;
     for (i, s) in specs.iter().enumerate() {
         let value = sol.params[i];
-        let (std_dev, interval) = if known[i].is_some() {
+        let status = if known[i].is_some() {
+            ParameterStatus::Known
+        } else if undetermined[i] {
+            ParameterStatus::Undetermined
+        } else {
+            ParameterStatus::Estimated
+        };
+        let (std_dev, interval) = if status != ParameterStatus::Estimated {
             (None, None)
         } else {
             let sd = sol.cov_log[(fi, fi)].max(0.0).sqrt();
@@ -322,7 +370,7 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             value,
             std_dev,
             interval,
-            known: known[i].is_some(),
+            status,
         });
     }
     let energy: f64 = y.iter().map(|v| v * v).sum::<f64>().max(f64::MIN_POSITIVE);
