@@ -63,6 +63,7 @@
 
 mod compensation;
 mod context;
+mod context_comp;
 mod error;
 mod input;
 mod text;
@@ -356,6 +357,22 @@ pub fn context_variables() -> &'static [(&'static str, &'static str)] {
         (
             "c.receipt_count, c.receipts_all_pass, c.notes",
             "receipts and notes",
+        ),
+        (
+            "c.comp.has, c.comp.enabled_c/_rs, c.comp.doc, c.comp.effect_c/_rs (also place, verdict, source)",
+            "compensation block and its provenance",
+        ),
+        (
+            "c.comp.has_ff, c.comp.ff_coulomb/ff_viscous/ff_smoothing_velocity/ff_filter_hz/ff_filter_alpha, c.comp.ff_velocity_c/_rs",
+            "friction feedforward (velocity source 0 output, 1 output difference, 2 reference)",
+        ),
+        (
+            "c.comp.has_dz, c.comp.dz_width/dz_smoothing, c.comp.has_bl, c.comp.bl_gap/bl_smoothing",
+            "dead-zone and backlash inverses",
+        ),
+        (
+            "c.comp.has_aw, c.comp.aw_u_min/aw_u_max/aw_tracking_time_s/aw_gain",
+            "anti-windup (aw_gain = ts/T_t)",
         ),
         (
             "c.u0_c, c.u0_rs, c.y0_c, c.y0_rs, c.op_note",
