@@ -293,6 +293,11 @@ pub(crate) fn build(
         ));
     }
 
+    // Compensation (validated here; rendered below).
+    if let Some(comp) = &input.compensation {
+        comp.validate_at(ts)?;
+    }
+
     // Continuous model (documentation).
     let (has_continuous, cont_note, cont) = match &input.continuous {
         Some(cm) => {

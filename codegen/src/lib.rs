@@ -51,6 +51,7 @@
 //!         tool: "example".into(), sources: vec![], receipts: vec![], notes: vec![],
 //!     },
 //!     operating_point: None,
+//!     compensation: None,
 //! };
 //! let out = generate(&input)?;
 //! assert_eq!(out.c_file_name, "axis_1.h");
@@ -60,6 +61,7 @@
 //! ```
 #![forbid(unsafe_code)]
 
+mod compensation;
 mod context;
 mod error;
 mod input;
@@ -70,6 +72,10 @@ use std::path::Path;
 use askama::Template;
 use sha2::{Digest, Sha256};
 
+pub use compensation::{
+    AntiWindup, BacklashInverse, Compensation, CompensationProvenance, DeadZoneInverse,
+    FrictionFeedforward, VelocitySource, MAX_COMPENSATION_VALUE, MIN_COMPENSATION_BAND,
+};
 pub use context::{snap_checks, CheckPoint, MAX_CHECKS};
 pub use error::{Error, Result};
 pub use input::{

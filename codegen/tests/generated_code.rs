@@ -115,6 +115,7 @@ fn full_input() -> CodegenInput {
             notes: vec!["ferrosid identify unit_a.csv --order 3".into()],
         },
         operating_point: None,
+        compensation: None,
     }
 }
 
@@ -666,6 +667,29 @@ fn bad_input_is_an_error_naming_the_field() {
             "provenance.sources[1].sha256",
         ),
         (Box::new(|i| i.prefix = "--".into()), "prefix"),
+        (
+            Box::new(|i| {
+                i.compensation = Some(Compensation {
+                    enabled: true,
+                    provenance: CompensationProvenance {
+                        effect: "dead_zone".into(),
+                        place: "drive".into(),
+                        verdict: "explained".into(),
+                        source: "test".into(),
+                        nrmse_before: None,
+                        nrmse_after: None,
+                    },
+                    friction_feedforward: None,
+                    dead_zone_inverse: Some(DeadZoneInverse {
+                        width: f64::NAN,
+                        smoothing: 0.01,
+                    }),
+                    backlash_inverse: None,
+                    anti_windup: None,
+                })
+            }),
+            "compensation.dead_zone_inverse.width",
+        ),
     ];
     for (k, (edit, field)) in cases.iter().enumerate() {
         let mut i = base.clone();
