@@ -10,6 +10,7 @@
 
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod compensation;
 pub mod data;
 pub mod error;
 pub mod gap;

@@ -25,9 +25,15 @@
 //! simulation. host/tests/limit_cycle_misleads.rs shows a case (stiction at low speed) where it
 //! misses a cycle the simulation finds.
 pub mod describing;
+pub mod detect;
 pub mod lure;
 pub mod predict;
+pub mod receipt;
+pub mod simulate;
 
 pub use describing::DescribingFunction;
+pub use detect::{detect, DetectOptions, SimulatedLimitCycle};
 pub use lure::{LureLoop, Nonlinearity, Site};
-pub use predict::{predict, PredictOptions, PredictedLimitCycle};
+pub use predict::{predict, predict_with, PredictOptions, PredictedLimitCycle};
+pub use receipt::{analyse, receipt, AnalysisOptions, LimitCycleAnalysis};
+pub use simulate::{simulate, SimSpec, SimulatedRun};

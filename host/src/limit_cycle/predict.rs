@@ -96,7 +96,11 @@ fn seg_intersect(
 
 struct Solver<'a> {
     lp: &'a LureLoop,
-    df: DescribingFunction,
+    n_of: &'a dyn Fn(f64) -> Complex64,
+    /// Relative step of the numerical derivatives in A (larger for quadrature-based N).
+    h_a: f64,
+    /// Convergence tolerance of Newton, relative to |L|.
+    tol: f64,
     site: Site,
     w_lo: f64,
     w_hi: f64,
@@ -112,7 +116,7 @@ impl Solver<'_> {
             .filter(|v| v.re.is_finite() && v.im.is_finite())
     }
     fn inv_n(&self, a: f64) -> Option<Complex64> {
-        let n = self.df.eval(a);
+        let n = (self.n_of)(a);
         (n.norm() > 0.0 && n.re.is_finite() && n.im.is_finite()).then(|| 1.0 / n)
     }
     fn f(&self, lw: f64, la: f64) -> Option<Complex64> {
@@ -125,13 +129,14 @@ impl Solver<'_> {
         for _ in 0..60 {
             let f = self.f(x, y)?;
             let scale = self.l(x.exp())?.norm().max(1e-300);
-            if f.norm() <= 1e-11 * scale {
+            if f.norm() <= self.tol * scale {
                 return Some((x.exp(), y.exp()));
             }
             let h = 1e-6;
             let fx = (self.f((x + h).min(xh), y)? - self.f((x - h).max(xl), y)?)
                 / ((x + h).min(xh) - (x - h).max(xl));
-            let fy = (self.f(x, y + h)? - self.f(x, y - h)?) / (2.0 * h);
+            let ha = self.h_a;
+            let fy = (self.f(x, y + ha)? - self.f(x, y - ha)?) / (2.0 * ha);
             // Solve [fx fy]·[dx dy]ᵀ = −f (real 2×2).
             let det = fx.re * fy.im - fy.re * fx.im;
             if !(det.abs() > 1e-300) {
@@ -156,7 +161,7 @@ impl Solver<'_> {
         let w_minus = w - hw;
         let dl_dw = (self.l(w_plus)? - self.l(w_minus)?) / (w_plus - w_minus);
         let dl_ds = dl_dw * Complex64::new(0.0, -1.0);
-        let ha = 1e-6 * a;
+        let ha = self.h_a * a;
         let dinv_da = (self.inv_n(a + ha)? - self.inv_n(a - ha)?) / (2.0 * ha);
         let r = dinv_da / dl_ds;
         r.re.is_finite().then_some(r.re > 0.0)
@@ -169,6 +174,24 @@ impl Solver<'_> {
 pub fn predict(
     lp: &LureLoop,
     nl: &Nonlinearity,
+    opts: &PredictOptions,
+) -> Result<Vec<PredictedLimitCycle>> {
+    nl.df.validate()?;
+    let df = nl.df;
+    predict_with(lp, nl, &|a| df.eval(a), 1e-6, 1e-11, opts)
+}
+
+/// [`predict`] with the describing function given as a function of the amplitude (e.g. the
+/// residual nonlinearity of a compensated loop, [`crate::compensation::residual`]); `nl`
+/// supplies the site, threshold and amplitude scale. `h_a` is the relative step of the
+/// numerical derivatives in A and `tol` Newton's tolerance relative to |L| (use larger values,
+/// e.g. 1e-3 and 1e-6, for a describing function computed by quadrature).
+pub fn predict_with(
+    lp: &LureLoop,
+    nl: &Nonlinearity,
+    n_of: &dyn Fn(f64) -> Complex64,
+    h_a: f64,
+    tol: f64,
     opts: &PredictOptions,
 ) -> Result<Vec<PredictedLimitCycle>> {
     nl.df.validate()?;
@@ -196,7 +219,9 @@ pub fn predict(
     let a_hi = base + r_hi * scale;
     let sv = Solver {
         lp,
-        df: nl.df,
+        n_of,
+        h_a,
+        tol,
         site: nl.site,
         w_lo,
         w_hi,
@@ -267,7 +292,7 @@ pub fn predict(
         let (Some(l), Some(stable)) = (sv.l(w), sv.stable(w, a)) else {
             continue;
         };
-        let n = nl.df.eval(a);
+        let n = n_of(a);
         out.push(PredictedLimitCycle {
             freq_hz: w / (2.0 * PI),
             amplitude: a,
