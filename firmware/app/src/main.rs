@@ -116,6 +116,8 @@ fn parse_args() -> Result<Scenario, &'static str> {
         noise_rms: 1e-3,
         seed: 1,
         substeps: 16,
+        dead_zone: 0.0,
+        breakaway: 0.0,
     };
     let mut name = "nominal";
     let (mut jscale, mut delay, mut coulomb) = (None, None, None);
