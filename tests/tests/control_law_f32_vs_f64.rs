@@ -4,7 +4,7 @@
 //! both on the same reference/measurement sequences, step by step, for the PID alone and with
 //! each compensation part, and bounds the difference.
 //!
-//! Tolerance: |u_f32 − u_f64| <= 1e-4 · (1 + slope) · max|u| at every step, where slope is the
+//! Tolerance: |u_f32 − u_f64| <= 1e-5 · (1 + slope) · max|u| at every step, where slope is the
 //! steepest ramp of the active parts (1 + width/(2·smoothing) for the dead-zone inverse,
 //! (gap/2)/smoothing for the backlash inverse, coulomb/smoothing_velocity per velocity unit
 //! for the feedforward): the f32 coefficients and arithmetic carry relative errors ~1e-7 that
@@ -197,7 +197,7 @@ fn firmware_f32_law_follows_the_host_f64_law_step_by_step() {
     ];
     for (name, comp, slope) in cases {
         let (worst, peak) = compare(comp.as_ref());
-        let bound = 1e-4 * (1.0 + slope) * peak;
+        let bound = 1e-5 * (1.0 + slope) * peak;
         println!(
             "{name}: worst |u_f32 - u_f64| = {worst:.3e} (peak |u| {peak:.3}, bound {bound:.3e})"
         );
