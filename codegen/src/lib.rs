@@ -4,6 +4,11 @@
 //! * the discrete model A, B, C, D at the control rate as `float`/`f32` arrays, its dimensions as
 //!   constants, and the continuous model as documentation comments;
 //! * the PID controller in its discrete firmware form (gains and filter coefficients);
+//! * the compensation of a diagnosed nonlinearity ([`Compensation`]: friction feedforward,
+//!   dead-zone and backlash inverses, anti-windup) as a separate block with its parameters,
+//!   units, provenance and enabled flag, applied after the PID by the firmware's control step
+//!   (`ferrosid_firmware::control`); absent from the input, the block says so and the firmware
+//!   runs the plain PID;
 //! * the multiplicative uncertainty weight W_m(s) as continuous coefficients (s in rad/s), from
 //!   which the firmware evaluates |W_m(j2πf)| at the check frequencies;
 //! * the power-up self-identification settings and the check frequencies (Hz and Welch bins for
