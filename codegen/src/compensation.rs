@@ -194,8 +194,8 @@ fn check_band(name: &str, v: f64) -> Result<()> {
 
 impl Compensation {
     /// Checks every number: finite, within ±[`MAX_COMPENSATION_VALUE`] (so it fits the headers'
-    /// `float`), levels >= 0, widths, smoothing bands and times > 0, `u_min < u_max`, NRMSEs
-    /// >= 0; a backlash inverse only where `provenance.place` is `drive`; an enabled block has
+    /// `float`), levels >= 0, widths, smoothing bands and times > 0, `u_min < u_max`,
+    /// NRMSEs >= 0; a backlash inverse only where `provenance.place` is `drive`; an enabled block has
     /// at least one part. The error names the field (`compensation.dead_zone_inverse.width`).
     ///
     /// The velocity filter's corner is checked against the control rate by
