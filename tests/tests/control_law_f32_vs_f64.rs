@@ -119,7 +119,11 @@ fn all_parts() -> cg::Compensation {
 /// crosses zero, reverses, and saturates).
 fn signals(k: usize) -> (f64, f64) {
     let t = k as f64 * TS;
-    let r = if (k / 1500).is_multiple_of(2) { 0.3 } else { -0.25 };
+    let r = if (k / 1500).is_multiple_of(2) {
+        0.3
+    } else {
+        -0.25
+    };
     let y = 0.2 * (2.0 * std::f64::consts::PI * 1.3 * t).sin()
         + 0.03 * (2.0 * std::f64::consts::PI * 17.0 * t).sin()
         + if k > 3000 { 0.1 } else { 0.0 };

@@ -37,8 +37,8 @@ use cortex_m as _;
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 use ferrosid_firmware::control::{
-    analyse_oscillation, AntiWindup, BacklashInverse, Biquad, CompensationConfig, ControlConfig,
-    ControlLaw, ControlState, DeadZoneInverse, FrictionFeedforward, PidConfig, VelocitySource,
+    analyse_oscillation, Biquad, CompensationConfig, ControlConfig, ControlLaw, ControlState,
+    PidConfig,
 };
 use ferrosid_powerup::plant::{Axis, AxisParams};
 
@@ -47,6 +47,11 @@ use ferrosid_powerup::plant::{Axis, AxisParams};
 mod flashed {
     include!(concat!(env!("OUT_DIR"), "/flashed_model.rs"));
 }
+
+/// The generated compensation block in the firmware's form (shared with `powerup`).
+#[path = "flashed_comp.rs"]
+mod flashed_comp;
+use flashed_comp::compensation_config;
 
 /// Samples kept for the analysis and the log (4.096 s at 1 kHz).
 const TAIL: usize = 4096;
@@ -195,38 +200,6 @@ fn pid_config() -> PidConfig {
         b_d: p.b_d,
         rolloff: p.rolloff.map(|r| Biquad { b: r.b, a: r.a }),
     }
-}
-
-/// The generated compensation in the firmware's form (`None` when absent or disabled).
-fn compensation_config() -> Option<CompensationConfig> {
-    let c = flashed::COMPENSATION.filter(|c| c.enabled)?;
-    Some(CompensationConfig {
-        friction_feedforward: c.friction_feedforward.map(|f| FrictionFeedforward {
-            coulomb: f.coulomb,
-            viscous: f.viscous,
-            smoothing_velocity: f.smoothing_velocity,
-            velocity: match f.velocity {
-                flashed::VelocitySource::Output => VelocitySource::Output,
-                flashed::VelocitySource::OutputDifference { alpha, .. } => {
-                    VelocitySource::OutputDifference { alpha }
-                }
-                flashed::VelocitySource::Reference => VelocitySource::Reference,
-            },
-        }),
-        dead_zone_inverse: c.dead_zone_inverse.map(|d| DeadZoneInverse {
-            width: d.width,
-            smoothing: d.smoothing,
-        }),
-        backlash_inverse: c.backlash_inverse.map(|b| BacklashInverse {
-            gap: b.gap,
-            smoothing: b.smoothing,
-        }),
-        anti_windup: c.anti_windup.map(|a| AntiWindup {
-            u_min: a.u_min,
-            u_max: a.u_max,
-            gain: a.gain,
-        }),
-    })
 }
 
 /// Ring buffers of the tail, in .bss.

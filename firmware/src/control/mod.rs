@@ -218,6 +218,39 @@ impl ControlLaw {
         st.last_u = out.u;
         out
     }
+
+    /// The compensation alone applied to an external command `u_in` (input units) in place of
+    /// the PID's, for open-loop use such as the power-up excitation: the same velocity
+    /// estimate, inverses and clamp; the PID state is not touched (and the back-calculation
+    /// has no integrator to correct). Non-finite r, y or `u_in` repeats the previous command,
+    /// as [`ControlLaw::step`].
+    #[inline]
+    pub fn compensate(&self, st: &mut ControlState, r: f32, y: f32, u_in: f32) -> ControlOutput {
+        if !(r.is_finite() && y.is_finite() && u_in.is_finite()) {
+            return ControlOutput {
+                u: st.last_u,
+                u_pid: 0.0,
+                u_ff: 0.0,
+                u_unclamped: st.last_u,
+                held: true,
+            };
+        }
+        let mut out = ControlOutput {
+            u: u_in,
+            u_pid: u_in,
+            u_ff: 0.0,
+            u_unclamped: u_in,
+            held: false,
+        };
+        let mut unused = st.i;
+        if let Some(c) = &self.comp {
+            c.apply(st, r, y, &mut out, &mut unused);
+        }
+        st.y1 = y;
+        st.has_y1 = true;
+        st.last_u = out.u;
+        out
+    }
 }
 
 #[cfg(test)]

@@ -460,3 +460,36 @@ fn oscillation_detector_finds_frequency_and_amplitude_and_ignores_noise() {
     assert!(!analyse_oscillation(&settle, ts, 5, 1e-3).oscillating);
     assert_eq!(analyse_oscillation(&[], ts, 5, 0.0), Oscillation::default());
 }
+
+/// Open-loop use: the compensation applied to an external command equals the closed-loop step
+/// of a zero PID fed the same command as its "PID output" (here via the dead-zone inverse and
+/// a feedforward from the output), and leaves the PID state at rest.
+#[test]
+fn compensate_applies_the_parts_to_an_external_command() {
+    let comp = CompensationConfig {
+        friction_feedforward: Some(FrictionFeedforward {
+            coulomb: 0.2,
+            viscous: 0.0,
+            smoothing_velocity: 1.0,
+            velocity: VelocitySource::Output,
+        }),
+        dead_zone_inverse: Some(DeadZoneInverse {
+            width: 0.4,
+            smoothing: 0.01,
+        }),
+        ..CompensationConfig::NONE
+    };
+    let l = law(pid(3.0, 0.1, 0.0, 0.0), Some(comp));
+    let mut st = ControlState::new();
+    for (u_in, y, want) in [
+        (0.5f32, 0.5f32, 0.5 + 0.1 + 0.2),
+        // u_c = -0.3 + 0.2 = -0.1, then the inverse adds -width/2.
+        (-0.3, 2.0, -0.1 - 0.2),
+        (0.0, 0.0, 0.0),
+    ] {
+        let out = l.compensate(&mut st, 0.0, y, u_in);
+        assert!((out.u - want).abs() < 1e-6, "{u_in}, {y}: {}", out.u);
+        assert_eq!(st.integrator(), 0.0);
+    }
+    assert!(l.compensate(&mut st, 0.0, 0.0, f32::NAN).held);
+}
