@@ -12,6 +12,8 @@
 //! The frequency is 1/period; the amplitude is the first-harmonic amplitude at that frequency
 //! over the whole periods of the tail (the quantity a describing function predicts), with the
 //! half peak-to-peak beside it.
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 

@@ -19,6 +19,8 @@
 //! Re[(d(1/N)/dA) / (dL/ds)] > 0. (For a relay and a type-1 third-order plant the locus
 //! crosses the negative real axis upwards and the cycle is stable, the classical result of
 //! Gelb & Vander Velde §2.6; Slotine & Li §5.4.)
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::describing::DescribingFunction;
 use super::lure::{LureLoop, Nonlinearity, Site};
 use crate::error::{Error, Result};

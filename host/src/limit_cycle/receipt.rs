@@ -18,6 +18,8 @@
 //! oscillations and are not observed as such) are listed in the detail but not counted; a
 //! simulation that diverges counts as a cycle. The detail records every predicted and the
 //! simulated frequency (Hz) and amplitude (at the nonlinearity's input and at the output).
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::describing::DescribingFunction;
 use super::detect::{detect, DetectOptions, SimulatedLimitCycle};
 use super::lure::{LureLoop, Nonlinearity, Site};

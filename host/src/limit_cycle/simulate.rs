@@ -85,11 +85,11 @@ pub fn simulate(
     nl.df.validate()?;
     let ts = lp.ts;
     let n_samples = spec.duration_s / ts;
-    if !(n_samples.is_finite() && n_samples >= 1.0 && n_samples <= 1e7)
-        || spec.substeps == 0
-        || !spec.reference.is_finite()
-        || !spec.kick.is_finite()
-    {
+    let valid = (1.0..=1e7).contains(&n_samples)
+        && spec.substeps != 0
+        && spec.reference.is_finite()
+        && spec.kick.is_finite();
+    if !valid {
         return Err(Error::InvalidArgument(format!(
             "limit-cycle simulation: need 0 < duration (at most 1e7 samples), substeps >= 1 and \
              a finite reference and kick (got {spec:?})"
