@@ -34,6 +34,7 @@ struct StepState {
     u2: f64,
     y_prev: Option<f64>,
     w_filt: f64,
+    u_c: f64,
     u_dz1: f64,
     o: f64,
 }
@@ -62,6 +63,12 @@ impl ControlStep {
         })
     }
 
+    /// u_c of the last step: the PID command plus the friction feedforward, before the
+    /// dead-zone and backlash inverses and the clamp (the plain PID command when uncompensated).
+    pub fn pre_inverse_command(&self) -> f64 {
+        self.st.u_c
+    }
+
     /// Whether a compensation is active.
     pub fn compensated(&self) -> bool {
         self.comp.is_some()
@@ -88,6 +95,7 @@ impl ControlStep {
         s.u2 = s.u1;
         s.u1 = u_pid;
         s.i = i_new;
+        s.u_c = u_pid;
         let Some(c) = &self.comp else {
             return u_pid;
         };
@@ -106,6 +114,7 @@ impl ControlStep {
             u_c += ff.coulomb * (w / ff.smoothing_velocity).clamp(-1.0, 1.0) + ff.viscous * w;
         }
         s.y_prev = Some(y);
+        s.u_c = u_c;
         let mut u_dz = u_c;
         if let Some(dz) = &c.dead_zone_inverse {
             u_dz += 0.5 * dz.width * (u_c / dz.smoothing).clamp(-1.0, 1.0);

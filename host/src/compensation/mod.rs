@@ -7,8 +7,10 @@
 //! generated headers): friction feedforward (Coulomb + viscous with a smoothing band around
 //! zero velocity), dead-zone inverse, backlash inverse (only at the drive) and back-calculation
 //! anti-windup for saturation; all magnitudes in the plant's input units.
+pub mod design;
 pub mod law;
 pub mod residual;
 
+pub use design::{design, design_from, parse_verdict, verdict_effects, DesignOptions};
 pub use law::ControlStep;
 pub use residual::Residual;

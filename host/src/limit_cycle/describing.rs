@@ -267,10 +267,10 @@ impl DescribingFunction {
             .collect();
         let y = self.respond(&x);
         let (mut b1, mut a1) = (0.0, 0.0);
-        for k in n..2 * n {
+        for (k, yk) in y.iter().enumerate().skip(n) {
             let th = (k as f64 + 0.5) * dth;
-            b1 += y[k] * th.sin();
-            a1 += y[k] * th.cos();
+            b1 += yk * th.sin();
+            a1 += yk * th.cos();
         }
         Complex64::new(b1, a1) * (dth / (PI * a))
     }

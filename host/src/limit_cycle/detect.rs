@@ -12,8 +12,13 @@
 //! The frequency is 1/period; the amplitude is the first-harmonic amplitude at that frequency
 //! over the whole periods of the tail (the quantity a describing function predicts), with the
 //! half peak-to-peak beside it.
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
+
+/// Largest number of (block-averaged) samples the autocorrelation runs on.
+pub const MAX_AUTOCORR_SAMPLES: usize = 16_384;
 
 /// Settings of [`detect`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -88,13 +93,21 @@ pub fn detect(x: &[f64], ts: f64, opts: &DetectOptions) -> Option<SimulatedLimit
     if !(persistence >= opts.min_persistence) {
         return None;
     }
-    // Normalised autocorrelation up to a third of the tail (at least 3 periods seen).
-    let max_lag = nt / 3;
-    let r0: f64 = z.iter().map(|v| v * v).sum();
+    // Normalised autocorrelation up to a third of the tail (at least 3 periods seen), on
+    // block means of q samples when the tail is long (bounded cost; the period is refined by
+    // parabolic interpolation and the amplitude is computed on the full-rate tail).
+    let q = nt.div_ceil(MAX_AUTOCORR_SAMPLES).max(1);
+    let zq: Vec<f64> = z.chunks(q).map(|c| c.iter().sum::<f64>() / c.len() as f64).collect();
+    let nq = zq.len();
+    let max_lag = nq / 3;
+    let r0: f64 = zq.iter().map(|v| v * v).sum();
+    if !(r0 > 0.0) {
+        return None;
+    }
     let r = |lag: usize| -> f64 {
-        z[..nt - lag]
+        zq[..nq - lag]
             .iter()
-            .zip(&z[lag..])
+            .zip(&zq[lag..])
             .map(|(a, b)| a * b)
             .sum::<f64>()
             / r0
@@ -132,7 +145,7 @@ pub fn detect(x: &[f64], ts: f64, opts: &DetectOptions) -> Option<SimulatedLimit
     } else {
         0.0
     };
-    let period = (l0 as f64 + off) * ts;
+    let period = (l0 as f64 + off) * ts * q as f64;
     let freq_hz = 1.0 / period;
     // First harmonic over whole periods at the end of the tail.
     let per = period / ts;

@@ -19,10 +19,11 @@
 //! | `velocity` (Coulomb friction, stiction on the driven mass) | velocity v → friction force F (input units, subtracted at the plant input) | G_v/(1 + C·G) |
 //!
 //! G_v is the plant from its input to the velocity friction opposes: G itself when the output
-//! is the velocity ([`VelocitySource::Output`]), G·(1 − z⁻¹)/T when the output is a position
-//! ([`VelocitySource::OutputDerivative`], the backward difference). The friction force is
-//! treated as held over a sample in L; the simulation ([`crate::limit_cycle::simulate`])
-//! resolves it within the sample. A harmonic-balance solution is 1 + N(A)·L(e^{jωT}) = 0,
+//! is the velocity ([`VelocitySource::Output`]), s·G when the output is a position
+//! ([`VelocitySource::OutputDerivative`]). Friction acts continuously (it is not sampled), so
+//! G_v is the continuous plant G_c(jω) when one exists (sampled-data approximation: the
+//! controller path C·G is the discrete loop, aliasing neglected); without a continuous
+//! equivalent, the discrete G (resp. G·(1 − z⁻¹)/T) with the force held over a sample. A harmonic-balance solution is 1 + N(A)·L(e^{jωT}) = 0,
 //! i.e. L = −1/N(A) ([`crate::limit_cycle::predict`]).
 use super::describing::DescribingFunction;
 use crate::error::{Error, Result};
@@ -144,6 +145,7 @@ pub struct LureLoop {
     /// Which signal friction opposes.
     pub velocity: VelocitySource,
     plant_eval: FreqEvaluator,
+    plant_continuous_eval: Option<FreqEvaluator>,
     controller_tf: TransferFunction,
 }
 
@@ -199,6 +201,7 @@ impl LureLoop {
         Ok(Self {
             ts,
             plant_eval: pd.freq_evaluator(),
+            plant_continuous_eval: pc.as_ref().map(|p| p.freq_evaluator()),
             plant: pd,
             plant_continuous: pc,
             controller: controller.clone(),
@@ -229,9 +232,17 @@ impl LureLoop {
         Ok(match site {
             Site::Drive | Site::Sensor => c * g,
             Site::Velocity => {
-                let gv = match self.velocity {
-                    VelocitySource::Output => g,
-                    VelocitySource::OutputDerivative => {
+                // Friction acts continuously on the plant (it is not sampled): its path to the
+                // velocity is the continuous plant when there is one; the feedback through the
+                // sampled controller is the discrete loop (sampled-data approximation, aliasing
+                // neglected).
+                let gv = match (&self.plant_continuous_eval, self.velocity) {
+                    (Some(ev), VelocitySource::Output) => ev.at_rad_s(w_rad_s)?[(0, 0)],
+                    (Some(ev), VelocitySource::OutputDerivative) => {
+                        ev.at_rad_s(w_rad_s)?[(0, 0)] * Complex64::new(0.0, w_rad_s)
+                    }
+                    (None, VelocitySource::Output) => g,
+                    (None, VelocitySource::OutputDerivative) => {
                         let z_inv = Complex64::from_polar(1.0, -w_rad_s * self.ts);
                         g * (Complex64::new(1.0, 0.0) - z_inv) / self.ts
                     }

@@ -19,9 +19,12 @@
 //! Re[(d(1/N)/dA) / (dL/ds)] > 0. (For a relay and a type-1 third-order plant the locus
 //! crosses the negative real axis upwards and the cycle is stable, the classical result of
 //! Gelb & Vander Velde §2.6; Slotine & Li §5.4.)
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::describing::DescribingFunction;
 use super::lure::{LureLoop, Nonlinearity, Site};
 use crate::error::{Error, Result};
+use crate::gap::fit::VelocitySource;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -62,6 +65,10 @@ pub struct PredictedLimitCycle {
     /// Stable by the Loeb criterion (a stable cycle is the one that shows up in practice; an
     /// unstable one separates decaying from growing oscillations).
     pub stable: bool,
+    /// Amplitude of the plant output's fundamental, output units: A for `sensor`,
+    /// |G(e^{jωT})|·|N(A)|·A for `drive`, A (velocity output) or A/ω (position output) for
+    /// `velocity`.
+    pub output_amplitude: f64,
     /// Site of the nonlinearity.
     pub site: Site,
     /// L(e^{jωT}) at the solution (re, im).
@@ -293,9 +300,18 @@ pub fn predict_with(
             continue;
         };
         let n = n_of(a);
+        let output_amplitude = match nl.site {
+            Site::Sensor => a,
+            Site::Drive => lp.plant_response(w).map_or(f64::NAN, |g| g.norm()) * n.norm() * a,
+            Site::Velocity => match lp.velocity {
+                VelocitySource::Output => a,
+                VelocitySource::OutputDerivative => a / w,
+            },
+        };
         out.push(PredictedLimitCycle {
             freq_hz: w / (2.0 * PI),
             amplitude: a,
+            output_amplitude,
             stable,
             site: nl.site,
             loop_value: (l.re, l.im),

@@ -8,12 +8,18 @@
 //!
 //! | value | unit | pass when |
 //! |---|---|---|
-//! | stable cycles predicted + cycles found in simulation | 1 | = 0 (<= 0) |
+//! | stable cycles predicted + cycles found in simulation, larger than the tolerance | 1 | = 0 (<= 0) |
 //!
-//! Unstable predicted cycles (they separate decaying from growing oscillations and are not
-//! observed as such) are listed in the detail but not counted; a simulation that diverges
-//! counts as a cycle (the loop does not settle). The detail records every predicted and the
-//! simulated frequency (Hz) and amplitude (at the nonlinearity's input).
+//! A cycle counts when its amplitude at the plant output exceeds `amplitude_tol` (output units;
+//! default 0, every cycle counts — a pipeline sets it to what the sensor cannot resolve, e.g.
+//! its noise): predicted cycles by their output amplitude
+//! ([`PredictedLimitCycle::output_amplitude`]), a simulated one by the half peak-to-peak of
+//! the output over the tail. Unstable predicted cycles (they separate decaying from growing
+//! oscillations and are not observed as such) are listed in the detail but not counted; a
+//! simulation that diverges counts as a cycle. The detail records every predicted and the
+//! simulated frequency (Hz) and amplitude (at the nonlinearity's input and at the output).
+// `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use super::describing::DescribingFunction;
 use super::detect::{detect, DetectOptions, SimulatedLimitCycle};
 use super::lure::{LureLoop, Nonlinearity, Site};
@@ -43,6 +49,9 @@ pub struct AnalysisOptions {
     pub substeps: usize,
     /// Constant reference, output units (default 0).
     pub reference: f64,
+    /// Largest acceptable oscillation amplitude at the plant output, output units (>= 0,
+    /// default 0: every cycle counts).
+    pub amplitude_tol: f64,
 }
 
 impl Default for AnalysisOptions {
@@ -54,6 +63,7 @@ impl Default for AnalysisOptions {
             kick: None,
             substeps: 16,
             reference: 0.0,
+            amplitude_tol: 0.0,
         }
     }
 }
@@ -67,8 +77,14 @@ pub struct LimitCycleAnalysis {
     pub compensated: bool,
     /// Every describing-function solution, by frequency.
     pub predicted: Vec<PredictedLimitCycle>,
-    /// The oscillation found in the simulation's tail, if any.
+    /// The oscillation found in the simulation's tail at the nonlinearity's input, if any.
     pub simulated: Option<SimulatedLimitCycle>,
+    /// The oscillation found in the simulation's tail at the plant output, if any.
+    pub simulated_output: Option<SimulatedLimitCycle>,
+    /// Half the peak-to-peak of the plant output over the simulation's tail, output units.
+    pub output_tail_half_ptp: f64,
+    /// The tolerance applied, output units.
+    pub amplitude_tol: f64,
     /// Set when the simulation diverged (the message).
     pub diverged: Option<String>,
     /// Simulated time, s.
@@ -78,16 +94,30 @@ pub struct LimitCycleAnalysis {
 }
 
 impl LimitCycleAnalysis {
-    /// Predicted cycles that are stable.
-    pub fn stable_predicted(&self) -> impl Iterator<Item = &PredictedLimitCycle> {
-        self.predicted.iter().filter(|p| p.stable)
+    /// Predicted cycles that count: stable, with an output amplitude above the tolerance.
+    pub fn counted_predicted(&self) -> impl Iterator<Item = &PredictedLimitCycle> {
+        let tol = self.amplitude_tol;
+        self.predicted
+            .iter()
+            .filter(move |p| p.stable && !(p.output_amplitude <= tol))
     }
 
-    /// True when neither the prediction (stable cycles) nor the simulation finds a cycle.
+    /// Whether the simulation counts as a cycle: it diverged, or an oscillation was detected
+    /// and the output's half peak-to-peak over the tail exceeds the tolerance.
+    pub fn simulated_counts(&self) -> bool {
+        self.diverged.is_some()
+            || ((self.simulated.is_some() || self.simulated_output.is_some())
+                && !(self.output_tail_half_ptp <= self.amplitude_tol))
+    }
+
+    /// Cycles counted by the receipt.
+    pub fn count(&self) -> usize {
+        self.counted_predicted().count() + usize::from(self.simulated_counts())
+    }
+
+    /// True when neither the prediction nor the simulation finds a cycle that counts.
     pub fn passes(&self) -> bool {
-        self.stable_predicted().next().is_none()
-            && self.simulated.is_none()
-            && self.diverged.is_none()
+        self.count() == 0
     }
 }
 
@@ -100,6 +130,12 @@ pub fn analyse(
     opts: &AnalysisOptions,
 ) -> Result<LimitCycleAnalysis> {
     nl.df.validate()?;
+    if !(opts.amplitude_tol.is_finite() && opts.amplitude_tol >= 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "limit-cycle analysis: amplitude_tol = {} must be finite and >= 0",
+            opts.amplitude_tol
+        )));
+    }
     let residual = Residual::new(nl, comp);
     let (h_a, tol) = if residual.is_numeric() {
         (1e-3, 1e-6)
@@ -152,16 +188,33 @@ pub fn analyse(
         kick_samples: 5,
         substeps: opts.substeps,
     };
-    let (simulated, diverged) = match simulate(lp, nl, comp, &spec) {
-        Ok(run) => (detect(&run.nl_input, ts, &opts.detect), None),
-        Err(Error::Numerical(m)) => (None, Some(m)),
-        Err(e) => return Err(e),
-    };
+    let (simulated, simulated_output, output_tail_half_ptp, diverged) =
+        match simulate(lp, nl, comp, &spec) {
+            Ok(run) => {
+                let nt = ((run.y.len() as f64) * opts.detect.tail_fraction.clamp(0.05, 1.0))
+                    as usize;
+                let tail = &run.y[run.y.len() - nt.min(run.y.len())..];
+                let (lo, hi) = tail
+                    .iter()
+                    .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+                (
+                    detect(&run.nl_input, ts, &opts.detect),
+                    detect(&run.y, ts, &opts.detect),
+                    if tail.is_empty() { 0.0 } else { 0.5 * (hi - lo) },
+                    None,
+                )
+            }
+            Err(Error::Numerical(m)) => (None, None, f64::INFINITY, Some(m)),
+            Err(e) => return Err(e),
+        };
     Ok(LimitCycleAnalysis {
         nonlinearity: *nl,
         compensated: comp.is_some_and(|c| c.enabled),
         predicted,
         simulated,
+        simulated_output,
+        output_tail_half_ptp,
+        amplitude_tol: opts.amplitude_tol,
         diverged,
         duration_s,
         kick,
@@ -191,22 +244,25 @@ pub fn receipt(analysis: &LimitCycleAnalysis, label: &str) -> Receipt {
     }
     for p in &a.predicted {
         parts.push(format!(
-            "describing function: {} cycle at {} Hz, amplitude {} ({unit}){}",
+            "describing function: {} cycle at {} Hz, amplitude {} ({unit}), {} at the output{}",
             if p.stable { "stable" } else { "unstable (not counted)" },
             sig(p.freq_hz),
             sig(p.amplitude),
+            sig(p.output_amplitude),
             if p.refined { "" } else { ", grid estimate" }
         ));
     }
-    match (&a.simulated, &a.diverged) {
-        (Some(s), _) => parts.push(format!(
-            "simulation: cycle at {} Hz, amplitude {} (first harmonic; half peak-to-peak {}) \
-             ({unit})",
+    match (a.simulated.as_ref().or(a.simulated_output.as_ref()), &a.diverged) {
+        (_, Some(m)) => parts.push(format!("simulation diverged: {m}")),
+        (Some(s), None) => parts.push(format!(
+            "simulation: cycle at {} Hz, amplitude {} ({}, first harmonic; half peak-to-peak \
+             {}), output half peak-to-peak {}",
             sig(s.freq_hz),
             sig(s.amplitude),
-            sig(s.half_peak_to_peak)
+            if a.simulated.is_some() { unit } else { "output units" },
+            sig(s.half_peak_to_peak),
+            sig(a.output_tail_half_ptp)
         )),
-        (None, Some(m)) => parts.push(format!("simulation diverged: {m}")),
         (None, None) => parts.push(format!(
             "simulation: no sustained oscillation in the steady-state tail of {} s after a kick \
              of {} input units",
@@ -219,8 +275,13 @@ pub fn receipt(analysis: &LimitCycleAnalysis, label: &str) -> Receipt {
     } else {
         "without compensation".into()
     });
-    let count = a.stable_predicted().count()
-        + usize::from(a.simulated.is_some() || a.diverged.is_some());
+    if a.amplitude_tol > 0.0 {
+        parts.push(format!(
+            "cycles with an output amplitude <= {} not counted",
+            sig(a.amplitude_tol)
+        ));
+    }
+    let count = a.count();
     Receipt::new(
         ReceiptKind::LimitCycle,
         &format!(

@@ -15,7 +15,9 @@
 //!    slides — the same law and velocity proxy as the gap fit (the output, or its time
 //!    derivative C(A_c x + B_c w) for a position output); elsewhere one exact discrete step.
 //!
-//! The recorded signal `nl_input` is the nonlinearity's input at each sample (u for `drive`,
+//! The recorded signal `nl_input` is the nonlinearity's input at each sample (u for `drive` —
+//! with a compensation, the command u_c before the dead-zone/backlash inverses, the input of
+//! the residual nonlinearity [`crate::compensation::Residual`] —
 //! y for `sensor`, the velocity for `velocity`): the signal whose amplitude the describing
 //! function predicts.
 use super::lure::{LureLoop, Nonlinearity, Site};
@@ -83,11 +85,11 @@ pub fn simulate(
     nl.df.validate()?;
     let ts = lp.ts;
     let n_samples = spec.duration_s / ts;
-    if !(n_samples.is_finite() && n_samples >= 1.0 && n_samples <= 1e7)
-        || spec.substeps == 0
-        || !spec.reference.is_finite()
-        || !spec.kick.is_finite()
-    {
+    let valid = (1.0..=1e7).contains(&n_samples)
+        && spec.substeps != 0
+        && spec.reference.is_finite()
+        && spec.kick.is_finite();
+    if !valid {
         return Err(Error::InvalidArgument(format!(
             "limit-cycle simulation: need 0 < duration (at most 1e7 samples), substeps >= 1 and \
              a finite reference and kick (got {spec:?})"
@@ -135,9 +137,9 @@ pub fn simulate(
     } else {
         dot(&c, &bd) / (ts / m as f64)
     };
-    let mut fr = match nl.df {
-        DescribingFunction::Relay { level } => Some(StickSlip::new(level, level)),
-        DescribingFunction::Stiction { level, breakaway } => {
+    let mut fr = match (friction, nl.df) {
+        (true, DescribingFunction::Relay { level }) => Some(StickSlip::new(level, level)),
+        (true, DescribingFunction::Stiction { level, breakaway }) => {
             Some(StickSlip::new(level, breakaway))
         }
         _ => None,
@@ -202,7 +204,7 @@ pub fn simulate(
             0.0
         };
         run.nl_input.push(match nl.site {
-            Site::Drive => u,
+            Site::Drive => ctl.pre_inverse_command(),
             Site::Sensor => y,
             Site::Velocity => v_now,
         });
