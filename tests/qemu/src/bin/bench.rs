@@ -14,12 +14,12 @@
 use core::hint::black_box;
 
 use cortex_m_rt::entry;
-use ferrosid_firmware::excitation::{
-    Chirp, ChirpConfig, ChirpLaw, Line, Multisine, MultisineScratch, MultisineSpec, Phases, Prbs,
-};
 use ferrosid_firmware::control::{
     AntiWindup, BacklashInverse, Biquad, CompensationConfig, ControlConfig, ControlLaw,
     ControlState, DeadZoneInverse, FrictionFeedforward, PidConfig, VelocitySource,
+};
+use ferrosid_firmware::excitation::{
+    Chirp, ChirpConfig, ChirpLaw, Line, Multisine, MultisineScratch, MultisineSpec, Phases, Prbs,
 };
 use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
 use ferrosid_qemu::reference::XorShift32;
