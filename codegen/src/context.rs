@@ -30,7 +30,7 @@ pub(crate) struct Lit {
     pub rs: String,
 }
 
-fn lit(v: f64) -> Lit {
+pub(crate) fn lit(v: f64) -> Lit {
     Lit {
         c: c_float(v),
         rs: f32_literal(v),
@@ -179,6 +179,8 @@ pub(crate) struct Context {
     pub y0_c: String,
     pub y0_rs: String,
     pub op_note: String,
+    /// The compensation block (`c.comp`).
+    pub comp: crate::context_comp::CompLit,
 }
 
 fn is_hex64(s: &str) -> bool {
@@ -291,6 +293,11 @@ pub(crate) fn build(
             "model.ts_s",
             format!("{ts:e} s: the sample time and the rate 1/ts must be normal 32-bit floats"),
         ));
+    }
+
+    // Compensation (validated here; rendered below).
+    if let Some(comp) = &input.compensation {
+        comp.validate_at(ts)?;
     }
 
     // Continuous model (documentation).
@@ -571,7 +578,10 @@ pub(crate) fn build(
     let (u0_c, u0_rs) = vec_lit(&u0);
     let (y0_c, y0_rs) = vec_lit(&y0);
 
+    let comp = crate::context_comp::comp_lit(input.compensation.as_ref(), ts);
+
     let ctx = Context {
+        comp,
         u0_c,
         u0_rs,
         y0_c,

@@ -259,6 +259,11 @@ pub struct CodegenInput {
     /// headers state U0 = Y0 = 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub operating_point: Option<OperatingPointValues>,
+    /// Compensation of a diagnosed nonlinearity (friction feedforward, dead-zone and backlash
+    /// inverses, anti-windup), see [`crate::Compensation`]. None: the headers carry no
+    /// compensation block (and the digest of an input without one is unchanged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compensation: Option<crate::Compensation>,
 }
 
 /// The operating point of the model: it maps deviations, `y − y0 = G (u − u0)`.

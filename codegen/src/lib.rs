@@ -4,6 +4,11 @@
 //! * the discrete model A, B, C, D at the control rate as `float`/`f32` arrays, its dimensions as
 //!   constants, and the continuous model as documentation comments;
 //! * the PID controller in its discrete firmware form (gains and filter coefficients);
+//! * the compensation of a diagnosed nonlinearity ([`Compensation`]: friction feedforward,
+//!   dead-zone and backlash inverses, anti-windup) as a separate block with its parameters,
+//!   units, provenance and enabled flag, applied after the PID by the firmware's control step
+//!   (`ferrosid_firmware::control`); absent from the input, the block says so and the firmware
+//!   runs the plain PID;
 //! * the multiplicative uncertainty weight W_m(s) as continuous coefficients (s in rad/s), from
 //!   which the firmware evaluates |W_m(j2πf)| at the check frequencies;
 //! * the power-up self-identification settings and the check frequencies (Hz and Welch bins for
@@ -51,6 +56,7 @@
 //!         tool: "example".into(), sources: vec![], receipts: vec![], notes: vec![],
 //!     },
 //!     operating_point: None,
+//!     compensation: None,
 //! };
 //! let out = generate(&input)?;
 //! assert_eq!(out.c_file_name, "axis_1.h");
@@ -60,7 +66,9 @@
 //! ```
 #![forbid(unsafe_code)]
 
+mod compensation;
 mod context;
+mod context_comp;
 mod error;
 mod input;
 mod text;
@@ -70,6 +78,10 @@ use std::path::Path;
 use askama::Template;
 use sha2::{Digest, Sha256};
 
+pub use compensation::{
+    AntiWindup, BacklashInverse, Compensation, CompensationProvenance, DeadZoneInverse,
+    FrictionFeedforward, VelocitySource, MAX_COMPENSATION_VALUE, MIN_COMPENSATION_BAND,
+};
 pub use context::{snap_checks, CheckPoint, MAX_CHECKS};
 pub use error::{Error, Result};
 pub use input::{
@@ -350,6 +362,22 @@ pub fn context_variables() -> &'static [(&'static str, &'static str)] {
         (
             "c.receipt_count, c.receipts_all_pass, c.notes",
             "receipts and notes",
+        ),
+        (
+            "c.comp.has, c.comp.enabled_c/_rs, c.comp.doc, c.comp.effect_c/_rs (also place, verdict, source)",
+            "compensation block and its provenance",
+        ),
+        (
+            "c.comp.has_ff, c.comp.ff_coulomb/ff_viscous/ff_smoothing_velocity/ff_filter_hz/ff_filter_alpha, c.comp.ff_velocity_c/_rs",
+            "friction feedforward (velocity source 0 output, 1 output difference, 2 reference)",
+        ),
+        (
+            "c.comp.has_dz, c.comp.dz_width/dz_smoothing, c.comp.has_bl, c.comp.bl_gap/bl_smoothing",
+            "dead-zone and backlash inverses",
+        ),
+        (
+            "c.comp.has_aw, c.comp.aw_u_min/aw_u_max/aw_tracking_time_s/aw_gain",
+            "anti-windup (aw_gain = ts/T_t)",
         ),
         (
             "c.u0_c, c.u0_rs, c.y0_c, c.y0_rs, c.op_note",

@@ -82,6 +82,50 @@ static const float {{ c.p }}_PID_B_D = {{ c.pid_b_d.c }};
 static const float {{ c.p }}_PID_ROLLOFF_A[3] = { {{ c.pid_rolloff_a_c }} };
 {% else %}#define {{ c.p }}_HAS_PID 0
 {% endif %}
+/* ---- Compensation of a diagnosed nonlinearity (all in plant INPUT units unless stated) ----
+ * Applied after the PID each sample k (absent parts are the identity):
+ *   u_c  = u_pid + u_ff;   u_ff = FF_COULOMB clamp(w / FF_SMOOTHING_VELOCITY, -1, 1) + FF_VISCOUS w
+ *   u_dz = u_c + (DZ_WIDTH/2) clamp(u_c / DZ_SMOOTHING, -1, 1)
+ *   o    = clamp(o + (BL_GAP/2)/BL_SMOOTHING (u_dz - u_dz_prev), -BL_GAP/2, BL_GAP/2); u_bl = u_dz + o
+ *   u    = clamp(u_bl, AW_U_MIN, AW_U_MAX);  i += AW_GAIN (u - u_bl)   (back-calculation)
+ * Velocity w (velocity units): FF_VELOCITY_OUTPUT w = y; FF_VELOCITY_OUTPUT_DIFFERENCE
+ * w += FF_FILTER_ALPHA ((y - y_prev)/TS_S - w); FF_VELOCITY_REFERENCE w = r.
+ * COMP_ENABLED 0: the firmware runs the plain PID law.
+{% for d in c.comp.doc %} * {{ d }}
+{% endfor %} */
+{% if c.comp.has %}#define {{ c.p }}_HAS_COMPENSATION 1
+{% else %}#define {{ c.p }}_HAS_COMPENSATION 0
+{% endif %}#define {{ c.p }}_COMP_ENABLED {{ c.comp.enabled_c }}
+static const char {{ c.p }}_COMP_EFFECT[] = {{ c.comp.effect_c }};
+static const char {{ c.p }}_COMP_PLACE[] = {{ c.comp.place_c }};
+static const char {{ c.p }}_COMP_VERDICT[] = {{ c.comp.verdict_c }};
+static const char {{ c.p }}_COMP_SOURCE[] = {{ c.comp.source_c }};
+#define {{ c.p }}_COMP_FF_VELOCITY_OUTPUT 0
+#define {{ c.p }}_COMP_FF_VELOCITY_OUTPUT_DIFFERENCE 1
+#define {{ c.p }}_COMP_FF_VELOCITY_REFERENCE 2
+{% if c.comp.has_ff %}#define {{ c.p }}_COMP_HAS_FRICTION_FF 1
+{% else %}#define {{ c.p }}_COMP_HAS_FRICTION_FF 0
+{% endif %}#define {{ c.p }}_COMP_FF_VELOCITY {{ c.comp.ff_velocity_c }}
+static const float {{ c.p }}_COMP_FF_COULOMB = {{ c.comp.ff_coulomb.c }};
+static const float {{ c.p }}_COMP_FF_VISCOUS = {{ c.comp.ff_viscous.c }};
+static const float {{ c.p }}_COMP_FF_SMOOTHING_VELOCITY = {{ c.comp.ff_smoothing_velocity.c }};
+static const float {{ c.p }}_COMP_FF_FILTER_HZ = {{ c.comp.ff_filter_hz.c }};
+static const float {{ c.p }}_COMP_FF_FILTER_ALPHA = {{ c.comp.ff_filter_alpha.c }};
+{% if c.comp.has_dz %}#define {{ c.p }}_COMP_HAS_DEAD_ZONE_INVERSE 1
+{% else %}#define {{ c.p }}_COMP_HAS_DEAD_ZONE_INVERSE 0
+{% endif %}static const float {{ c.p }}_COMP_DZ_WIDTH = {{ c.comp.dz_width.c }};
+static const float {{ c.p }}_COMP_DZ_SMOOTHING = {{ c.comp.dz_smoothing.c }};
+{% if c.comp.has_bl %}#define {{ c.p }}_COMP_HAS_BACKLASH_INVERSE 1
+{% else %}#define {{ c.p }}_COMP_HAS_BACKLASH_INVERSE 0
+{% endif %}static const float {{ c.p }}_COMP_BL_GAP = {{ c.comp.bl_gap.c }};
+static const float {{ c.p }}_COMP_BL_SMOOTHING = {{ c.comp.bl_smoothing.c }};
+{% if c.comp.has_aw %}#define {{ c.p }}_COMP_HAS_ANTI_WINDUP 1
+{% else %}#define {{ c.p }}_COMP_HAS_ANTI_WINDUP 0
+{% endif %}static const float {{ c.p }}_COMP_AW_U_MIN = {{ c.comp.aw_u_min.c }};
+static const float {{ c.p }}_COMP_AW_U_MAX = {{ c.comp.aw_u_max.c }};
+static const float {{ c.p }}_COMP_AW_TRACKING_TIME_S = {{ c.comp.aw_tracking_time_s.c }};
+static const float {{ c.p }}_COMP_AW_GAIN = {{ c.comp.aw_gain.c }};
+
 /* ---- Multiplicative uncertainty weight W_m(s) = NUM(s)/DEN(s) -----------------------------
  * Continuous, s in rad/s, descending powers. The power-up check passes at frequency f when
  * |G_meas - G0| / |G0| <= |W_m(j 2 pi f)|.

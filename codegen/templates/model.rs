@@ -113,6 +113,129 @@ pub struct DiscretePid {
 {% endif %}});
 {% else %}pub const PID: Option<DiscretePid> = None;
 {% endif %}
+// ---- Compensation of a diagnosed nonlinearity (plant INPUT units unless stated) ----------
+// Applied after the PID each sample k (absent parts are the identity):
+//   u_c  = u_pid + u_ff;   u_ff = coulomb clamp(w / smoothing_velocity, -1, 1) + viscous w
+//   u_dz = u_c + (width/2) clamp(u_c / smoothing, -1, 1)
+//   o    = clamp(o + (gap/2)/smoothing (u_dz - u_dz_prev), -gap/2, gap/2);  u_bl = u_dz + o
+//   u    = clamp(u_bl, u_min, u_max);  i += gain (u - u_bl)   (back-calculation, gain = ts/T_t)
+// `enabled == false`: the firmware runs the plain PID law.
+{% for d in c.comp.doc %}// {{ d }}
+{% endfor %}
+/// Velocity estimate w of the friction feedforward (velocity units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VelocitySource {
+    /// The measured output is the velocity: w = y.
+    Output,
+    /// Filtered backward difference of the output: w += alpha·((y − y_prev)/TS_S − w).
+    OutputDifference {
+        /// Low-pass corner, Hz.
+        filter_hz: f32,
+        /// alpha = 1 − exp(−2π·filter_hz·TS_S).
+        alpha: f32,
+    },
+    /// The reference is the velocity set-point: w = r.
+    Reference,
+}
+
+/// Coulomb + viscous friction feedforward with a linear ramp through zero velocity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionFeedforward {
+    /// Coulomb level, input units.
+    pub coulomb: f32,
+    /// Viscous coefficient, input units per velocity unit.
+    pub viscous: f32,
+    /// Half-width of the ramp through zero velocity, velocity units.
+    pub smoothing_velocity: f32,
+    /// Where w comes from.
+    pub velocity: VelocitySource,
+}
+
+/// Inverse of a dead zone of full width `width`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeadZoneInverse {
+    /// Full width, input units.
+    pub width: f32,
+    /// Ramp half-width around zero command, input units.
+    pub smoothing: f32,
+}
+
+/// Inverse of backlash with total play `gap` at the drive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BacklashInverse {
+    /// Total play, input units.
+    pub gap: f32,
+    /// Command travel over which the offset builds up, input units.
+    pub smoothing: f32,
+}
+
+/// Actuator limits with back-calculation anti-windup.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AntiWindup {
+    /// Lowest command, input units.
+    pub u_min: f32,
+    /// Highest command, input units.
+    pub u_max: f32,
+    /// Tracking time constant T_t, s.
+    pub tracking_time_s: f32,
+    /// Back-calculation gain per sample, TS_S/T_t.
+    pub gain: f32,
+}
+
+/// The compensation block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Compensation {
+    /// Whether the firmware applies it.
+    pub enabled: bool,
+    /// Friction feedforward.
+    pub friction_feedforward: Option<FrictionFeedforward>,
+    /// Dead-zone inverse.
+    pub dead_zone_inverse: Option<DeadZoneInverse>,
+    /// Backlash inverse.
+    pub backlash_inverse: Option<BacklashInverse>,
+    /// Actuator limits and anti-windup.
+    pub anti_windup: Option<AntiWindup>,
+}
+
+/// Diagnosed effect the compensation answers (gap EffectKind name, or "").
+pub const COMPENSATION_EFFECT: &str = {{ c.comp.effect_rs }};
+/// Where the effect acts (drive, sensor, ..., or "").
+pub const COMPENSATION_PLACE: &str = {{ c.comp.place_rs }};
+/// The diagnosis verdict.
+pub const COMPENSATION_VERDICT: &str = {{ c.comp.verdict_rs }};
+/// What produced the compensation.
+pub const COMPENSATION_SOURCE: &str = {{ c.comp.source_rs }};
+/// The compensation (`None` when none was given to the generator).
+#[allow(clippy::approx_constant)]
+{% if c.comp.has %}pub const COMPENSATION: Option<Compensation> = Some(Compensation {
+    enabled: {{ c.comp.enabled_rs }},
+{% if c.comp.has_ff %}    friction_feedforward: Some(FrictionFeedforward {
+        coulomb: {{ c.comp.ff_coulomb.rs }},
+        viscous: {{ c.comp.ff_viscous.rs }},
+        smoothing_velocity: {{ c.comp.ff_smoothing_velocity.rs }},
+        velocity: {{ c.comp.ff_velocity_rs }},
+    }),
+{% else %}    friction_feedforward: None,
+{% endif %}{% if c.comp.has_dz %}    dead_zone_inverse: Some(DeadZoneInverse {
+        width: {{ c.comp.dz_width.rs }},
+        smoothing: {{ c.comp.dz_smoothing.rs }},
+    }),
+{% else %}    dead_zone_inverse: None,
+{% endif %}{% if c.comp.has_bl %}    backlash_inverse: Some(BacklashInverse {
+        gap: {{ c.comp.bl_gap.rs }},
+        smoothing: {{ c.comp.bl_smoothing.rs }},
+    }),
+{% else %}    backlash_inverse: None,
+{% endif %}{% if c.comp.has_aw %}    anti_windup: Some(AntiWindup {
+        u_min: {{ c.comp.aw_u_min.rs }},
+        u_max: {{ c.comp.aw_u_max.rs }},
+        tracking_time_s: {{ c.comp.aw_tracking_time_s.rs }},
+        gain: {{ c.comp.aw_gain.rs }},
+    }),
+{% else %}    anti_windup: None,
+{% endif %}});
+{% else %}pub const COMPENSATION: Option<Compensation> = None;
+{% endif %}
 // Multiplicative uncertainty weight W_m(s) = WM_NUM(s)/WM_DEN(s), continuous, s in rad/s.
 {% for d in c.wm_doc %}// {{ d }}
 {% endfor %}/// Order of W_m (numerator and denominator degree).

@@ -115,7 +115,69 @@ fn full_input() -> CodegenInput {
             notes: vec!["ferrosid identify unit_a.csv --order 3".into()],
         },
         operating_point: None,
+        compensation: Some(full_compensation()),
     }
+}
+
+/// Every part of the compensation block, with provenance text that needs escaping.
+fn full_compensation() -> Compensation {
+    Compensation {
+        enabled: true,
+        provenance: CompensationProvenance {
+            effect: "coulomb_friction".into(),
+            place: "drive".into(),
+            verdict: "explained */ \"quoted\" ??/".into(),
+            source: "ferrosid gap on unit_a.csv,unit_b.csv".into(),
+            nrmse_before: Some(0.21),
+            nrmse_after: None,
+        },
+        friction_feedforward: Some(FrictionFeedforward {
+            coulomb: 0.0213,
+            viscous: 1.5e-3,
+            smoothing_velocity: 0.25,
+            velocity: VelocitySource::OutputDifference { filter_hz: 80.0 },
+        }),
+        dead_zone_inverse: Some(DeadZoneInverse {
+            width: 0.12,
+            smoothing: 3e-3,
+        }),
+        backlash_inverse: Some(BacklashInverse {
+            gap: 0.05,
+            smoothing: 0.01,
+        }),
+        anti_windup: Some(AntiWindup {
+            u_min: -2.5,
+            u_max: 3.0,
+            tracking_time_s: 0.02,
+        }),
+    }
+}
+
+/// The compensation numbers in emission order: the inputs, then the derived filter
+/// coefficient alpha = 1 - exp(-2 pi f ts) and back-calculation gain ts/T_t (f64 here).
+fn comp_numbers(c: &Compensation, ts: f64) -> Vec<f64> {
+    let ff = c.friction_feedforward.unwrap();
+    let VelocitySource::OutputDifference { filter_hz } = ff.velocity else {
+        panic!("test compensation filters the output difference")
+    };
+    let dz = c.dead_zone_inverse.unwrap();
+    let bl = c.backlash_inverse.unwrap();
+    let aw = c.anti_windup.unwrap();
+    vec![
+        ff.coulomb,
+        ff.viscous,
+        ff.smoothing_velocity,
+        filter_hz,
+        1.0 - (-2.0 * std::f64::consts::PI * filter_hz * ts).exp(),
+        dz.width,
+        dz.smoothing,
+        bl.gap,
+        bl.smoothing,
+        aw.u_min,
+        aw.u_max,
+        aw.tracking_time_s,
+        ts / aw.tracking_time_s,
+    ]
 }
 
 /// The smallest input: 1 state, no PID, no continuous model, no sources or receipts.
@@ -138,6 +200,7 @@ fn minimal_input() -> CodegenInput {
     i.provenance.sources.clear();
     i.provenance.receipts.clear();
     i.provenance.notes.clear();
+    i.compensation = None;
     i
 }
 
@@ -170,7 +233,20 @@ fn compile_c(dir: &Path, main_c: &str, exe: Option<&str>) {
 
 #[test]
 fn c_header_compiles_with_strict_flags_for_every_section_combination() {
-    for (name, input) in [("full", full_input()), ("minimal", minimal_input())] {
+    let mut disabled = minimal_input();
+    disabled.prefix = "disabled comp".into();
+    disabled.compensation = Some(Compensation {
+        enabled: false,
+        friction_feedforward: None,
+        backlash_inverse: None,
+        anti_windup: None,
+        ..full_compensation()
+    });
+    for (name, input) in [
+        ("full", full_input()),
+        ("minimal", minimal_input()),
+        ("disabled", disabled),
+    ] {
         let dir = scratch(&format!("cc-{name}"));
         let g = generate(&input).unwrap();
         std::fs::write(dir.join(&g.c_file_name), &g.c_header).unwrap();
@@ -219,6 +295,10 @@ fn assert_exact(dump: &std::collections::BTreeMap<String, Vec<f64>>, input: &Cod
         ("HZ", g.checks.iter().map(|c| c.hz).collect()),
         ("BIN", g.checks.iter().map(|c| c.bin as f64).collect()),
         ("GATE", vec![input.self_id.coherence_gate]),
+        (
+            "COMP",
+            comp_numbers(input.compensation.as_ref().unwrap(), input.model.ts_s),
+        ),
     ];
     for (name, want) in expect {
         let got = dump.get(name).unwrap_or_else(|| panic!("no {name} line"));
@@ -271,6 +351,10 @@ int main(void) {{
     float x[{p}_N_STATES] = {{0}}, xn[{p}_N_STATES];
     float pid[4] = {{ {p}_PID_KP, {p}_PID_KI_D, {p}_PID_A_D, {p}_PID_B_D }};
     float ts = {p}_TS_S, gate = {p}_COHERENCE_GATE;
+    float comp[13] = {{ {p}_COMP_FF_COULOMB, {p}_COMP_FF_VISCOUS, {p}_COMP_FF_SMOOTHING_VELOCITY,
+        {p}_COMP_FF_FILTER_HZ, {p}_COMP_FF_FILTER_ALPHA, {p}_COMP_DZ_WIDTH, {p}_COMP_DZ_SMOOTHING,
+        {p}_COMP_BL_GAP, {p}_COMP_BL_SMOOTHING, {p}_COMP_AW_U_MIN, {p}_COMP_AW_U_MAX,
+        {p}_COMP_AW_TRACKING_TIME_S, {p}_COMP_AW_GAIN }};
     int k, i, j;
     row("A", &{p}_A[0][0], {p}_N_STATES * {p}_N_STATES);
     row("B", &{p}_B[0][0], {p}_N_STATES * {p}_N_INPUTS);
@@ -284,6 +368,12 @@ int main(void) {{
     row("WD", {p}_WM_DEN, {p}_WM_ORDER + 1);
     row("HZ", {p}_CHECK_HZ, {p}_CHECK_COUNT);
     row("GATE", &gate, 1);
+    row("COMP", comp, 13);
+    printf("COMPSTR %s|%s|%s|%s\n", {p}_COMP_EFFECT, {p}_COMP_PLACE, {p}_COMP_VERDICT, {p}_COMP_SOURCE);
+    if (!({p}_HAS_COMPENSATION == 1 && {p}_COMP_ENABLED == 1 && {p}_COMP_HAS_FRICTION_FF == 1
+          && {p}_COMP_FF_VELOCITY == {p}_COMP_FF_VELOCITY_OUTPUT_DIFFERENCE
+          && {p}_COMP_HAS_DEAD_ZONE_INVERSE == 1 && {p}_COMP_HAS_BACKLASH_INVERSE == 1
+          && {p}_COMP_HAS_ANTI_WINDUP == 1)) return 4;
     printf("BIN");
     for (i = 0; i < {p}_CHECK_COUNT; i++) printf(" %u", (unsigned){p}_CHECK_BIN[i]);
     printf("\nSHA %s\nSTEP", {p}_INPUTS_SHA256);
@@ -308,9 +398,19 @@ int main(void) {{
     let out = run(&mut Command::new(dir.join("sim")), "C simulation");
     let sha_line = out.lines().find(|l| l.starts_with("SHA ")).unwrap();
     assert_eq!(&sha_line[4..], g.inputs_sha256);
+    // Provenance strings survive the C string escaping byte for byte.
+    let pv = &input.compensation.as_ref().unwrap().provenance;
+    let strs = out
+        .lines()
+        .find_map(|l| l.strip_prefix("COMPSTR "))
+        .unwrap();
+    assert_eq!(
+        strs,
+        format!("{}|{}|{}|{}", pv.effect, pv.place, pv.verdict, pv.source)
+    );
     let dump = parse_dump(
         &out.lines()
-            .filter(|l| !l.starts_with("SHA"))
+            .filter(|l| !l.starts_with("SHA") && !l.starts_with("COMPSTR"))
             .collect::<Vec<_>>()
             .join("\n"),
     );
@@ -396,6 +496,17 @@ fn main() {{
     row("WD", &WM_DEN);
     row("HZ", &CHECK_HZ);
     row("GATE", &[COHERENCE_GATE]);
+    let c = COMPENSATION.unwrap();
+    assert!(c.enabled);
+    let ff = c.friction_feedforward.unwrap();
+    let VelocitySource::OutputDifference {{ filter_hz, alpha }} = ff.velocity else {{ panic!() }};
+    let dz = c.dead_zone_inverse.unwrap();
+    let bl = c.backlash_inverse.unwrap();
+    let aw = c.anti_windup.unwrap();
+    row("COMP", &[ff.coulomb, ff.viscous, ff.smoothing_velocity, filter_hz, alpha, dz.width,
+        dz.smoothing, bl.gap, bl.smoothing, aw.u_min, aw.u_max, aw.tracking_time_s, aw.gain]);
+    assert_eq!(COMPENSATION_VERDICT, "explained */ \"quoted\" ??/");
+    assert_eq!(COMPENSATION_PLACE, "drive");
     println!("BIN {{}}", CHECK_BIN.iter().map(|b| b.to_string()).collect::<Vec<_>>().join(" "));
     assert_eq!(SOURCES.len(), 2);
     assert_eq!(RECEIPTS.len(), 2);
@@ -666,6 +777,29 @@ fn bad_input_is_an_error_naming_the_field() {
             "provenance.sources[1].sha256",
         ),
         (Box::new(|i| i.prefix = "--".into()), "prefix"),
+        (
+            Box::new(|i| {
+                i.compensation = Some(Compensation {
+                    enabled: true,
+                    provenance: CompensationProvenance {
+                        effect: "dead_zone".into(),
+                        place: "drive".into(),
+                        verdict: "explained".into(),
+                        source: "test".into(),
+                        nrmse_before: None,
+                        nrmse_after: None,
+                    },
+                    friction_feedforward: None,
+                    dead_zone_inverse: Some(DeadZoneInverse {
+                        width: f64::NAN,
+                        smoothing: 0.01,
+                    }),
+                    backlash_inverse: None,
+                    anti_windup: None,
+                })
+            }),
+            "compensation.dead_zone_inverse.width",
+        ),
     ];
     for (k, (edit, field)) in cases.iter().enumerate() {
         let mut i = base.clone();

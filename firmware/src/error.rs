@@ -57,6 +57,12 @@ pub enum Error {
         /// Number of entries that would have been needed.
         needed: usize,
     },
+    /// A control-law parameter (PID gain, compensation parameter, sample time) is not finite
+    /// or out of its range; `what` names it (e.g. `dead_zone_inverse.smoothing`).
+    InvalidControlParameter {
+        /// The offending field.
+        what: &'static str,
+    },
 }
 
 impl Error {
@@ -81,6 +87,7 @@ impl Error {
             Error::NoLines => "multisine line list is empty",
             Error::InvalidGroupSize => "odd multisine group size must be at least 2",
             Error::BufferTooSmall { .. } => "output buffer too small",
+            Error::InvalidControlParameter { .. } => "control parameter not finite or out of range",
         }
     }
 }
@@ -95,6 +102,7 @@ impl fmt::Display for Error {
                 write!(f, " (lines[{index}])")
             }
             Error::BufferTooSmall { needed } => write!(f, " (needs {needed} entries)"),
+            Error::InvalidControlParameter { what } => write!(f, " ({what})"),
             _ => Ok(()),
         }
     }

@@ -7,7 +7,8 @@
 //!   returning `Result`, and non-finite samples are counted and quarantined, never propagated.
 //! * Hardware-free: everything here builds and is tested on the host with `cargo test`.
 //!
-//! Modules: [`excitation`] (PRBS, chirp, multisine), [`welch`] (streaming cross/auto spectra,
+//! Modules: [`control`] (discrete PID with roll-off, friction feedforward, dead-zone and
+//! backlash inverses, back-calculation anti-windup; limit-cycle detector), [`excitation`] (PRBS, chirp, multisine), [`welch`] (streaming cross/auto spectra,
 //! H1, coherence, [`CoherenceGate`]), [`window`] (flash window tables), [`trig`] (const and fast
 //! sine), [`fft`] (microfft dispatch), [`rng`] (seeded SplitMix64), [`decimal`] (small decimal
 //! parser for settings), [`Error`].
@@ -44,6 +45,7 @@
 //! ```
 #![cfg_attr(not(test), no_std)]
 
+pub mod control;
 pub mod decimal;
 mod error;
 pub mod excitation;

@@ -10,11 +10,13 @@
 
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod compensation;
 pub mod data;
 pub mod error;
 pub mod gap;
 pub mod greybox;
 pub mod io;
+pub mod limit_cycle;
 pub mod lti;
 pub mod n4sid;
 pub mod operating_point;

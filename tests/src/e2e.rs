@@ -362,10 +362,26 @@ pub fn powerup_manifest() -> PathBuf {
 /// Builds the `powerup` image (release, [`TARGET`]) around the generated Rust module
 /// `model_rs` (absolute path), in the QEMU image target directory; returns the ELF path.
 pub fn build_powerup(model_rs: &Path) -> Result<PathBuf, Error> {
+    build_app_image(model_rs, "powerup", &image_target_dir())
+}
+
+/// Builds the image `bin` of `firmware/app` (release, [`TARGET`]) around the generated Rust
+/// module `model_rs` (absolute path) in `target_dir`; returns the ELF path. Images built
+/// around different modules need different target directories (the module is an input of the
+/// whole crate).
+pub fn build_app_image(model_rs: &Path, bin: &str, target_dir: &Path) -> Result<PathBuf, Error> {
     let cargo: OsString = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let mut cmd = Command::new(&cargo);
-    cmd.args(["build", "--release", "--target", TARGET, "--manifest-path"])
-        .arg(powerup_manifest());
+    cmd.args([
+        "build",
+        "--release",
+        "--target",
+        TARGET,
+        "--bin",
+        bin,
+        "--manifest-path",
+    ])
+    .arg(powerup_manifest());
     for var in [
         "CARGO_BUILD_TARGET",
         "CARGO_BUILD_RUSTFLAGS",
@@ -376,7 +392,7 @@ pub fn build_powerup(model_rs: &Path) -> Result<PathBuf, Error> {
     ] {
         cmd.env_remove(var);
     }
-    cmd.env("CARGO_TARGET_DIR", image_target_dir())
+    cmd.env("CARGO_TARGET_DIR", target_dir)
         .env("DEFMT_LOG", "info")
         .env("FERROSID_POWERUP_MODEL", model_rs)
         .stdin(Stdio::null());
@@ -393,10 +409,7 @@ pub fn build_powerup(model_rs: &Path) -> Result<PathBuf, Error> {
             stderr: tail.into_iter().rev().collect::<Vec<_>>().join("\n"),
         });
     }
-    Ok(image_target_dir()
-        .join(TARGET)
-        .join("release")
-        .join("powerup"))
+    Ok(target_dir.join(TARGET).join("release").join(bin))
 }
 
 /// One run of the power-up image.

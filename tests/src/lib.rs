@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+pub mod closedloop;
 pub mod e2e;
 
 /// Target triple of the firmware images (Cortex-M4F with hardware floating point).

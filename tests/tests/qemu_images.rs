@@ -113,9 +113,30 @@ fn bench_counts_instructions_under_icount() {
         "chirp_linear",
         "chirp_log",
         "multisine1024_play",
+        "control_pid",
+        "control_pid_friction_ff",
+        "control_pid_dead_zone_inverse",
+        "control_pid_backlash_inverse",
+        "control_pid_anti_windup",
+        "control_pid_all_compensation",
     ] {
         let v = bench_value(lines, name).unwrap_or_else(|| panic!("no BENCH {name} line"));
         assert!(v.is_finite() && v > 0.0, "{name} = {v}");
+    }
+    // Each compensation part adds work to the PID step, and all together cost the most.
+    let pid = bench_value(lines, "control_pid").unwrap_or(0.0);
+    for name in [
+        "control_pid_friction_ff",
+        "control_pid_dead_zone_inverse",
+        "control_pid_backlash_inverse",
+        "control_pid_anti_windup",
+    ] {
+        let v = bench_value(lines, name).unwrap_or(0.0);
+        let all = bench_value(lines, "control_pid_all_compensation").unwrap_or(0.0);
+        assert!(
+            pid < v && v < all,
+            "{name} = {v}, PID alone {pid}, all {all}"
+        );
     }
     // Welch<1024>, 64 Ki samples, hop 512: (65536 - 1024)/512 + 1 = 127 segments end; the
     // last one ends with the last push and is still in work (its work follows the next pushes).

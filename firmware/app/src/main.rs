@@ -20,7 +20,9 @@
 //!   `inertia` scales J by `jscale` (default 1.3), `delay` adds `delay` samples (default 3),
 //!   `friction` adds Coulomb friction `coulomb` N·m (default 0.15);
 //! * `J=` kg·m², `b=` N·m·s/rad, `k=` N·m/rad, `gain=` N·m/unit, `noise=` rad RMS, `seed=`,
-//!   `substeps=`, `eps=` rad/s, and `jscale=`, `delay=`, `coulomb=` to override the scenario.
+//!   `substeps=`, `eps=` rad/s, and `jscale=`, `delay=`, `coulomb=` to override the scenario;
+//! * `comp=on|off` — pass the excitation through the flashed compensation block (friction
+//!   feedforward, inverses; default `off`), so the check measures the compensated plant.
 //!
 //! Defaults (the bench of the end-to-end tests): J = 1e-4 kg·m², k = 2.4674011 N·m/rad
 //! (25 Hz), b = 3.1415927e-3 N·m·s/rad (ζ = 0.1), gain = k (unit DC gain), noise 1e-3 rad,
@@ -46,6 +48,7 @@ use core::f64::consts::PI;
 
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
+use ferrosid_firmware::control::{ControlConfig, ControlLaw, ControlState, PidConfig};
 use ferrosid_firmware::excitation::{Line, Multisine, MultisineScratch, MultisineSpec, Phases};
 use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
 use ferrosid_powerup::plant::{Axis, AxisParams};
@@ -56,6 +59,10 @@ use ferrosid_powerup::{check_bin, model_response, weight_magnitude, CheckResult,
 mod flashed {
     include!(concat!(env!("OUT_DIR"), "/flashed_model.rs"));
 }
+
+/// The generated compensation block in the firmware's form (shared with `closedloop`).
+#[path = "flashed_comp.rs"]
+mod flashed_comp;
 
 /// Welch segment length and multisine period.
 const N: usize = flashed::WELCH_N;
@@ -92,6 +99,8 @@ fn panic(_: &core::panic::PanicInfo) -> ! {
 struct Scenario {
     name: &'static str,
     params: AxisParams,
+    /// `comp=on`: the excitation goes through the flashed compensation.
+    compensate: bool,
 }
 
 /// A finite decimal value for `key` (the small parser keeps core's 10.4 KB float-parsing table
@@ -116,8 +125,11 @@ fn parse_args() -> Result<Scenario, &'static str> {
         noise_rms: 1e-3,
         seed: 1,
         substeps: 16,
+        dead_zone: 0.0,
+        breakaway: 0.0,
     };
     let mut name = "nominal";
+    let mut compensate = false;
     let (mut jscale, mut delay, mut coulomb) = (None, None, None);
     let args = semihosting::experimental::env::args::<1024>().map_err(|_| "command line")?;
     for (i, a) in (&args).enumerate() {
@@ -147,6 +159,13 @@ fn parse_args() -> Result<Scenario, &'static str> {
             "jscale" => jscale = Some(parse_f32("jscale", v)?),
             "delay" => delay = Some(v.parse::<u32>().map_err(|_| "delay")?),
             "coulomb" => coulomb = Some(parse_f32("coulomb", v)?),
+            "comp" => {
+                compensate = match v {
+                    "on" => true,
+                    "off" => false,
+                    _ => return Err("comp (on|off)"),
+                }
+            }
             _ => return Err("unknown key"),
         }
     }
@@ -159,7 +178,11 @@ fn parse_args() -> Result<Scenario, &'static str> {
     p.inertia *= jscale.unwrap_or(js);
     p.delay_samples = delay.unwrap_or(d);
     p.coulomb = coulomb.unwrap_or(fc);
-    Ok(Scenario { name, params: p })
+    Ok(Scenario {
+        name,
+        params: p,
+        compensate,
+    })
 }
 
 /// Stack high-water mark by painting: the painter the QEMU size probe uses (one source file,
@@ -260,13 +283,56 @@ fn main() -> ! {
         exit(EXIT_SETUP)
     }
 
+    // With `comp=on` the multisine goes through the flashed compensation (friction
+    // feedforward from the measured output, inverses) before the plant; the spectra relate the
+    // multisine to y, i.e. they measure the compensated plant.
+    let compensation = if scenario.compensate {
+        let Some(c) = flashed_comp::compensation_config() else {
+            defmt::println!("ERROR comp=on, but the flashed module has no enabled compensation");
+            exit(EXIT_SETUP)
+        };
+        let cfg = ControlConfig {
+            ts_s: flashed::TS_S,
+            pid: PidConfig {
+                kp: 0.0,
+                ki_d: 0.0,
+                a_d: 0.0,
+                b_d: 0.0,
+                rolloff: None,
+            },
+            compensation: Some(c),
+        };
+        match ControlLaw::new(&cfg) {
+            Ok(l) => {
+                defmt::println!("COMPENSATION on (flashed block applied to the excitation)");
+                Some(l)
+            }
+            Err(_) => {
+                defmt::println!("ERROR flashed compensation rejected by the control law");
+                exit(EXIT_SETUP)
+            }
+        }
+    } else {
+        None
+    };
+    let mut comp_state = ControlState::new();
+    let mut drive = |axis: &mut Axis, u: f32| -> f32 {
+        let y = axis.measure();
+        let applied = match &compensation {
+            Some(l) => l.compensate(&mut comp_state, 0.0, y, u).u,
+            None => u,
+        };
+        axis.advance(applied);
+        y
+    };
+
     // Transient, then period-synchronous averaging.
     for _ in 0..flashed::SETTLE_PERIODS as usize * N {
-        axis.step(ms.next_sample());
+        drive(&mut axis, ms.next_sample());
     }
     for _ in 0..flashed::AVERAGES as usize * N {
         let u = ms.next_sample();
-        let y = axis.step(u);
+        let y = drive(&mut axis, u);
         welch.push(u, y);
     }
     // `push` spreads a completed segment's FFT over the next hop's pushes; the last segment is

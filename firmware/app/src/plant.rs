@@ -19,6 +19,17 @@
 //!
 //! Scenarios of the power-up check: nominal; drifted inertia (e.g. J × 1.3); extra delay;
 //! Coulomb friction.
+//!
+//! Two effects of the closed-loop image (`closedloop`), both as the gap diagnosis models them
+//! (`ferrosid::gap::effect`), off by default:
+//! * a dead zone of full width `dead_zone` on the command, before the actuator gain:
+//!   `w = sign(u)·max(|u| − dead_zone/2, 0)`;
+//! * stick-slip friction (`breakaway > 0`): Karnopp's law with sliding level `coulomb` and
+//!   static level `breakaway` (N·m): each sub-step the mass is held at rest when the torque
+//!   needed to hold it is at most the static limit (`breakaway` while stuck, `coulomb` while
+//!   sliding), else it slides against `coulomb`. The sub-steps are semi-implicit Euler
+//!   (velocity first, then position) instead of RK4, since the friction force is decided per
+//!   sub-step; with `breakaway == coulomb` this is Coulomb friction with sticking.
 use ferrosid_firmware::rng::SplitMix64;
 
 /// Longest transport delay the simulation holds, samples.
@@ -49,6 +60,11 @@ pub struct AxisParams {
     pub seed: u64,
     /// RK4 steps per sample (`1..=MAX_SUBSTEPS`).
     pub substeps: u32,
+    /// Full width of the dead zone on the command, input units (>= 0; 0: none).
+    pub dead_zone: f32,
+    /// Static (breakaway) friction torque, N·m (0: the smoothed Coulomb law; else >= coulomb,
+    /// Karnopp stick-slip, see the module docs).
+    pub breakaway: f32,
 }
 
 /// A parameter of [`AxisParams`] is out of range; names it.
@@ -62,6 +78,7 @@ pub struct Axis {
     h: f32,
     theta: f32,
     omega: f32,
+    stuck: bool,
     line: [f32; MAX_DELAY],
     pos: usize,
     rng: SplitMix64,
@@ -105,11 +122,18 @@ impl Axis {
         if !(ts_s.is_finite() && ts_s > 0.0) {
             return Err(InvalidParameter("ts_s"));
         }
+        if !ok(p.dead_zone, 0.0) {
+            return Err(InvalidParameter("dead_zone"));
+        }
+        if !(ok(p.breakaway, 0.0) && (p.breakaway == 0.0 || p.breakaway >= p.coulomb)) {
+            return Err(InvalidParameter("breakaway"));
+        }
         Ok(Self {
             p,
             h: ts_s / p.substeps as f32,
             theta: 0.0,
             omega: 0.0,
+            stuck: true,
             line: [0.0; MAX_DELAY],
             pos: 0,
             rng: SplitMix64::new(p.seed),
@@ -119,6 +143,11 @@ impl Axis {
     /// The parameters.
     pub fn params(&self) -> &AxisParams {
         &self.p
+    }
+
+    /// The true angular velocity ω, rad/s (what friction opposes).
+    pub fn velocity(&self) -> f32 {
+        self.omega
     }
 
     /// Angular acceleration for state (θ, ω) under applied torque `tau` (N·m).
@@ -145,12 +174,26 @@ impl Axis {
     /// One sample period: returns the measured output `y[k] = θ(kT) + n[k]`, then applies the
     /// command `u` (after the transport delay) through the ZOH for one period.
     pub fn step(&mut self, u: f32) -> f32 {
+        let y = self.measure();
+        self.advance(u);
+        y
+    }
+
+    /// The measured output `y[k] = θ(kT) + n[k]` (draws the noise sample; call once per
+    /// period, before [`Axis::advance`]).
+    pub fn measure(&mut self) -> f32 {
         let noise = if self.p.noise_rms > 0.0 {
             self.p.noise_rms * self.unit_noise()
         } else {
             0.0
         };
-        let y = self.theta + noise;
+        self.theta + noise
+    }
+
+    /// Applies the command `u` (after the transport delay and the dead zone) through the ZOH
+    /// for one period. A controller that computes u from this period's [`Axis::measure`]
+    /// and applies it at once has no computation delay (the host's loop model).
+    pub fn advance(&mut self, u: f32) {
         let d = self.p.delay_samples as usize;
         let u_applied = if d == 0 {
             u
@@ -163,7 +206,23 @@ impl Axis {
             self.pos = (slot + 1) % d;
             old
         };
-        let tau = self.p.gain * u_applied;
+        let half = 0.5 * self.p.dead_zone;
+        let w = if half > 0.0 {
+            if u_applied > half {
+                u_applied - half
+            } else if u_applied < -half {
+                u_applied + half
+            } else {
+                0.0
+            }
+        } else {
+            u_applied
+        };
+        let tau = self.p.gain * w;
+        if self.p.breakaway > 0.0 {
+            self.stick_slip_period(tau);
+            return;
+        }
         let h = self.h;
         for _ in 0..self.p.substeps {
             let (t0, w0) = (self.theta, self.omega);
@@ -178,6 +237,32 @@ impl Axis {
             self.theta = t0 + h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t);
             self.omega = w0 + h / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w);
         }
-        y
+    }
+
+    /// One sample period of stick-slip friction under torque `tau` (module docs).
+    fn stick_slip_period(&mut self, tau: f32) {
+        let p = &self.p;
+        let h = self.h;
+        let g = h / p.inertia;
+        for _ in 0..p.substeps {
+            // Velocity at the end of the sub-step without friction; friction changes it by −g·F.
+            let v_trial =
+                self.omega + g * (tau - p.damping * self.omega - p.stiffness * self.theta);
+            let hold = v_trial / g;
+            let limit = if self.stuck { p.breakaway } else { p.coulomb };
+            let f = if hold.abs() <= limit {
+                self.stuck = true;
+                hold
+            } else {
+                self.stuck = false;
+                if hold > 0.0 {
+                    p.coulomb
+                } else {
+                    -p.coulomb
+                }
+            };
+            self.omega = v_trial - g * f;
+            self.theta += h * self.omega;
+        }
     }
 }

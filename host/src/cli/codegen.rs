@@ -489,6 +489,7 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
             notes: Vec::new(),
         },
         operating_point,
+        compensation: None,
     })
 }
 

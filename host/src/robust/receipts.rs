@@ -114,12 +114,15 @@ pub enum ReceiptKind {
     AuditPhaseShift,
     /// `audit_coherence`: lowest coherence of any run near crossover.
     AuditCoherence,
+    /// `limit_cycle`: self-sustained oscillations with a diagnosed nonlinearity, predicted by
+    /// describing function and found by simulation ([`crate::limit_cycle::receipt`]).
+    LimitCycle,
 }
 
 impl ReceiptKind {
     /// Every kind, loop receipts first (the order of the module table), then the pipeline's
     /// model receipts.
-    pub const ALL: [ReceiptKind; 18] = [
+    pub const ALL: [ReceiptKind; 19] = [
         ReceiptKind::ClosedLoopStable,
         ReceiptKind::GainMargin,
         ReceiptKind::PhaseMargin,
@@ -138,6 +141,7 @@ impl ReceiptKind {
         ReceiptKind::AuditGainShift,
         ReceiptKind::AuditPhaseShift,
         ReceiptKind::AuditCoherence,
+        ReceiptKind::LimitCycle,
     ];
 
     /// The stable identifier (snake_case).
@@ -161,6 +165,7 @@ impl ReceiptKind {
             ReceiptKind::AuditGainShift => "audit_gain_shift",
             ReceiptKind::AuditPhaseShift => "audit_phase_shift",
             ReceiptKind::AuditCoherence => "audit_coherence",
+            ReceiptKind::LimitCycle => "limit_cycle",
         }
     }
 

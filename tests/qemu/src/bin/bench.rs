@@ -14,6 +14,10 @@
 use core::hint::black_box;
 
 use cortex_m_rt::entry;
+use ferrosid_firmware::control::{
+    AntiWindup, BacklashInverse, Biquad, CompensationConfig, ControlConfig, ControlLaw,
+    ControlState, DeadZoneInverse, FrictionFeedforward, PidConfig, VelocitySource,
+};
 use ferrosid_firmware::excitation::{
     Chirp, ChirpConfig, ChirpLaw, Line, Multisine, MultisineScratch, MultisineSpec, Phases, Prbs,
 };
@@ -327,6 +331,93 @@ fn main() -> ! {
             SAMPLES,
             "instr/sample",
         );
+    }
+    // Control step (ferrosid_firmware::control): the PID with a roll-off biquad alone, and with
+    // each compensation part, per sample, on the recorded (u, y) as reference and measurement.
+    let pid = PidConfig {
+        kp: 1.2,
+        ki_d: 0.05,
+        a_d: 0.6,
+        b_d: 8.0,
+        rolloff: Some(Biquad {
+            b: [0.02, 0.04, 0.02],
+            a: [1.0, -1.56, 0.64],
+        }),
+    };
+    let ff = FrictionFeedforward {
+        coulomb: 0.1,
+        viscous: 0.01,
+        smoothing_velocity: 0.05,
+        velocity: VelocitySource::OutputDifference { alpha: 0.47 },
+    };
+    let dz = DeadZoneInverse {
+        width: 0.2,
+        smoothing: 1e-3,
+    };
+    let bl = BacklashInverse {
+        gap: 0.05,
+        smoothing: 0.01,
+    };
+    let aw = AntiWindup {
+        u_min: -0.8,
+        u_max: 0.8,
+        gain: 0.05,
+    };
+    let none = CompensationConfig::NONE;
+    let variants: [(&str, Option<CompensationConfig>); 6] = [
+        ("control_pid", None),
+        (
+            "control_pid_friction_ff",
+            Some(CompensationConfig {
+                friction_feedforward: Some(ff),
+                ..none
+            }),
+        ),
+        (
+            "control_pid_dead_zone_inverse",
+            Some(CompensationConfig {
+                dead_zone_inverse: Some(dz),
+                ..none
+            }),
+        ),
+        (
+            "control_pid_backlash_inverse",
+            Some(CompensationConfig {
+                backlash_inverse: Some(bl),
+                ..none
+            }),
+        ),
+        (
+            "control_pid_anti_windup",
+            Some(CompensationConfig {
+                anti_windup: Some(aw),
+                ..none
+            }),
+        ),
+        (
+            "control_pid_all_compensation",
+            Some(CompensationConfig {
+                friction_feedforward: Some(ff),
+                dead_zone_inverse: Some(dz),
+                backlash_inverse: Some(bl),
+                anti_windup: Some(aw),
+            }),
+        ),
+    ];
+    for (name, comp) in variants {
+        let cfg = ControlConfig {
+            ts_s: 1e-3,
+            pid,
+            compensation: comp,
+        };
+        let Ok(law) = ControlLaw::new(&cfg) else {
+            exit(EXIT_FAILURE)
+        };
+        let mut st = ControlState::new();
+        let t = run(&mut ic, |i| {
+            black_box(law.step(&mut st, u[i & (REC - 1)], y[i & (REC - 1)]));
+        });
+        report(name, t, base, ipt, SAMPLES, "instr/step");
     }
     exit(EXIT_SUCCESS)
 }

@@ -1,0 +1,329 @@
+//! `closedloop`: the generated controller (PID + compensation of the flashed module) closing
+//! the loop around a simulated axis with a nonlinearity, to show a limit cycle on target and
+//! its removal by the compensation.
+//!
+//! Each sample: measure y (the plant's position θ), run [`ControlLaw::step`] with reference r,
+//! apply the command (plus the start-up kick during the first `kick_samples`) to the plant over
+//! the same period (no computation delay, as the host's loop model).
+//! The last [`TAIL`] samples of y, the controller's command u and the true velocity ω are
+//! kept; at the end
+//! the image analyses each with [`analyse_oscillation`] and logs the tail.
+//!
+//! Command line (`-semihosting-config ...,arg=WORD`), all optional:
+//! * `comp=on|off|ff|dz|bl|aw` — apply the flashed compensation: all of it, none (default),
+//!   or only its friction feedforward, dead-zone inverse, backlash inverse or anti-windup
+//!   (one image serves several scenarios); asking for a block or part the module does not
+//!   have, or a disabled block, is a set-up error;
+//! * plant: `J=` kg·m², `b=` N·m·s/rad, `k=` N·m/rad, `gain=` N·m/unit, `coulomb=` N·m,
+//!   `breakaway=` N·m (> 0: stick-slip), `deadzone=` input units (full width), `noise=` rad,
+//!   `seed=`, `substeps=`; defaults J = 1e-4, b = k = 0, gain = 1, no friction, no dead zone,
+//!   no noise, 32 sub-steps;
+//! * `r=` reference (rad, default 0), `kick=` input units added for `kick_samples=` samples
+//!   (default 0.5 for 5), `seconds=` simulated time (default 8), `floor=` the smallest
+//!   amplitude of y (rad) that counts as an oscillation (default 1e-3, the bench's sensor
+//!   noise: a smaller cycle is not observable).
+//!
+//! Log lines (decoded defmt):
+//! * `CLOSEDLOOP sha256=<digest> comp=<on|off|ff|dz|bl|aw> samples=<n> ts=<s> J=.. b=.. k=.. gain=.. coulomb=.. breakaway=.. deadzone=..`
+//! * `T <y> <u> <omega>` for each of the last [`TAIL`] samples, oldest first;
+//! * `CYCLE <y|u|omega> freq_hz=<f> amplitude=<a> mean=<m> crossings=<c> oscillating=<bool>`;
+//! * `END`.
+//!
+//! Exit status 0, 3 for a bad command line or set-up error, 101 panic.
+#![no_std]
+#![no_main]
+
+use cortex_m as _;
+use cortex_m_rt::entry;
+use defmt_semihosting as _;
+use ferrosid_firmware::control::{
+    analyse_oscillation, Biquad, CompensationConfig, ControlConfig, ControlLaw, ControlState,
+    PidConfig,
+};
+use ferrosid_powerup::plant::{Axis, AxisParams};
+
+/// The generated module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
+#[allow(dead_code)]
+mod flashed {
+    include!(concat!(env!("OUT_DIR"), "/flashed_model.rs"));
+}
+
+/// The generated compensation block in the firmware's form (shared with `powerup`).
+#[path = "flashed_comp.rs"]
+mod flashed_comp;
+use flashed_comp::compensation_config;
+
+/// Samples kept for the analysis and the log (4.096 s at 1 kHz).
+const TAIL: usize = 4096;
+/// Exit status for a bad command line or set-up error.
+const EXIT_SETUP: i32 = 3;
+/// Exit status after a panic.
+const EXIT_PANIC: i32 = 101;
+/// Cycles a record needs to count as oscillating.
+const MIN_CYCLES: u32 = 5;
+
+fn exit(code: i32) -> ! {
+    semihosting::process::exit(code)
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    use semihosting::io::Write as _;
+    if let Ok(mut e) = semihosting::io::stderr() {
+        let _ = e.write_all(b"closedloop: panicked\n");
+    }
+    exit(EXIT_PANIC)
+}
+
+fn setup_error(what: &str) -> ! {
+    defmt::println!("ERROR {=str}", what);
+    exit(EXIT_SETUP)
+}
+
+/// Which parts of the flashed compensation run.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Parts {
+    None,
+    All,
+    Friction,
+    DeadZone,
+    Backlash,
+    AntiWindup,
+}
+
+impl Parts {
+    fn as_str(self) -> &'static str {
+        match self {
+            Parts::None => "off",
+            Parts::All => "on",
+            Parts::Friction => "ff",
+            Parts::DeadZone => "dz",
+            Parts::Backlash => "bl",
+            Parts::AntiWindup => "aw",
+        }
+    }
+}
+
+/// The run's settings from the command line.
+struct Settings {
+    plant: AxisParams,
+    comp: Parts,
+    r: f32,
+    kick: f32,
+    kick_samples: u32,
+    seconds: f32,
+    floor: f32,
+}
+
+fn parse_f32(key: &'static str, v: &str) -> Result<f32, &'static str> {
+    ferrosid_firmware::decimal::parse_f32(v)
+        .filter(|x| x.is_finite())
+        .ok_or(key)
+}
+
+fn parse_args() -> Result<Settings, &'static str> {
+    let mut s = Settings {
+        plant: AxisParams {
+            inertia: 1e-4,
+            damping: 0.0,
+            stiffness: 0.0,
+            gain: 1.0,
+            coulomb: 0.0,
+            coulomb_smoothing: 0.1,
+            delay_samples: 0,
+            noise_rms: 0.0,
+            seed: 1,
+            substeps: 32,
+            dead_zone: 0.0,
+            breakaway: 0.0,
+        },
+        comp: Parts::None,
+        r: 0.0,
+        kick: 0.5,
+        kick_samples: 5,
+        seconds: 8.0,
+        floor: 1e-3,
+    };
+    let args = semihosting::experimental::env::args::<1024>().map_err(|_| "command line")?;
+    for (i, a) in (&args).enumerate() {
+        let a = a.map_err(|_| "command line (not UTF-8)")?;
+        if i == 0 {
+            continue;
+        }
+        let (key, v) = a.split_once('=').ok_or("argument without '='")?;
+        let p = &mut s.plant;
+        match key {
+            "comp" => {
+                s.comp = match v {
+                    "on" => Parts::All,
+                    "off" => Parts::None,
+                    "ff" => Parts::Friction,
+                    "dz" => Parts::DeadZone,
+                    "bl" => Parts::Backlash,
+                    "aw" => Parts::AntiWindup,
+                    _ => return Err("comp (on|off|ff|dz|bl|aw)"),
+                }
+            }
+            "J" => p.inertia = parse_f32("J", v)?,
+            "b" => p.damping = parse_f32("b", v)?,
+            "k" => p.stiffness = parse_f32("k", v)?,
+            "gain" => p.gain = parse_f32("gain", v)?,
+            "coulomb" => p.coulomb = parse_f32("coulomb", v)?,
+            "breakaway" => p.breakaway = parse_f32("breakaway", v)?,
+            "deadzone" => p.dead_zone = parse_f32("deadzone", v)?,
+            "noise" => p.noise_rms = parse_f32("noise", v)?,
+            "seed" => p.seed = v.parse().map_err(|_| "seed")?,
+            "substeps" => p.substeps = v.parse().map_err(|_| "substeps")?,
+            "r" => s.r = parse_f32("r", v)?,
+            "kick" => s.kick = parse_f32("kick", v)?,
+            "kick_samples" => s.kick_samples = v.parse().map_err(|_| "kick_samples")?,
+            "seconds" => s.seconds = parse_f32("seconds", v)?,
+            "floor" => s.floor = parse_f32("floor", v)?,
+            _ => return Err("unknown key"),
+        }
+    }
+    if !(s.seconds > 0.0 && s.seconds <= 600.0) {
+        return Err("seconds (0 < s <= 600)");
+    }
+    Ok(s)
+}
+
+/// The generated PID in the firmware's form (set-up error when the module has none).
+fn pid_config() -> PidConfig {
+    let Some(p) = flashed::PID else {
+        setup_error("the flashed module has no PID")
+    };
+    PidConfig {
+        kp: p.kp,
+        ki_d: p.ki_d,
+        a_d: p.a_d,
+        b_d: p.b_d,
+        rolloff: p.rolloff.map(|r| Biquad { b: r.b, a: r.a }),
+    }
+}
+
+/// Ring buffers of the tail, in .bss.
+static mut TAIL_Y: [f32; TAIL] = [0.0; TAIL];
+static mut TAIL_U: [f32; TAIL] = [0.0; TAIL];
+static mut TAIL_W: [f32; TAIL] = [0.0; TAIL];
+
+#[entry]
+fn main() -> ! {
+    let s = match parse_args() {
+        Ok(s) => s,
+        Err(key) => {
+            defmt::println!("ERROR bad command line: {=str}", key);
+            exit(EXIT_SETUP)
+        }
+    };
+    let compensation = match (s.comp, compensation_config()) {
+        (Parts::None, _) => None,
+        (_, None) => setup_error("comp: the flashed module has no enabled compensation"),
+        (Parts::All, Some(c)) => Some(c),
+        (part, Some(c)) => {
+            let only = CompensationConfig {
+                friction_feedforward: c.friction_feedforward.filter(|_| part == Parts::Friction),
+                dead_zone_inverse: c.dead_zone_inverse.filter(|_| part == Parts::DeadZone),
+                backlash_inverse: c.backlash_inverse.filter(|_| part == Parts::Backlash),
+                anti_windup: c.anti_windup.filter(|_| part == Parts::AntiWindup),
+            };
+            if only == CompensationConfig::NONE {
+                setup_error("comp: the flashed compensation has no such part")
+            }
+            Some(only)
+        }
+    };
+    let cfg = ControlConfig {
+        ts_s: flashed::TS_S,
+        pid: pid_config(),
+        compensation,
+    };
+    let law = match ControlLaw::new(&cfg) {
+        Ok(l) => l,
+        Err(e) => {
+            if let ferrosid_firmware::Error::InvalidControlParameter { what } = e {
+                defmt::println!("ERROR control parameter out of range: {=str}", what);
+            }
+            exit(EXIT_SETUP)
+        }
+    };
+    let p = s.plant;
+    let mut axis = match Axis::new(p, flashed::TS_S) {
+        Ok(a) => a,
+        Err(e) => {
+            defmt::println!("ERROR plant parameter out of range: {=str}", e.0);
+            exit(EXIT_SETUP)
+        }
+    };
+    let samples = (s.seconds / flashed::TS_S) as usize;
+    defmt::println!(
+        "CLOSEDLOOP sha256={=str} comp={=str} samples={=usize} ts={=f32} J={=f32} b={=f32} k={=f32} gain={=f32} coulomb={=f32} breakaway={=f32} deadzone={=f32}",
+        flashed::INPUTS_SHA256,
+        s.comp.as_str(),
+        samples,
+        flashed::TS_S,
+        p.inertia,
+        p.damping,
+        p.stiffness,
+        p.gain,
+        p.coulomb,
+        p.breakaway,
+        p.dead_zone
+    );
+    // SAFETY: `main` runs once and never returns; these are the only references ever taken
+    // to the three buffers, so they are unique.
+    let (ty, tu, tw) = unsafe {
+        (
+            &mut *core::ptr::addr_of_mut!(TAIL_Y),
+            &mut *core::ptr::addr_of_mut!(TAIL_U),
+            &mut *core::ptr::addr_of_mut!(TAIL_W),
+        )
+    };
+    let mut st = ControlState::new();
+    // The last TAIL samples are stored in time order from `first_kept` on.
+    let first_kept = samples.saturating_sub(TAIL);
+    for k in 0..samples {
+        let y = axis.measure();
+        let u = law.step(&mut st, s.r, y).u;
+        if let Some(slot) = k.checked_sub(first_kept) {
+            if let (Some(a), Some(b), Some(c)) =
+                (ty.get_mut(slot), tu.get_mut(slot), tw.get_mut(slot))
+            {
+                *a = y;
+                *b = u;
+                *c = axis.velocity();
+            }
+        }
+        let kick = if (k as u64) < u64::from(s.kick_samples) {
+            s.kick
+        } else {
+            0.0
+        };
+        axis.advance(u + kick);
+    }
+    let n = samples - first_kept;
+    for j in 0..n {
+        if let (Some(a), Some(b), Some(c)) = (ty.get(j), tu.get(j), tw.get(j)) {
+            defmt::println!("T {=f32} {=f32} {=f32}", *a, *b, *c);
+        }
+    }
+    for (name, buf, floor) in [("y", &*ty, s.floor), ("u", &*tu, 0.0), ("omega", &*tw, 0.0)] {
+        let o = analyse_oscillation(
+            buf.get(..n).unwrap_or(&[]),
+            flashed::TS_S,
+            MIN_CYCLES,
+            floor,
+        );
+        defmt::println!(
+            "CYCLE {=str} freq_hz={=f32} amplitude={=f32} mean={=f32} crossings={=u32} oscillating={=bool}",
+            name,
+            o.freq_hz,
+            o.amplitude,
+            o.mean,
+            o.crossings,
+            o.oscillating
+        );
+    }
+    defmt::println!("END");
+    exit(0)
+}

@@ -1,0 +1,236 @@
+//! Simulation of the nonlinear closed loop: the tuned loop of [`LureLoop`] with one
+//! nonlinearity at its site, the same effect laws the gap diagnosis fits
+//! ([`crate::gap::effect`]), and optionally the compensation in the control law
+//! ([`crate::compensation::ControlStep`]).
+//!
+//! Per controller sample k (sample time T):
+//! 1. measure y = C·x + D·w₋ (w₋ the plant input of the previous sample); at the `sensor`
+//!    site the measurement is N(y) (quantizer or clip);
+//! 2. command u = controller(r, y_m) (PID with roll-off, plus the compensation if given);
+//! 3. plant input w = N(u) at the `drive` site (dead zone, saturation, or the play operator at
+//!    the sample rate, as a digital command before the DAC), plus the start-up kick;
+//! 4. the plant over the sample, input held: at the `velocity` site (friction) in `substeps`
+//!    exact ZOH sub-steps of the continuous plant, with the Karnopp stick-slip law
+//!    ([`StickSlip`]) deciding at every sub-step whether the friction holds the mass at rest or
+//!    slides — the same law and velocity proxy as the gap fit (the output, or its time
+//!    derivative C(A_c x + B_c w) for a position output); elsewhere one exact discrete step.
+//!
+//! The recorded signal `nl_input` is the nonlinearity's input at each sample (u for `drive` —
+//! with a compensation, the command u_c before the dead-zone/backlash inverses, the input of
+//! the residual nonlinearity [`crate::compensation::Residual`] —
+//! y for `sensor`, the velocity for `velocity`): the signal whose amplitude the describing
+//! function predicts.
+use super::lure::{LureLoop, Nonlinearity, Site};
+use crate::compensation::ControlStep;
+use crate::error::{Error, Result};
+use crate::gap::effect::{deadzone, quantize, saturation, Play, StickSlip};
+use crate::gap::fit::VelocitySource;
+use crate::limit_cycle::DescribingFunction;
+use ferrosid_codegen::Compensation;
+use serde::{Deserialize, Serialize};
+
+/// What to simulate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SimSpec {
+    /// Simulated time, s (> 0; at most 10⁷ samples).
+    pub duration_s: f64,
+    /// Constant reference, output units.
+    pub reference: f64,
+    /// Start-up kick: added to the plant input (input units) during the first `kick_samples`
+    /// samples, to leave the equilibrium.
+    pub kick: f64,
+    /// Samples the kick lasts (>= 0).
+    pub kick_samples: usize,
+    /// Sub-steps per sample for friction (>= 1; default 16).
+    pub substeps: usize,
+}
+
+impl SimSpec {
+    /// `duration_s` with reference 0, the given kick over 5 samples, 16 sub-steps.
+    pub fn new(duration_s: f64, kick: f64) -> Self {
+        Self {
+            duration_s,
+            reference: 0.0,
+            kick,
+            kick_samples: 5,
+            substeps: 16,
+        }
+    }
+}
+
+/// A simulated run, one value per controller sample.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SimulatedRun {
+    /// Sample time, s.
+    pub ts: f64,
+    /// The nonlinearity's input (module docs).
+    pub nl_input: Vec<f64>,
+    /// Plant output y, output units.
+    pub y: Vec<f64>,
+    /// Controller command u, input units.
+    pub u: Vec<f64>,
+    /// Whether a compensation was active.
+    pub compensated: bool,
+}
+
+/// Simulates the loop `lp` with `nl` (see the module docs), with `comp` in the control law when
+/// given and enabled. Errors for invalid parameters, a compensation that fails validation (its
+/// field named), a bad spec, or a diverging simulation (non-finite state).
+pub fn simulate(
+    lp: &LureLoop,
+    nl: &Nonlinearity,
+    comp: Option<&Compensation>,
+    spec: &SimSpec,
+) -> Result<SimulatedRun> {
+    nl.df.validate()?;
+    let ts = lp.ts;
+    let n_samples = spec.duration_s / ts;
+    let valid = (1.0..=1e7).contains(&n_samples)
+        && spec.substeps != 0
+        && spec.reference.is_finite()
+        && spec.kick.is_finite();
+    if !valid {
+        return Err(Error::InvalidArgument(format!(
+            "limit-cycle simulation: need 0 < duration (at most 1e7 samples), substeps >= 1 and \
+             a finite reference and kick (got {spec:?})"
+        )));
+    }
+    let n_samples = n_samples.round() as usize;
+    let mut ctl = ControlStep::new(&lp.controller, comp)?;
+    let friction = matches!(nl.site, Site::Velocity);
+    // Linear dynamics: sub-stepped continuous plant for friction when available.
+    let (sys, m) = match (&lp.plant_continuous, friction) {
+        (Some(c), true) => (c.c2d_zoh(ts / spec.substeps as f64)?, spec.substeps),
+        _ => (lp.plant.clone(), 1),
+    };
+    let n = sys.n_states();
+    let ad: Vec<f64> = (0..n * n).map(|k| sys.a[(k / n, k % n)]).collect();
+    let bd: Vec<f64> = (0..n).map(|i| sys.b[(i, 0)]).collect();
+    let c: Vec<f64> = (0..n).map(|j| sys.c[(0, j)]).collect();
+    let d = sys.d[(0, 0)];
+    // Velocity proxy: v = C·x (output) or v = C·(A_c x + B_c w) (derivative of the output).
+    let rate = lp.velocity == VelocitySource::OutputDerivative;
+    let (ca, cb_c) = match (&lp.plant_continuous, rate) {
+        (Some(pc), true) => (
+            (0..n)
+                .map(|j| (0..n).map(|k| pc.c[(0, k)] * pc.a[(k, j)]).sum())
+                .collect::<Vec<f64>>(),
+            (0..n).map(|k| pc.c[(0, k)] * pc.b[(k, 0)]).sum::<f64>(),
+        ),
+        _ => (Vec::new(), 0.0),
+    };
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let velocity_of = |x: &[f64], x_prev_out: f64, w: f64| -> f64 {
+        if !rate {
+            dot(&c, x)
+        } else if !ca.is_empty() {
+            dot(&ca, x) + cb_c * w
+        } else {
+            (dot(&c, x) - x_prev_out) / (ts / m as f64)
+        }
+    };
+    // Change of the velocity at the end of a sub-step per unit friction force.
+    let g = if !rate {
+        dot(&c, &bd)
+    } else if !ca.is_empty() {
+        dot(&ca, &bd) + cb_c
+    } else {
+        dot(&c, &bd) / (ts / m as f64)
+    };
+    let mut fr = match (friction, nl.df) {
+        (true, DescribingFunction::Relay { level }) => Some(StickSlip::new(level, level)),
+        (true, DescribingFunction::Stiction { level, breakaway }) => {
+            Some(StickSlip::new(level, breakaway))
+        }
+        _ => None,
+    };
+    if friction && fr.is_none() {
+        return Err(Error::InvalidArgument(format!(
+            "limit-cycle simulation: {} is not a friction law for the velocity site",
+            nl.df.name()
+        )));
+    }
+    let mut play = match nl.df {
+        DescribingFunction::Backlash { gap } => Some(Play::new(gap)),
+        _ => None,
+    };
+    let mut hyst_out: Option<f64> = None;
+    let mut static_map = |x: f64| -> f64 {
+        match nl.df {
+            DescribingFunction::Saturation { limit } => saturation(x, limit),
+            DescribingFunction::DeadZone { width } => deadzone(x, width),
+            DescribingFunction::Quantization { step } => quantize(x, step),
+            DescribingFunction::Backlash { .. } => play.as_mut().map_or(x, |p| p.apply(x)),
+            DescribingFunction::RelayHysteresis { level, half_width } => {
+                let o = hyst_out.get_or_insert(if x < 0.0 { -level } else { level });
+                if x >= half_width {
+                    *o = level;
+                } else if x <= -half_width {
+                    *o = -level;
+                }
+                *o
+            }
+            DescribingFunction::Relay { level } | DescribingFunction::Stiction { level, .. } => {
+                if x == 0.0 {
+                    0.0
+                } else {
+                    level * x.signum()
+                }
+            }
+        }
+    };
+    let mut x = vec![0.0; n];
+    let mut xn = vec![0.0; n];
+    let mut w_prev = 0.0;
+    let mut run = SimulatedRun {
+        ts,
+        nl_input: Vec::with_capacity(n_samples),
+        y: Vec::with_capacity(n_samples),
+        u: Vec::with_capacity(n_samples),
+        compensated: ctl.compensated(),
+    };
+    let mut out_prev = 0.0;
+    for k in 0..n_samples {
+        let y = dot(&c, &x) + d * w_prev;
+        let y_m = if nl.site == Site::Sensor { static_map(y) } else { y };
+        let u = ctl.step(spec.reference, y_m);
+        let mut w = if nl.site == Site::Drive { static_map(u) } else { u };
+        if k < spec.kick_samples {
+            w += spec.kick;
+        }
+        let v_now = if friction {
+            velocity_of(&x, out_prev, w)
+        } else {
+            0.0
+        };
+        run.nl_input.push(match nl.site {
+            Site::Drive => ctl.pre_inverse_command(),
+            Site::Sensor => y,
+            Site::Velocity => v_now,
+        });
+        run.y.push(y);
+        run.u.push(u);
+        for _ in 0..m {
+            let o_before = dot(&c, &x);
+            for i in 0..n {
+                xn[i] = dot(&ad[i * n..(i + 1) * n], &x) + bd[i] * w;
+            }
+            if let Some(f) = fr.as_mut() {
+                let v_trial = velocity_of(&xn, o_before, w);
+                let force = f.force(v_trial, g);
+                for i in 0..n {
+                    xn[i] -= bd[i] * force;
+                }
+            }
+            out_prev = o_before;
+            std::mem::swap(&mut x, &mut xn);
+        }
+        w_prev = w;
+        if !x.iter().all(|v| v.is_finite()) || !y.is_finite() {
+            return Err(Error::Numerical(format!(
+                "limit-cycle simulation diverged (non-finite state) at sample {k} of {n_samples}"
+            )));
+        }
+    }
+    Ok(run)
+}
