@@ -145,7 +145,13 @@ pub fn detect(x: &[f64], ts: f64, opts: &DetectOptions) -> Option<SimulatedLimit
     } else {
         0.0
     };
-    let period = (l0 as f64 + off) * ts * q as f64;
+    let mut period = (l0 as f64 + off) * ts * q as f64;
+    // A period within 1 % of two samples is the Nyquist frequency itself (the sampled signal
+    // alternates; lags of unequal overlap bias the interpolation slightly).
+    let nyquist = (period / ts - 2.0).abs() < 0.02;
+    if nyquist {
+        period = 2.0 * ts;
+    }
     let freq_hz = 1.0 / period;
     // First harmonic over whole periods at the end of the tail.
     let per = period / ts;
@@ -158,7 +164,10 @@ pub fn detect(x: &[f64], ts: f64, opts: &DetectOptions) -> Option<SimulatedLimit
         s += v * (w * k as f64).sin();
         cc += v * (w * k as f64).cos();
     }
-    let amplitude = 2.0 * (s * s + cc * cc).sqrt() / len as f64;
+    // At the Nyquist frequency the sampled fundamental is Y·(−1)^k: its amplitude is |S|/N,
+    // not 2|S|/N (the positive and negative frequencies coincide).
+    let factor = if nyquist { 1.0 } else { 2.0 };
+    let amplitude = factor * (s * s + cc * cc).sqrt() / len as f64;
     Some(SimulatedLimitCycle {
         freq_hz,
         amplitude,
@@ -190,10 +199,11 @@ mod tests {
         let c = detect(&x, ts, &DetectOptions::default()).unwrap();
         assert!((c.freq_hz / 9.0 - 1.0).abs() < 0.01, "{c:?}");
         assert!((c.amplitude / (4.0 / PI) - 1.0).abs() < 0.03, "{c:?}");
-        // Period of two samples (Nyquist toggling).
+        // Period of two samples (Nyquist toggling), amplitude 1.
         let x: Vec<f64> = (0..4000).map(|k| if k % 2 == 0 { 1.0 } else { -1.0 }).collect();
         let c = detect(&x, ts, &DetectOptions::default()).unwrap();
-        assert!((c.freq_hz - 500.0).abs() < 1.0, "{c:?}");
+        assert_eq!(c.freq_hz, 500.0, "{c:?}");
+        assert!((c.amplitude - 1.0).abs() < 1e-12, "{c:?}");
     }
 
     #[test]

@@ -282,6 +282,23 @@ pub fn predict_with(
             }
         }
     }
+    // At the Nyquist frequency a discrete L is real: when it is negative the locus ends on the
+    // real axis, a touch the segment test can miss by rounding. Test a short vertical segment
+    // through it.
+    if let Some(ln) = lw.last().copied().flatten() {
+        let eps = 1e-9 * ln.norm() + 1e-300;
+        if ln.re < 0.0 && ln.im.abs() <= eps {
+            let (p0, p1) = (ln - Complex64::new(0.0, eps), ln + Complex64::new(0.0, eps));
+            for j in 0..amps.len() - 1 {
+                if let (Some(q0), Some(q1)) = (cn[j], cn[j + 1]) {
+                    if let Some((_, u)) = seg_intersect(p0, p1, q0, q1) {
+                        let a = (amps[j].ln() + u * (amps[j + 1].ln() - amps[j].ln())).exp();
+                        raw.push((w_hi, a));
+                    }
+                }
+            }
+        }
+    }
     let mut out: Vec<PredictedLimitCycle> = Vec::new();
     for (w0, a0) in raw {
         let (w, a, refined) = match sv.newton(w0, a0) {
