@@ -32,7 +32,10 @@ fn case(name: &str, plant: &StateSpace, fc: f64, rolloff: Option<(f64, f64)>, pe
     let mut spec = PidTuningSpec::new(fc);
     spec.controller_ts = Some(1e-3);
     spec.rolloff_ratio = rolloff;
-    let pid = tune_pid(plant, &spec).expect("tuning").discrete.expect("discrete");
+    let pid = tune_pid(plant, &spec)
+        .expect("tuning")
+        .discrete
+        .expect("discrete");
     let lp = LureLoop::new(plant, &pid, VelocitySource::Output).expect("loop");
     let nl = Nonlinearity::from_placed(&pe).expect("nonlinearity");
     let opts = PredictOptions::default();
@@ -55,7 +58,11 @@ fn case(name: &str, plant: &StateSpace, fc: f64, rolloff: Option<(f64, f64)>, pe
          sub-steps), detect {t_det:.2} ms",
         opts.n_freq,
         opts.n_amp,
-        if nl.site == Site::Velocity { spec.substeps } else { 1 }
+        if nl.site == Site::Velocity {
+            spec.substeps
+        } else {
+            1
+        }
     );
     for p in &pred {
         println!(
@@ -66,7 +73,10 @@ fn case(name: &str, plant: &StateSpace, fc: f64, rolloff: Option<(f64, f64)>, pe
         );
     }
     match sim {
-        Some(s) => println!("  simulated: {:.3} Hz, amplitude {:.4e}", s.freq_hz, s.amplitude),
+        Some(s) => println!(
+            "  simulated: {:.3} Hz, amplitude {:.4e}",
+            s.freq_hz, s.amplitude
+        ),
         None => println!("  simulated: no sustained oscillation"),
     }
 }

@@ -74,7 +74,12 @@ fn friction_is_compensated_and_the_receipts_show_it() {
     assert!(st.reason.contains("gone"), "{}", st.reason);
     // Discrete G0 (d2c for the friction sub-steps) gives the same cycle as the continuous
     // plant in limit_cycle_loops.rs: about 40 Hz.
-    let p = st.effects[0].before.predicted.iter().find(|p| p.stable).unwrap();
+    let p = st.effects[0]
+        .before
+        .predicted
+        .iter()
+        .find(|p| p.stable)
+        .unwrap();
     assert!((p.freq_hz - 40.1).abs() < 1.0, "{p:?}");
 }
 
@@ -90,10 +95,17 @@ fn none_unexplained_and_uncompensable_verdicts() {
     let st = run("unexplained", &[]);
     assert_eq!(st.choice, Choice::WidenWm);
     // Backlash in the drivetrain: neither analysed nor compensated, nothing fails: keep.
-    let st = run("backlash", &[ve("backlash", "drivetrain", &[("gap", 0.01)])]);
+    let st = run(
+        "backlash",
+        &[ve("backlash", "drivetrain", &[("gap", 0.01)])],
+    );
     assert_eq!(st.choice, Choice::Keep, "{}", st.reason);
     assert_eq!(st.not_analysed.len(), 1);
-    assert!(st.not_analysed[0].contains("two-mass"), "{:?}", st.not_analysed);
+    assert!(
+        st.not_analysed[0].contains("two-mass"),
+        "{:?}",
+        st.not_analysed
+    );
     // Bad inputs are errors.
     let e = compensation_stage_from("none", &[], Some("speed"), 0.2, 0.1, &g, &pid, &opts())
         .unwrap_err()

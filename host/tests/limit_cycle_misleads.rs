@@ -36,7 +36,10 @@ fn stiction_hunting_is_missed_by_the_describing_function_and_found_by_simulation
     })
     .unwrap();
     // The describing function sees only the sliding level.
-    assert_eq!(stiction.df.eval(0.3), DescribingFunction::Relay { level: 0.5 }.eval(0.3));
+    assert_eq!(
+        stiction.df.eval(0.3),
+        DescribingFunction::Relay { level: 0.5 }.eval(0.3)
+    );
     let a = analyse(&lp, &stiction, None, &AnalysisOptions::default()).unwrap();
     assert!(a.predicted.is_empty(), "{:?}", a.predicted);
     let s = a.simulated.expect("the simulation finds the hunting cycle");
@@ -83,10 +86,18 @@ fn sampling_makes_a_nyquist_cycle_whose_amplitude_the_describing_function_overst
     assert_eq!(pr.len(), 1, "{pr:?}");
     assert!((pr[0].freq_hz - 0.5 / ts).abs() < 1e-6 / ts, "{:?}", pr[0]);
     let df_amp = 4.0 * m * l_nyq / std::f64::consts::PI;
-    assert!((pr[0].amplitude / df_amp - 1.0).abs() < 1e-6, "{:?} vs {df_amp}", pr[0]);
+    assert!(
+        (pr[0].amplitude / df_amp - 1.0).abs() < 1e-6,
+        "{:?} vs {df_amp}",
+        pr[0]
+    );
     let run = simulate(&lp, &nl, None, &SimSpec::new(2.0, 0.1)).unwrap();
     let s = detect(&run.nl_input, run.ts, &DetectOptions::default()).unwrap();
     assert!((s.freq_hz - 0.5 / ts).abs() < 1e-3 / ts, "{s:?}");
     // The command u = −y alternates ±M·|L(−1)|.
-    assert!((s.amplitude / (m * l_nyq) - 1.0).abs() < 1e-6, "{s:?} vs {}", m * l_nyq);
+    assert!(
+        (s.amplitude / (m * l_nyq) - 1.0).abs() < 1e-6,
+        "{s:?} vs {}",
+        m * l_nyq
+    );
 }

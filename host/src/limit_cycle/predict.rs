@@ -84,12 +84,7 @@ fn cross(a: Complex64, b: Complex64) -> f64 {
 }
 
 /// Intersection parameters (t, u) in [0, 1]² of segments p0→p1 and q0→q1, if they cross.
-fn seg_intersect(
-    p0: Complex64,
-    p1: Complex64,
-    q0: Complex64,
-    q1: Complex64,
-) -> Option<(f64, f64)> {
+fn seg_intersect(p0: Complex64, p1: Complex64, q0: Complex64, q1: Complex64) -> Option<(f64, f64)> {
     let r = p1 - p0;
     let s = q1 - q0;
     let den = cross(r, s);
@@ -132,7 +127,12 @@ impl Solver<'_> {
     /// Newton on (ln ω, ln A); returns (ω, A) on convergence inside the box.
     fn newton(&self, w0: f64, a0: f64) -> Option<(f64, f64)> {
         let (mut x, mut y) = (w0.ln(), a0.ln());
-        let (xl, xh, yl, yh) = (self.w_lo.ln(), self.w_hi.ln(), self.a_lo.ln(), self.a_hi.ln());
+        let (xl, xh, yl, yh) = (
+            self.w_lo.ln(),
+            self.w_hi.ln(),
+            self.a_lo.ln(),
+            self.a_hi.ln(),
+        );
         for _ in 0..60 {
             let f = self.f(x, y)?;
             let scale = self.l(x.exp())?.norm().max(1e-300);
@@ -302,9 +302,7 @@ pub fn predict_with(
     let mut out: Vec<PredictedLimitCycle> = Vec::new();
     for (w0, a0) in raw {
         let (w, a, refined) = match sv.newton(w0, a0) {
-            Some((w, a)) if (w / w0).ln().abs() < 0.2 && (a / a0).ln().abs() < 0.5 => {
-                (w, a, true)
-            }
+            Some((w, a)) if (w / w0).ln().abs() < 0.2 && (a / a0).ln().abs() < 0.5 => (w, a, true),
             _ => (w0, a0, false),
         };
         let dup = out.iter().any(|p| {

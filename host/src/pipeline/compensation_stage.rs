@@ -24,7 +24,9 @@ use crate::error::{Error, Result};
 use crate::gap::fit::VelocitySource;
 use crate::gap::report::VerdictEffect;
 use crate::gap::GapReport;
-use crate::limit_cycle::{analyse, receipt, AnalysisOptions, LimitCycleAnalysis, LureLoop, Nonlinearity};
+use crate::limit_cycle::{
+    analyse, receipt, AnalysisOptions, LimitCycleAnalysis, LureLoop, Nonlinearity,
+};
 use crate::lti::StateSpace;
 use crate::robust::pid::DiscretePid;
 use crate::robust::receipts::Receipt;
@@ -76,7 +78,10 @@ pub struct CompensationStage {
 impl CompensationStage {
     /// The receipts without compensation.
     pub fn receipts_before(&self) -> Vec<Receipt> {
-        self.effects.iter().map(|e| e.receipt_before.clone()).collect()
+        self.effects
+            .iter()
+            .map(|e| e.receipt_before.clone())
+            .collect()
     }
     /// The receipts with compensation (empty when it is disabled).
     pub fn receipts_after(&self) -> Vec<Receipt> {
