@@ -37,7 +37,10 @@ fn each_effect_gets_its_part() {
     assert!(c.enabled);
     let ff = c.friction_feedforward.unwrap();
     // The feedforward cancels the sliding level (the breakaway is not a steady force).
-    assert_eq!((ff.coulomb, ff.viscous, ff.smoothing_velocity), (0.02, 0.0, 0.01));
+    assert_eq!(
+        (ff.coulomb, ff.viscous, ff.smoothing_velocity),
+        (0.02, 0.0, 0.01)
+    );
     let dz = c.dead_zone_inverse.unwrap();
     assert_eq!(dz.width, 0.4);
     assert!((dz.smoothing - 0.004).abs() < 1e-15);
@@ -56,7 +59,10 @@ fn each_effect_gets_its_part() {
     )
     .unwrap();
     let aw = c.anti_windup.unwrap();
-    assert_eq!((aw.u_min, aw.u_max, aw.tracking_time_s), (-0.25, 0.25, 0.05));
+    assert_eq!(
+        (aw.u_min, aw.u_max, aw.tracking_time_s),
+        (-0.25, 0.25, 0.05)
+    );
 
     let c = design_from(
         "backlash",
@@ -75,7 +81,10 @@ fn no_compensation_where_the_place_does_not_allow_it_or_the_verdict_is_none() {
     // effect: the result is a disabled block.
     for (v, e) in [
         ("backlash", ve("backlash", "drivetrain", &[("gap", 0.1)])),
-        ("quantization", ve("quantization", "sensor", &[("step", 0.01)])),
+        (
+            "quantization",
+            ve("quantization", "sensor", &[("step", 0.01)]),
+        ),
     ] {
         let c = design_from(v, &[e], 0.3, 0.04, &opts()).unwrap();
         assert!(!c.enabled && c.backlash_inverse.is_none(), "{c:?}");
@@ -116,18 +125,29 @@ fn bad_diagnoses_and_options_are_clear_errors() {
         &[ve("coulomb_friction", "motor", &[("level", f64::NAN)])],
         &opts(),
     );
-    assert!(e.contains("coulomb_friction") && e.contains("level") && e.contains("not finite"), "{e}");
+    assert!(
+        e.contains("coulomb_friction") && e.contains("level") && e.contains("not finite"),
+        "{e}"
+    );
     let e = err(
         "coulomb_friction",
         &[ve("coulomb_friction", "motor", &[("lvl", 0.1)])],
         &opts(),
     );
     assert!(e.contains("parameter level is missing"), "{e}");
-    let e = err("deadzone", &[ve("deadzone", "drive", &[("width", -1.0)])], &opts());
+    let e = err(
+        "deadzone",
+        &[ve("deadzone", "drive", &[("width", -1.0)])],
+        &opts(),
+    );
     assert!(e.contains("width must be > 0"), "{e}");
     let e = err("magic", &[ve("magic", "drive", &[])], &opts());
     assert!(e.contains("unknown effect"), "{e}");
-    let e = err("deadzone", &[ve("deadzone", "elsewhere", &[("width", 0.1)])], &opts());
+    let e = err(
+        "deadzone",
+        &[ve("deadzone", "elsewhere", &[("width", 0.1)])],
+        &opts(),
+    );
     assert!(e.contains("unknown place"), "{e}");
     let mut o = opts();
     o.velocity_resolution = f64::INFINITY;

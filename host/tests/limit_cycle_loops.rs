@@ -112,7 +112,9 @@ fn friction_cycle_is_predicted_simulated_and_compensated() {
     };
     let before = analyse(&lp, &nl, None, &opts).unwrap();
     let p = one_stable(&before);
-    let s = before.simulated.expect("simulation shows the friction cycle");
+    let s = before
+        .simulated
+        .expect("simulation shows the friction cycle");
     agree(&p, &s, 0.05, 0.1);
     assert!(p.freq_hz > 30.0 && p.freq_hz < 50.0, "{p:?}");
     let r = receipt(&before, "coulomb_friction at motor");
@@ -156,7 +158,9 @@ fn dead_zone_cycle_is_predicted_simulated_and_compensated() {
     };
     let before = analyse(&lp, &nl, None, &opts).unwrap();
     let p = one_stable(&before);
-    let s = before.simulated.expect("simulation shows the dead-zone cycle");
+    let s = before
+        .simulated
+        .expect("simulation shows the dead-zone cycle");
     agree(&p, &s, 0.1, 0.2);
     assert!(!receipt(&before, "deadzone at drive").pass);
 
@@ -177,7 +181,12 @@ fn dead_zone_cycle_is_predicted_simulated_and_compensated() {
 #[test]
 fn backlash_cycle_in_the_bundled_example_loop() {
     let p = Plant::two_mass().physical().unwrap().sys;
-    let lp = LureLoop::new(&p, &tuned(&p, 8.0, Some((4.0, 0.7))), VelocitySource::Output).unwrap();
+    let lp = LureLoop::new(
+        &p,
+        &tuned(&p, 8.0, Some((4.0, 0.7))),
+        VelocitySource::Output,
+    )
+    .unwrap();
     let nl = Nonlinearity::from_placed(&PlacedEffect {
         effect: Effect::Backlash { gap: 0.02 },
         place: Place::Drive,
@@ -196,7 +205,12 @@ fn bundled_example_loop_has_no_friction_cycle() {
     // The collocated two-mass speed loop keeps G/(1 + CG) within ±180°: no crossing, and the
     // simulation from a kick of 4 × the friction level settles.
     let p = Plant::two_mass().physical().unwrap().sys;
-    let lp = LureLoop::new(&p, &tuned(&p, 8.0, Some((4.0, 0.7))), VelocitySource::Output).unwrap();
+    let lp = LureLoop::new(
+        &p,
+        &tuned(&p, 8.0, Some((4.0, 0.7))),
+        VelocitySource::Output,
+    )
+    .unwrap();
     let nl = Nonlinearity::from_placed(&PlacedEffect {
         effect: Effect::CoulombFriction { level: 0.008 },
         place: Place::Motor,
@@ -238,7 +252,11 @@ fn relay_with_third_order_plant_matches_the_closed_form() {
     assert_eq!(pr.len(), 1, "{pr:?}");
     let w = 2.0f64.sqrt();
     // Sampling at 0.1 ms shifts the crossing by about ωT/2 of phase: 1e-3 relative.
-    assert!((pr[0].freq_hz * 2.0 * PI / w - 1.0).abs() < 2e-3, "{:?}", pr[0]);
+    assert!(
+        (pr[0].freq_hz * 2.0 * PI / w - 1.0).abs() < 2e-3,
+        "{:?}",
+        pr[0]
+    );
     let a = 4.0 * k / (6.0 * PI);
     assert!((pr[0].amplitude / a - 1.0).abs() < 2e-3, "{:?}", pr[0]);
     assert!(pr[0].stable && pr[0].refined);
@@ -273,7 +291,9 @@ fn bad_inputs_are_errors_not_panics() {
     .to_string();
     assert!(e.contains("two-mass"), "{e}");
     let bad = Nonlinearity {
-        df: DescribingFunction::DeadZone { width: f64::INFINITY },
+        df: DescribingFunction::DeadZone {
+            width: f64::INFINITY,
+        },
         site: Site::Drive,
     };
     assert!(predict(&lp, &bad, &PredictOptions::default()).is_err());
@@ -306,7 +326,9 @@ fn bad_inputs_are_errors_not_panics() {
     let gd = lp.plant.clone();
     let mut pid = lp.controller.clone();
     pid.ts = 2e-3;
-    let e = LureLoop::new(&gd, &pid, VelocitySource::Output).unwrap_err().to_string();
+    let e = LureLoop::new(&gd, &pid, VelocitySource::Output)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("sample time"), "{e}");
     pid.ts = 1e-3;
     pid.kp = f64::NAN;

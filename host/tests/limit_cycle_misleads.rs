@@ -36,7 +36,10 @@ fn stiction_hunting_is_missed_by_the_describing_function_and_found_by_simulation
     })
     .unwrap();
     // The describing function sees only the sliding level.
-    assert_eq!(stiction.df.eval(0.3), DescribingFunction::Relay { level: 0.5 }.eval(0.3));
+    assert_eq!(
+        stiction.df.eval(0.3),
+        DescribingFunction::Relay { level: 0.5 }.eval(0.3)
+    );
     let a = analyse(&lp, &stiction, None, &AnalysisOptions::default()).unwrap();
     assert!(a.predicted.is_empty(), "{:?}", a.predicted);
     let s = a.simulated.expect("the simulation finds the hunting cycle");
@@ -46,4 +49,55 @@ fn stiction_hunting_is_missed_by_the_describing_function_and_found_by_simulation
     let r = receipt(&a, "stiction at motor");
     assert!(!r.pass && r.value == 1.0, "{}", r.detail);
     assert!(r.detail.contains("no intersection"), "{}", r.detail);
+}
+
+/// Sampling alone makes a relay loop oscillate: a first-order plant K/(τs + 1) never reaches
+/// −180° in continuous time, but its ZOH equivalent is real and negative at the Nyquist
+/// frequency, L(−1) = −K(1 − a)/(1 + a) with a = e^{−T/τ}. Evaluated at z = e^{jωT} the
+/// describing function finds that period-2 cycle; its amplitude 4M|L(−1)|/π is 4/π too large,
+/// because at the Nyquist frequency the relay's sampled output ±M *is* its fundamental (the
+/// sinusoidal-input describing function assumes a continuous sinusoid). The simulation gives
+/// the exact Y = M|L(−1)|.
+#[test]
+fn sampling_makes_a_nyquist_cycle_whose_amplitude_the_describing_function_overstates() {
+    use ferrosid::lti::TransferFunction;
+    let (k, tau, ts, m) = (2.0, 0.01, 1e-3, 0.5);
+    let g = TransferFunction::new(vec![k], vec![tau, 1.0], 0.0)
+        .unwrap()
+        .to_state_space()
+        .unwrap();
+    let pid = Pid {
+        kp: 1.0,
+        ki: 0.0,
+        kd: 0.0,
+        tau_f: 0.0,
+        rolloff: None,
+    }
+    .discretize(ts, None)
+    .unwrap();
+    let lp = LureLoop::new(&g, &pid, VelocitySource::Output).unwrap();
+    let nl = Nonlinearity {
+        df: DescribingFunction::Relay { level: m },
+        site: Site::Drive,
+    };
+    let a = (-ts / tau).exp();
+    let l_nyq = k * (1.0 - a) / (1.0 + a);
+    let pr = predict(&lp, &nl, &PredictOptions::default()).unwrap();
+    assert_eq!(pr.len(), 1, "{pr:?}");
+    assert!((pr[0].freq_hz - 0.5 / ts).abs() < 1e-6 / ts, "{:?}", pr[0]);
+    let df_amp = 4.0 * m * l_nyq / std::f64::consts::PI;
+    assert!(
+        (pr[0].amplitude / df_amp - 1.0).abs() < 1e-6,
+        "{:?} vs {df_amp}",
+        pr[0]
+    );
+    let run = simulate(&lp, &nl, None, &SimSpec::new(2.0, 0.1)).unwrap();
+    let s = detect(&run.nl_input, run.ts, &DetectOptions::default()).unwrap();
+    assert!((s.freq_hz - 0.5 / ts).abs() < 1e-3 / ts, "{s:?}");
+    // The command u = −y alternates ±M·|L(−1)|.
+    assert!(
+        (s.amplitude / (m * l_nyq) - 1.0).abs() < 1e-6,
+        "{s:?} vs {}",
+        m * l_nyq
+    );
 }

@@ -60,7 +60,11 @@ impl DesignOptions {
     }
 
     fn validate(&self) -> Result<()> {
-        let bad = |what: String| Err(Error::InvalidArgument(format!("compensation design: {what}")));
+        let bad = |what: String| {
+            Err(Error::InvalidArgument(format!(
+                "compensation design: {what}"
+            )))
+        };
         if !(self.velocity_resolution.is_finite() && self.velocity_resolution > 0.0) {
             return bad(format!(
                 "velocity_resolution = {} must be finite and > 0",
@@ -106,7 +110,10 @@ pub fn verdict_effects(report: &GapReport) -> Result<Vec<PlacedEffect>> {
 
 /// [`verdict_effects`] from the verdict text and its effects (`GapReport::verdict`,
 /// `GapReport::verdict_effects`).
-pub fn parse_verdict(verdict: &str, verdict_effects: &[VerdictEffect]) -> Result<Vec<PlacedEffect>> {
+pub fn parse_verdict(
+    verdict: &str,
+    verdict_effects: &[VerdictEffect],
+) -> Result<Vec<PlacedEffect>> {
     let verdict = verdict.trim();
     if verdict.is_empty() {
         return Err(Error::InvalidArgument(

@@ -180,7 +180,10 @@ mod tests {
             let y = (0.07 * k as f64).sin() + 0.3 * (0.9 * k as f64).cos();
             let ua = a.step(0.5, y);
             let ub = p.update(&mut st, 0.5 - y, None);
-            assert!((ua - ub).abs() <= 1e-12 * ub.abs().max(1.0), "k {k}: {ua} vs {ub}");
+            assert!(
+                (ua - ub).abs() <= 1e-12 * ub.abs().max(1.0),
+                "k {k}: {ua} vs {ub}"
+            );
         }
     }
 

@@ -73,8 +73,7 @@ impl Residual {
                             let tail = (2.0 / (3.0 * PI)) * r * r / a
                                 + (1.0 / (10.0 * PI)) * r.powi(4) / a;
                             Complex64::new(
-                                4.0 / (PI * a) * (m - ff.coulomb) + ff.coulomb * tail
-                                    - ff.viscous,
+                                4.0 / (PI * a) * (m - ff.coulomb) + ff.coulomb * tail - ff.viscous,
                                 0.0,
                             )
                         }

@@ -372,9 +372,18 @@ mod tests {
             DescribingFunction::DeadZone { width: 1.0 }.eval(0.4).re,
             0.0
         );
-        assert_eq!(DescribingFunction::Quantization { step: 1.0 }.eval(0.4).re, 0.0);
-        assert!(DescribingFunction::Relay { level: 1.0 }.eval(f64::NAN).re.is_nan());
-        assert!(DescribingFunction::Relay { level: 1.0 }.eval(-1.0).re.is_nan());
+        assert_eq!(
+            DescribingFunction::Quantization { step: 1.0 }.eval(0.4).re,
+            0.0
+        );
+        assert!(DescribingFunction::Relay { level: 1.0 }
+            .eval(f64::NAN)
+            .re
+            .is_nan());
+        assert!(DescribingFunction::Relay { level: 1.0 }
+            .eval(-1.0)
+            .re
+            .is_nan());
         let e = DescribingFunction::Saturation { limit: f64::NAN }
             .validate()
             .unwrap_err()

@@ -97,7 +97,10 @@ pub fn detect(x: &[f64], ts: f64, opts: &DetectOptions) -> Option<SimulatedLimit
     // block means of q samples when the tail is long (bounded cost; the period is refined by
     // parabolic interpolation and the amplitude is computed on the full-rate tail).
     let q = nt.div_ceil(MAX_AUTOCORR_SAMPLES).max(1);
-    let zq: Vec<f64> = z.chunks(q).map(|c| c.iter().sum::<f64>() / c.len() as f64).collect();
+    let zq: Vec<f64> = z
+        .chunks(q)
+        .map(|c| c.iter().sum::<f64>() / c.len() as f64)
+        .collect();
     let nq = zq.len();
     let max_lag = nq / 3;
     let r0: f64 = zq.iter().map(|v| v * v).sum();
@@ -145,7 +148,13 @@ pub fn detect(x: &[f64], ts: f64, opts: &DetectOptions) -> Option<SimulatedLimit
     } else {
         0.0
     };
-    let period = (l0 as f64 + off) * ts * q as f64;
+    let mut period = (l0 as f64 + off) * ts * q as f64;
+    // A period within 1 % of two samples is the Nyquist frequency itself (the sampled signal
+    // alternates; lags of unequal overlap bias the interpolation slightly).
+    let nyquist = (period / ts - 2.0).abs() < 0.02;
+    if nyquist {
+        period = 2.0 * ts;
+    }
     let freq_hz = 1.0 / period;
     // First harmonic over whole periods at the end of the tail.
     let per = period / ts;
@@ -158,7 +167,10 @@ pub fn detect(x: &[f64], ts: f64, opts: &DetectOptions) -> Option<SimulatedLimit
         s += v * (w * k as f64).sin();
         cc += v * (w * k as f64).cos();
     }
-    let amplitude = 2.0 * (s * s + cc * cc).sqrt() / len as f64;
+    // At the Nyquist frequency the sampled fundamental is Y·(−1)^k: its amplitude is |S|/N,
+    // not 2|S|/N (the positive and negative frequencies coincide).
+    let factor = if nyquist { 1.0 } else { 2.0 };
+    let amplitude = factor * (s * s + cc * cc).sqrt() / len as f64;
     Some(SimulatedLimitCycle {
         freq_hz,
         amplitude,
@@ -190,10 +202,13 @@ mod tests {
         let c = detect(&x, ts, &DetectOptions::default()).unwrap();
         assert!((c.freq_hz / 9.0 - 1.0).abs() < 0.01, "{c:?}");
         assert!((c.amplitude / (4.0 / PI) - 1.0).abs() < 0.03, "{c:?}");
-        // Period of two samples (Nyquist toggling).
-        let x: Vec<f64> = (0..4000).map(|k| if k % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        // Period of two samples (Nyquist toggling), amplitude 1.
+        let x: Vec<f64> = (0..4000)
+            .map(|k| if k % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
         let c = detect(&x, ts, &DetectOptions::default()).unwrap();
-        assert!((c.freq_hz - 500.0).abs() < 1.0, "{c:?}");
+        assert_eq!(c.freq_hz, 500.0, "{c:?}");
+        assert!((c.amplitude - 1.0).abs() < 1e-12, "{c:?}");
     }
 
     #[test]
@@ -212,7 +227,9 @@ mod tests {
         let mut s = 12345u64;
         let noise: Vec<f64> = (0..20000)
             .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
             })
             .collect();

@@ -180,8 +180,18 @@ impl LureLoop {
                 "limit-cycle loop: the plant has non-finite coefficients".into(),
             ));
         }
-        let coeffs = [controller.kp, controller.ki_d, controller.a_d, controller.b_d];
-        if coeffs.iter().chain(&controller.num).chain(&controller.den).any(|v| !v.is_finite()) {
+        let coeffs = [
+            controller.kp,
+            controller.ki_d,
+            controller.a_d,
+            controller.b_d,
+        ];
+        if coeffs
+            .iter()
+            .chain(&controller.num)
+            .chain(&controller.den)
+            .any(|v| !v.is_finite())
+        {
             return Err(Error::InvalidArgument(
                 "limit-cycle loop: the controller has non-finite coefficients".into(),
             ));

@@ -84,12 +84,7 @@ fn cross(a: Complex64, b: Complex64) -> f64 {
 }
 
 /// Intersection parameters (t, u) in [0, 1]² of segments p0→p1 and q0→q1, if they cross.
-fn seg_intersect(
-    p0: Complex64,
-    p1: Complex64,
-    q0: Complex64,
-    q1: Complex64,
-) -> Option<(f64, f64)> {
+fn seg_intersect(p0: Complex64, p1: Complex64, q0: Complex64, q1: Complex64) -> Option<(f64, f64)> {
     let r = p1 - p0;
     let s = q1 - q0;
     let den = cross(r, s);
@@ -132,7 +127,12 @@ impl Solver<'_> {
     /// Newton on (ln ω, ln A); returns (ω, A) on convergence inside the box.
     fn newton(&self, w0: f64, a0: f64) -> Option<(f64, f64)> {
         let (mut x, mut y) = (w0.ln(), a0.ln());
-        let (xl, xh, yl, yh) = (self.w_lo.ln(), self.w_hi.ln(), self.a_lo.ln(), self.a_hi.ln());
+        let (xl, xh, yl, yh) = (
+            self.w_lo.ln(),
+            self.w_hi.ln(),
+            self.a_lo.ln(),
+            self.a_hi.ln(),
+        );
         for _ in 0..60 {
             let f = self.f(x, y)?;
             let scale = self.l(x.exp())?.norm().max(1e-300);
@@ -282,12 +282,27 @@ pub fn predict_with(
             }
         }
     }
+    // At the Nyquist frequency a discrete L is real: when it is negative the locus ends on the
+    // real axis, a touch the segment test can miss by rounding. Test a short vertical segment
+    // through it.
+    if let Some(ln) = lw.last().copied().flatten() {
+        let eps = 1e-9 * ln.norm() + 1e-300;
+        if ln.re < 0.0 && ln.im.abs() <= eps {
+            let (p0, p1) = (ln - Complex64::new(0.0, eps), ln + Complex64::new(0.0, eps));
+            for j in 0..amps.len() - 1 {
+                if let (Some(q0), Some(q1)) = (cn[j], cn[j + 1]) {
+                    if let Some((_, u)) = seg_intersect(p0, p1, q0, q1) {
+                        let a = (amps[j].ln() + u * (amps[j + 1].ln() - amps[j].ln())).exp();
+                        raw.push((w_hi, a));
+                    }
+                }
+            }
+        }
+    }
     let mut out: Vec<PredictedLimitCycle> = Vec::new();
     for (w0, a0) in raw {
         let (w, a, refined) = match sv.newton(w0, a0) {
-            Some((w, a)) if (w / w0).ln().abs() < 0.2 && (a / a0).ln().abs() < 0.5 => {
-                (w, a, true)
-            }
+            Some((w, a)) if (w / w0).ln().abs() < 0.2 && (a / a0).ln().abs() < 0.5 => (w, a, true),
             _ => (w0, a0, false),
         };
         let dup = out.iter().any(|p| {

@@ -191,8 +191,8 @@ pub fn analyse(
     let (simulated, simulated_output, output_tail_half_ptp, diverged) =
         match simulate(lp, nl, comp, &spec) {
             Ok(run) => {
-                let nt = ((run.y.len() as f64) * opts.detect.tail_fraction.clamp(0.05, 1.0))
-                    as usize;
+                let nt =
+                    ((run.y.len() as f64) * opts.detect.tail_fraction.clamp(0.05, 1.0)) as usize;
                 let tail = &run.y[run.y.len() - nt.min(run.y.len())..];
                 let (lo, hi) = tail
                     .iter()
@@ -200,7 +200,11 @@ pub fn analyse(
                 (
                     detect(&run.nl_input, ts, &opts.detect),
                     detect(&run.y, ts, &opts.detect),
-                    if tail.is_empty() { 0.0 } else { 0.5 * (hi - lo) },
+                    if tail.is_empty() {
+                        0.0
+                    } else {
+                        0.5 * (hi - lo)
+                    },
                     None,
                 )
             }
@@ -245,21 +249,32 @@ pub fn receipt(analysis: &LimitCycleAnalysis, label: &str) -> Receipt {
     for p in &a.predicted {
         parts.push(format!(
             "describing function: {} cycle at {} Hz, amplitude {} ({unit}), {} at the output{}",
-            if p.stable { "stable" } else { "unstable (not counted)" },
+            if p.stable {
+                "stable"
+            } else {
+                "unstable (not counted)"
+            },
             sig(p.freq_hz),
             sig(p.amplitude),
             sig(p.output_amplitude),
             if p.refined { "" } else { ", grid estimate" }
         ));
     }
-    match (a.simulated.as_ref().or(a.simulated_output.as_ref()), &a.diverged) {
+    match (
+        a.simulated.as_ref().or(a.simulated_output.as_ref()),
+        &a.diverged,
+    ) {
         (_, Some(m)) => parts.push(format!("simulation diverged: {m}")),
         (Some(s), None) => parts.push(format!(
             "simulation: cycle at {} Hz, amplitude {} ({}, first harmonic; half peak-to-peak \
              {}), output half peak-to-peak {}",
             sig(s.freq_hz),
             sig(s.amplitude),
-            if a.simulated.is_some() { unit } else { "output units" },
+            if a.simulated.is_some() {
+                unit
+            } else {
+                "output units"
+            },
             sig(s.half_peak_to_peak),
             sig(a.output_tail_half_ptp)
         )),

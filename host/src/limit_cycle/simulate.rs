@@ -192,9 +192,17 @@ pub fn simulate(
     let mut out_prev = 0.0;
     for k in 0..n_samples {
         let y = dot(&c, &x) + d * w_prev;
-        let y_m = if nl.site == Site::Sensor { static_map(y) } else { y };
+        let y_m = if nl.site == Site::Sensor {
+            static_map(y)
+        } else {
+            y
+        };
         let u = ctl.step(spec.reference, y_m);
-        let mut w = if nl.site == Site::Drive { static_map(u) } else { u };
+        let mut w = if nl.site == Site::Drive {
+            static_map(u)
+        } else {
+            u
+        };
         if k < spec.kick_samples {
             w += spec.kick;
         }

@@ -1,0 +1,125 @@
+//! The compensation stage: limit-cycle receipts before/after and the choice (compensate,
+//! widen W_m, keep) for the friction loop of limit_cycle_loops.rs and for verdicts without
+//! anything to compensate.
+use ferrosid::compensation::DesignOptions;
+use ferrosid::gap::report::VerdictEffect;
+use ferrosid::limit_cycle::AnalysisOptions;
+use ferrosid::lti::{poly_mul, StateSpace, TransferFunction};
+use ferrosid::pipeline::compensation_stage::{
+    compensation_stage_from, Choice, CompensationStageOptions,
+};
+use ferrosid::robust::pid::{tune_pid, DiscretePid, PidTuningSpec};
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+
+fn friction_loop() -> (StateSpace, DiscretePid) {
+    let wa = 2.0 * PI * 40.0;
+    let g = TransferFunction::new(
+        vec![200.0 * wa * wa],
+        poly_mul(&[0.2, 1.0], &[1.0, 1.4 * wa, wa * wa]),
+        0.0,
+    )
+    .unwrap()
+    .to_state_space()
+    .unwrap();
+    let mut spec = PidTuningSpec::new(5.0);
+    spec.controller_ts = Some(1e-3);
+    let pid = tune_pid(&g, &spec).unwrap().discrete.unwrap();
+    // The loop as the pipeline has it: G0 discrete at the controller rate.
+    (g.c2d_zoh(1e-3).unwrap(), pid)
+}
+
+fn ve(effect: &str, place: &str, params: &[(&str, f64)]) -> VerdictEffect {
+    VerdictEffect {
+        effect: effect.into(),
+        place: place.into(),
+        params: params
+            .iter()
+            .map(|(k, v)| (k.to_string(), *v))
+            .collect::<BTreeMap<_, _>>(),
+        share: 1.0,
+    }
+}
+
+fn opts() -> CompensationStageOptions {
+    CompensationStageOptions {
+        design: DesignOptions::new("test", 1e-4, 0.05),
+        analysis: AnalysisOptions {
+            amplitude_tol: 0.005,
+            ..AnalysisOptions::default()
+        },
+    }
+}
+
+#[test]
+fn friction_is_compensated_and_the_receipts_show_it() {
+    let (g, pid) = friction_loop();
+    let st = compensation_stage_from(
+        "coulomb_friction",
+        &[ve("coulomb_friction", "motor", &[("level", 0.008)])],
+        Some("output"),
+        0.2,
+        0.05,
+        &g,
+        &pid,
+        &opts(),
+    )
+    .unwrap();
+    assert_eq!(st.choice, Choice::Compensate, "{}", st.reason);
+    assert!(st.compensation.enabled);
+    let before = st.receipts_before();
+    let after = st.receipts_after();
+    assert_eq!((before.len(), after.len()), (1, 1));
+    assert!(!before[0].pass && after[0].pass, "{before:?} {after:?}");
+    assert!(st.reason.contains("gone"), "{}", st.reason);
+    // Discrete G0 (d2c for the friction sub-steps) gives the same cycle as the continuous
+    // plant in limit_cycle_loops.rs: about 40 Hz.
+    let p = st.effects[0]
+        .before
+        .predicted
+        .iter()
+        .find(|p| p.stable)
+        .unwrap();
+    assert!((p.freq_hz - 40.1).abs() < 1.0, "{p:?}");
+}
+
+#[test]
+fn none_unexplained_and_uncompensable_verdicts() {
+    let (g, pid) = friction_loop();
+    let run = |v: &str, e: &[VerdictEffect]| {
+        compensation_stage_from(v, e, None, 0.2, 0.1, &g, &pid, &opts()).unwrap()
+    };
+    let st = run("none", &[]);
+    assert_eq!(st.choice, Choice::Keep);
+    assert!(!st.compensation.enabled && st.effects.is_empty());
+    let st = run("unexplained", &[]);
+    assert_eq!(st.choice, Choice::WidenWm);
+    // Backlash in the drivetrain: neither analysed nor compensated, nothing fails: keep.
+    let st = run(
+        "backlash",
+        &[ve("backlash", "drivetrain", &[("gap", 0.01)])],
+    );
+    assert_eq!(st.choice, Choice::Keep, "{}", st.reason);
+    assert_eq!(st.not_analysed.len(), 1);
+    assert!(
+        st.not_analysed[0].contains("two-mass"),
+        "{:?}",
+        st.not_analysed
+    );
+    // Bad inputs are errors.
+    let e = compensation_stage_from("none", &[], Some("speed"), 0.2, 0.1, &g, &pid, &opts())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("velocity source"), "{e}");
+    assert!(compensation_stage_from(
+        "coulomb_friction",
+        &[ve("coulomb_friction", "motor", &[("level", f64::NAN)])],
+        None,
+        0.2,
+        0.1,
+        &g,
+        &pid,
+        &opts()
+    )
+    .is_err());
+}
