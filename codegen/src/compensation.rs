@@ -69,7 +69,12 @@ pub struct CompensationProvenance {
 }
 
 /// Where the friction feedforward takes its velocity estimate w from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+///
+/// JSON: `{"kind": "output"}`, `{"kind": "output_difference", "filter_hz": 50.0}`,
+/// `{"kind": "reference"}`. Deserialised through a flat struct, not serde's internally tagged
+/// enum: that buffers the map and then refuses numbers when another crate in the build turns
+/// on serde_json's `arbitrary_precision` (defmt-decoder does, in the workspace's test build).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum VelocitySource {
     /// The measured output is the velocity: w = y.
@@ -82,6 +87,43 @@ pub enum VelocitySource {
     },
     /// The reference is a velocity set-point: w = r (no measurement noise in the feedforward).
     Reference,
+}
+
+/// The flat JSON form of [`VelocitySource`].
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VelocitySourceRepr {
+    kind: VelocityKind,
+    #[serde(default)]
+    filter_hz: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum VelocityKind {
+    Output,
+    OutputDifference,
+    Reference,
+}
+
+impl<'de> Deserialize<'de> for VelocitySource {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        use serde::de::Error as _;
+        let r = VelocitySourceRepr::deserialize(d)?;
+        match (r.kind, r.filter_hz) {
+            (VelocityKind::Output, None) => Ok(VelocitySource::Output),
+            (VelocityKind::Reference, None) => Ok(VelocitySource::Reference),
+            (VelocityKind::OutputDifference, Some(filter_hz)) => {
+                Ok(VelocitySource::OutputDifference { filter_hz })
+            }
+            (VelocityKind::OutputDifference, None) => Err(D::Error::custom(
+                "velocity kind output_difference needs filter_hz (Hz)",
+            )),
+            (_, Some(_)) => Err(D::Error::custom(
+                "velocity filter_hz belongs to kind output_difference only",
+            )),
+        }
+    }
 }
 
 /// Coulomb + viscous friction feedforward with a linear ramp through zero velocity.
