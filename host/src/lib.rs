@@ -12,12 +12,15 @@
 pub mod cli;
 pub mod data;
 pub mod error;
+pub mod fleet;
 pub mod gap;
 pub mod io;
 pub mod lti;
 pub mod n4sid;
 pub mod operating_point;
+pub mod output;
 pub mod pipeline;
+pub mod plot;
 pub mod preprocess;
 pub mod rational_fit;
 pub mod report;
