@@ -18,6 +18,7 @@ pub mod io;
 pub mod lti;
 pub mod n4sid;
 pub mod operating_point;
+pub mod ops;
 pub mod output;
 pub mod pipeline;
 pub mod plot;
