@@ -26,6 +26,7 @@ use crate::pipeline::document::{weight_high_gain, weight_low_gain};
 use crate::output::prepare_output_dir;
 use crate::output::write_outputs_to;
 use crate::pipeline::{json_pretty, run_pipeline, Mode, PipelineRun};
+use crate::robust::receipts::ReceiptKind;
 use crate::error::{Error, Result};
 use crate::io::file_safety::OutputDir;
 use rayon::prelude::*;
@@ -202,7 +203,7 @@ impl UnitResult {
                 .as_ref()
                 .map(|w| weight_high_gain(&w.num, &w.den)),
             crossover_hz: run.tuned.as_ref().map(|t| t.design.crossover_hz),
-            ms: rs.get("sensitivity_peak").map(|r| r.value),
+            ms: rs.of_kind(ReceiptKind::SensitivityPeak).map(|r| r.value),
             validation_fit_percent: run.validation_fit.as_ref().map(|f| f.fit_percent[0]),
             out_dir,
         }

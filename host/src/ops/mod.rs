@@ -3,6 +3,8 @@
 //! their arguments to these options and render the reports; [`crate::pipeline`] composes the
 //! same building blocks into one run.
 //!
+//! * [`codegen`] — the firmware-header generator input from a model, controller, weight and
+//!   receipts in memory (`ferrosid codegen`, and a pipeline run without the disk);
 //! * [`frf`] — empirical frequency response (Welch H1 or period-synchronous) with coherence
 //!   gating, from one or more logs (`ferrosid frf`);
 //! * [`identify`] — N4SID with order selection, continuous-time equivalent and validation
@@ -10,6 +12,7 @@
 //!
 //! Long steps report through a [`Progress`] the caller supplies ([`NoProgress`] ignores it),
 //! so the library never draws on a terminal itself.
+pub mod codegen;
 pub mod frf;
 pub mod identify;
 

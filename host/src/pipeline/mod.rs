@@ -35,6 +35,7 @@ use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::lti::StateSpace;
 use crate::n4sid::N4sidResult;
+use crate::ops::codegen::{receipt_line, weight_coefficients, CodegenParts, ControllerSource};
 use crate::preprocess::Preprocessing;
 use crate::robust::audit::NonlinearityAudit;
 use crate::robust::pid::TunedPid;
@@ -226,6 +227,46 @@ impl PipelineRun {
         let mut d = crate::lti::StateSpaceData::from(self.model());
         d.operating_point = self.nominal_run().operating_point();
         d
+    }
+
+    /// The parts of a firmware header from this run, without the disk (the input of
+    /// [`crate::ops::codegen::codegen_input`]): G0 with the operating point of the estimation
+    /// run, the tuned controller, the fitted W_m, every receipt and the digests of the pipeline
+    /// file and the logs. The same parts `ferrosid codegen` reads from `model.json`,
+    /// `pid.json`, `wm.json` and `receipts.json`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when the run has no uncertainty weight (the power-up check
+    /// needs one; `weight_note` says why it is missing).
+    pub fn codegen_parts(&self) -> Result<CodegenParts> {
+        let weight = self.weight.as_ref().ok_or_else(|| {
+            Error::InvalidArgument(format!(
+                "the run has no uncertainty weight for the power-up check: {}",
+                self.weight_note.as_deref().unwrap_or("not fitted")
+            ))
+        })?;
+        let model_file = self.model_file();
+        let sources = std::iter::once(&self.pipeline_file)
+            .chain(&self.inputs)
+            .map(|f| ferrosid_codegen::SourceDigest {
+                label: format!("{}: {}", f.role, f.path),
+                sha256: f.sha256.clone(),
+            })
+            .collect();
+        Ok(CodegenParts {
+            model: self.model().clone(),
+            model_origin: Path::new(&self.pipeline_file.path).to_path_buf(),
+            operating_point: model_file.operating_point,
+            controller: self.tuned.as_ref().map(|t| ControllerSource::Tuned {
+                pid: t.pid,
+                discrete: t.discrete.clone(),
+                crossover_hz: Some(t.design.crossover_hz),
+                prewarp_hz: None,
+            }),
+            weight: weight_coefficients(weight),
+            receipts: self.receipts.receipts.iter().map(receipt_line).collect(),
+            sources,
+        })
     }
 
     /// The estimation run.
