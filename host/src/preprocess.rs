@@ -40,6 +40,35 @@ pub enum Step {
     },
 }
 
+/// Offset removal before identification: `[preprocess].remove` of the pipeline file and
+/// `--remove` of `ferrosid identify` (feature `cli`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum Removal {
+    /// Subtract each channel's mean (default).
+    Mean,
+    /// Subtract each channel's least-squares line.
+    Trend,
+    /// Keep offsets (only for data already centred).
+    None,
+}
+
+/// The preprocessing steps of an offset removal followed by decimation by `decimate` (none
+/// when 1), in the order applied.
+pub fn steps(remove: Removal, decimate: usize) -> Vec<Step> {
+    let mut s = Vec::new();
+    match remove {
+        Removal::None => {}
+        Removal::Mean => s.push(Step::RemoveMean),
+        Removal::Trend => s.push(Step::RemoveTrend),
+    }
+    if decimate > 1 {
+        s.push(Step::Decimate { factor: decimate });
+    }
+    s
+}
+
 /// Mean removed from one channel.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RemovedMean {

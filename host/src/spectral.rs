@@ -21,7 +21,7 @@
 //! (no allocation per segment). MIMO logs: estimate each (input, output) pair separately.
 use num_complex::Complex64;
 use realfft::{RealFftPlanner, RealToComplex};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 use crate::data::Log;
@@ -122,16 +122,49 @@ impl Window {
     }
 }
 
-/// Per-segment detrending applied before windowing (scipy's `detrend` argument).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// Per-segment detrending applied before windowing (scipy's `detrend` argument). The same
+/// type is the `--detrend` value of `ferrosid frf` (feature `cli`) and a serde value
+/// (`"constant"`, `"linear"`, `"none"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Detrend {
-    /// No detrending (scipy `detrend=False`).
-    None,
     /// Subtract the segment mean (scipy `'constant'`, the default).
     Constant,
     /// Subtract the least-squares straight line (scipy `'linear'`).
     Linear,
+    /// No detrending (scipy `detrend=False`).
+    None,
+}
+
+/// A named data window (the [`Window`]s without caller-supplied coefficients): the
+/// `--window` value of `ferrosid frf`/`identify` (feature `cli`) and a serde value. The
+/// rectangular window is spelled `boxcar` as in scipy; `rectangular` is accepted too.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum WindowName {
+    /// Periodic Hann.
+    Hann,
+    /// Periodic Hamming.
+    Hamming,
+    /// Periodic Blackman.
+    Blackman,
+    /// Rectangular (scipy `boxcar`).
+    #[serde(alias = "rectangular")]
+    #[cfg_attr(feature = "cli", value(alias = "rectangular"))]
+    Boxcar,
+}
+
+impl From<WindowName> for Window {
+    fn from(w: WindowName) -> Self {
+        match w {
+            WindowName::Hann => Window::Hann,
+            WindowName::Hamming => Window::Hamming,
+            WindowName::Blackman => Window::Blackman,
+            WindowName::Boxcar => Window::Rectangular,
+        }
+    }
 }
 
 /// Welch averaging settings. Defaults follow scipy: `nperseg` 256, `noverlap = nperseg / 2`,

@@ -4,7 +4,7 @@
 //! and the file-prefix layout gives the same numbers as the subdirectory layout.
 mod pipeline_support;
 
-use ferrosid::pipeline::fleet::{discover_units, run_fleet, FleetOptions, Layout};
+use ferrosid::fleet::{discover_units, run_fleet, FleetOptions, Layout};
 use ferrosid::pipeline::LoadedConfig;
 use pipeline_support as sup;
 use serde_json::Value;

@@ -2,7 +2,8 @@
 //! independently, exit codes, byte-identical reruns, and bad pipeline files.
 mod pipeline_support;
 
-use ferrosid::pipeline::{run_pipeline, write_outputs, LoadedConfig};
+use ferrosid::output::write_outputs;
+use ferrosid::pipeline::{run_pipeline, LoadedConfig};
 use pipeline_support as sup;
 use serde_json::Value;
 use std::f64::consts::PI;

@@ -3,7 +3,8 @@
 //! figures/, and nothing refers to the network or runs a script.
 mod pipeline_support;
 
-use ferrosid::pipeline::{run_pipeline, write_outputs, LoadedConfig};
+use ferrosid::output::write_outputs;
+use ferrosid::pipeline::{run_pipeline, LoadedConfig};
 use pipeline_support as sup;
 
 const SECTIONS: [&str; 12] = [

@@ -34,7 +34,9 @@ use super::ExitCode;
 use crate::error::{Error, Result};
 use crate::io::file_safety::{refuse_input_overwrite, write_atomic};
 use crate::lti::{StateSpace, StateSpaceData};
-use crate::robust::pid::{DiscretePid, Pid};
+pub use crate::ops::codegen::default_check_hz;
+use crate::ops::codegen::{codegen_input, sig4, CodegenOptions, CodegenParts, ControllerSource};
+use crate::robust::pid::Pid;
 use ferrosid_codegen as cg;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -140,21 +142,6 @@ fn data_err(path: &Path, msg: impl Into<String>) -> Error {
     }
 }
 
-fn rows(m: &faer::Mat<f64>) -> Vec<Vec<f64>> {
-    (0..m.nrows())
-        .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
-        .collect()
-}
-
-fn matrices(s: &StateSpace) -> cg::Matrices {
-    cg::Matrices {
-        a: rows(&s.a),
-        b: rows(&s.b),
-        c: rows(&s.c),
-        d: rows(&s.d),
-    }
-}
-
 /// Reads a model file: a `StateSpaceData` at the top level or under `"model"`.
 pub fn read_model(path: &Path) -> Result<StateSpace> {
     read_model_file(path).map(|(s, _)| s)
@@ -179,94 +166,39 @@ pub fn read_model_file(path: &Path) -> Result<(StateSpace, Option<crate::data::O
     Ok((sys, data.operating_point))
 }
 
-/// The discrete model at the control rate and the continuous model for documentation.
-fn models(
-    path: &Path,
-    sys: &StateSpace,
-    ts: Option<f64>,
-) -> Result<(StateSpace, Option<cg::ContinuousModel>)> {
-    if sys.is_discrete() {
-        if let Some(t) = ts {
-            if (t - sys.ts).abs() > 1e-9 * sys.ts {
-                return Err(data_err(
-                    path,
-                    format!(
-                        "the model is discrete at ts = {} s but --ts {t} s was given; identify \
-                         at the control rate",
-                        sys.ts
-                    ),
-                ));
-            }
-        }
-        let cont = sys.d2c_zoh().ok().map(|c| cg::ContinuousModel {
-            matrices: matrices(&c),
-            note: "inverse ZOH (matrix logarithm) of the discrete model".into(),
-        });
-        Ok((sys.clone(), cont))
-    } else {
-        let t = ts.ok_or_else(|| {
-            data_err(
-                path,
-                "the model is continuous (ts = 0): give the control sample time with --ts",
-            )
-        })?;
-        let d = sys.c2d_zoh(t)?;
-        Ok((
-            d,
-            Some(cg::ContinuousModel {
-                matrices: matrices(sys),
-                note: format!("the model as given; discretised by ZOH at ts = {t} s"),
-            }),
-        ))
-    }
-}
-
-fn pid_gains(dp: &DiscretePid, cont: Option<&Pid>) -> cg::PidGains {
-    cg::PidGains {
-        ts_s: dp.ts,
-        kp: dp.kp,
-        ki_d: dp.ki_d,
-        a_d: dp.a_d,
-        b_d: dp.b_d,
-        rolloff: dp.rolloff.map(|bq| cg::Biquad { b: bq.b, a: bq.a }),
-        prewarp_hz: dp.prewarp_hz,
-        continuous: cont.map(|p| cg::ContinuousPid {
-            kp: p.kp,
-            ki: p.ki,
-            kd: p.kd,
-            tau_f: p.tau_f,
-        }),
-    }
-}
-
-/// Reads a PID file (continuous, discrete, or a tuning result) for a model sampled at `ts`.
-pub fn read_pid(path: &Path, ts: f64, prewarp_hz: Option<f64>) -> Result<cg::PidGains> {
+/// Reads a PID file: a discrete PID (`ki_d`, ...), a tuning result (`pid`, `discrete`,
+/// `design`) or a continuous PID (`kp`, ...), as the controller the header is generated for
+/// (a continuous one prewarped at `prewarp_hz`).
+pub fn read_pid(path: &Path, prewarp_hz: Option<f64>) -> Result<ControllerSource> {
     let v = read_json(path)?;
     fn de<T: serde::de::DeserializeOwned>(path: &Path, what: &str, v: Value) -> Result<T> {
         serde_json::from_value(v).map_err(|e| data_err(path, format!("{what}: {e}")))
     }
     if v.get("ki_d").is_some() {
-        let dp: DiscretePid = de(path, "discrete PID", v)?;
-        return Ok(pid_gains(&dp, None));
+        return Ok(ControllerSource::Discrete(de(path, "discrete PID", v)?));
     }
     if let Some(p) = v.get("pid") {
         let pid: Pid = de(path, "tuning result `pid`", p.clone())?;
-        if let Some(d) = v.get("discrete").filter(|d| !d.is_null()) {
-            let dp: DiscretePid = de(path, "tuning result `discrete`", d.clone())?;
-            return Ok(pid_gains(&dp, Some(&pid)));
-        }
-        let prewarp = v
+        let discrete = match v.get("discrete").filter(|d| !d.is_null()) {
+            Some(d) => Some(de(path, "tuning result `discrete`", d.clone())?),
+            None => None,
+        };
+        let crossover_hz = v
             .get("design")
             .and_then(|d| d.get("crossover_hz"))
-            .and_then(Value::as_f64)
-            .or(prewarp_hz);
-        let dp = pid.discretize(ts, prewarp)?;
-        return Ok(pid_gains(&dp, Some(&pid)));
+            .and_then(Value::as_f64);
+        return Ok(ControllerSource::Tuned {
+            pid,
+            discrete,
+            crossover_hz,
+            prewarp_hz,
+        });
     }
     if v.get("kp").is_some() {
-        let pid: Pid = de(path, "continuous PID", v)?;
-        let dp = pid.discretize(ts, prewarp_hz)?;
-        return Ok(pid_gains(&dp, Some(&pid)));
+        return Ok(ControllerSource::Continuous {
+            pid: de(path, "continuous PID", v)?,
+            prewarp_hz,
+        });
     }
     Err(data_err(
         path,
@@ -351,18 +283,6 @@ pub fn read_receipts(path: &Path) -> Result<Vec<cg::ReceiptLine>> {
     Ok(out)
 }
 
-/// `v` with 4 decimals, or 4 significant digits in exponent form for very large or small
-/// magnitudes (the receipts' own rendering of values).
-fn sig4(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
-        format!("{v}")
-    } else if v.abs() >= 1e5 || v.abs() < 1e-3 {
-        format!("{v:.4e}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
 /// SHA-256 of a file's bytes with its label.
 pub fn digest_file(path: &Path, role: &str) -> Result<cg::SourceDigest> {
     let bytes = std::fs::read(path).map_err(|source| Error::Io {
@@ -375,51 +295,19 @@ pub fn digest_file(path: &Path, role: &str) -> Result<cg::SourceDigest> {
     })
 }
 
-/// Default check frequencies: 8 log-spaced from 2 bins to `f_max`.
-pub fn default_check_hz(fs: f64, n: usize, f_max: f64) -> Vec<f64> {
-    let df = fs / n as f64;
-    let lo = 2.0 * df;
-    let hi = f_max.max(lo);
-    let k = 8usize;
-    let mut bins: Vec<usize> = (0..k)
-        .map(|i| {
-            let f = lo * (hi / lo).powf(i as f64 / (k - 1) as f64);
-            ((f / df).round() as usize).max(1)
-        })
-        .collect();
-    bins.dedup();
-    bins.into_iter().map(|b| b as f64 * df).collect()
-}
-
-/// Builds the generator input from the parsed flags (everything but writing files).
+/// Builds the generator input from the parsed flags (everything but writing files): reads
+/// the parts from the files and hands them to [`crate::ops::codegen::codegen_input`].
 pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
     let model_path = args
         .model
         .as_deref()
         .ok_or_else(|| Error::InvalidArgument("--model is required".into()))?;
-    let (sys, op) = read_model_file(model_path)?;
-    let (disc, cont) = models(model_path, &sys, args.ts)?;
-    let operating_point = op.map(|o| cg::OperatingPointValues {
-        note: format!(
-            "Identified after {} removal{} from logs at {} Hz.",
-            o.detrend,
-            if o.decimation > 1 {
-                format!(" and decimation by {}", o.decimation)
-            } else {
-                String::new()
-            },
-            o.fs_raw_hz
-        ),
-        u0: o.u0,
-        y0: o.y0,
-    });
-    let ts = disc.ts;
-    let fs = 1.0 / ts;
+    let (model, operating_point) = read_model_file(model_path)?;
     let mut sources = vec![digest_file(model_path, "model")?];
-    let pid = match &args.pid {
+    let controller = match &args.pid {
         Some(p) => {
             sources.push(digest_file(p, "pid")?);
-            Some(read_pid(p, ts, args.prewarp_hz)?)
+            Some(read_pid(p, args.prewarp_hz)?)
         }
         None => None,
     };
@@ -456,41 +344,35 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
     for s in &args.sources {
         sources.push(digest_file(s, "source")?);
     }
-    let f_max = args.excitation_max_hz.unwrap_or(fs / 4.0);
-    let check_hz = if args.check_hz.is_empty() {
-        default_check_hz(fs, args.welch_n, f_max)
-    } else {
-        args.check_hz.clone()
-    };
-    let min_checked = args.min_checked.unwrap_or(check_hz.len().div_ceil(2));
-    Ok(cg::CodegenInput {
-        prefix: args.prefix.clone(),
-        model: cg::DiscreteModel {
-            ts_s: ts,
-            matrices: matrices(&disc),
-        },
-        continuous: cont,
-        pid,
-        weight,
-        self_id: cg::SelfIdSettings {
-            welch_n: args.welch_n,
-            check_hz,
-            coherence_gate: args.gate,
-            averages: args.averages,
-            settle_periods: args.settle_periods,
-            excitation_rms: args.excitation_rms,
-            excitation_max_hz: f_max,
-            min_checked,
-        },
-        provenance: cg::Provenance {
-            tool: format!("ferrosid {}", env!("CARGO_PKG_VERSION")),
-            sources,
-            receipts,
-            notes: Vec::new(),
-        },
-        operating_point,
+    let parts = CodegenParts {
         compensation: None,
-    })
+        model,
+        model_origin: model_path.to_path_buf(),
+        operating_point,
+        controller,
+        weight,
+        receipts,
+        sources,
+    };
+    codegen_input(parts, &args.options())
+}
+
+impl Args {
+    /// The prefix and self-identification settings of the flags.
+    pub fn options(&self) -> CodegenOptions {
+        CodegenOptions {
+            prefix: self.prefix.clone(),
+            ts: self.ts,
+            check_hz: self.check_hz.clone(),
+            welch_n: self.welch_n,
+            averages: self.averages,
+            settle_periods: self.settle_periods,
+            gate: self.gate,
+            excitation_rms: self.excitation_rms,
+            excitation_max_hz: self.excitation_max_hz,
+            min_checked: self.min_checked,
+        }
+    }
 }
 
 /// The files a codegen input came from, so that errors in their contents name them.

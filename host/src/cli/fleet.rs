@@ -1,6 +1,6 @@
 //! `ferrosid fleet DIR`: the pipeline on every unit (serial number) of a fleet directory, in
 //! parallel, with a summary of the parameter distributions across units (see
-//! [`crate::pipeline::fleet`] for the directory layouts and the statistics).
+//! [`crate::fleet`] for the directory layouts and the statistics).
 //!
 //! Each unit's outputs (receipts, model, report) go to `<out>/<serial>/`, the summary to
 //! `<out>/fleet.json` (default `<out>` = `out/fleet` in the current directory).
@@ -10,7 +10,7 @@
 //! unusable.
 use super::ExitCode;
 use crate::error::{Error, Result};
-use crate::pipeline::fleet::{run_fleet, FleetOptions, FleetSummary};
+use crate::fleet::{run_fleet, FleetOptions, FleetSummary};
 use crate::pipeline::{fmt_num, LoadedConfig};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
@@ -214,7 +214,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             ),
         });
     }
-    crate::pipeline::fleet::worker_threads(args.jobs, 1)?;
+    crate::fleet::worker_threads(args.jobs, 1)?;
     let template_path = args
         .pipeline
         .clone()
@@ -228,7 +228,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         });
     }
     let template = LoadedConfig::load(&template_path)?;
-    let (_, serials) = crate::pipeline::fleet::discover_units(&args.dir)?;
+    let (_, serials) = crate::fleet::discover_units(&args.dir)?;
     let pb = if std::io::stderr().is_terminal() {
         ProgressBar::with_draw_target(Some(serials.len() as u64), ProgressDrawTarget::stderr())
     } else {

@@ -12,17 +12,20 @@
 //!
 //! Exit status: 0 when at least one bin of every estimate passes the coherence gate, 1 when an
 //! estimate has no bin above the gate (nothing usable for fitting or validation).
-use super::output::{self, fixed, Align, Table};
+use super::output::{self, fixed, Align, Table, TerminalProgress};
 use super::ExitCode;
 use crate::data::Log;
 use crate::error::{Error, Result};
-use crate::io::{read_log, require_len, LogSpec};
-use crate::spectral::{
-    Detrend, Etfe, ExcludedBand, PeriodicAveraging, PeriodicFrf, Welch, Window,
-    DEFAULT_COHERENCE_THRESHOLD, MAX_NPERSEG, MIN_NPERSEG,
+use crate::io::{read_log, LogSpec};
+pub use crate::ops::frf::{
+    auto_nperseg, check_compatible, mag_db, phase_deg, FrfEstimate, FrfOptions, FrfReport,
+    LogSummary, MethodSummary, NORMALISATION_NOTE,
 };
-use clap::ValueEnum;
-use num_complex::Complex64;
+/// The `--detrend` values (the library's [`crate::spectral::Detrend`]).
+pub use crate::spectral::Detrend as DetrendArg;
+/// The `--window` values (the library's [`crate::spectral::WindowName`]).
+pub use crate::spectral::WindowName as WindowArg;
+use crate::spectral::DEFAULT_COHERENCE_THRESHOLD;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -88,53 +91,6 @@ impl LogArgs {
     }
 }
 
-/// Data window of each Welch segment.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum WindowArg {
-    /// Periodic Hann.
-    Hann,
-    /// Periodic Hamming.
-    Hamming,
-    /// Periodic Blackman.
-    Blackman,
-    /// Rectangular (scipy `boxcar`).
-    Boxcar,
-}
-
-impl WindowArg {
-    fn window(self) -> Window {
-        match self {
-            WindowArg::Hann => Window::Hann,
-            WindowArg::Hamming => Window::Hamming,
-            WindowArg::Blackman => Window::Blackman,
-            WindowArg::Boxcar => Window::Rectangular,
-        }
-    }
-}
-
-/// Per-segment detrending before windowing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DetrendArg {
-    /// Subtract the segment mean.
-    Constant,
-    /// Subtract the least-squares line.
-    Linear,
-    /// No detrending.
-    None,
-}
-
-impl DetrendArg {
-    fn detrend(self) -> Detrend {
-        match self {
-            DetrendArg::Constant => Detrend::Constant,
-            DetrendArg::Linear => Detrend::Linear,
-            DetrendArg::None => Detrend::None,
-        }
-    }
-}
-
 /// Settings of the frequency-response estimate (shared by `frf` and `identify`'s validation).
 #[derive(Debug, Clone, clap::Args)]
 pub struct EtfeArgs {
@@ -163,75 +119,42 @@ pub struct EtfeArgs {
 }
 
 impl EtfeArgs {
-    /// Checks option values that clap cannot.
-    pub fn validate(&self) -> Result<()> {
-        if !(self.gate.is_finite() && (0.0..=1.0).contains(&self.gate)) {
-            return Err(Error::InvalidArgument(format!(
-                "--gate must be a coherence in [0, 1], got {}",
-                self.gate
-            )));
-        }
-        self.nperseg_fixed()?;
-        if let Some(p) = self.period {
-            if !(2..=MAX_NPERSEG).contains(&p) {
-                return Err(Error::InvalidArgument(format!(
-                    "--period must be in 2..={MAX_NPERSEG} samples, got {p}"
-                )));
-            }
-        }
-        Ok(())
-    }
-
-    fn nperseg_fixed(&self) -> Result<Option<usize>> {
-        if self.nperseg.eq_ignore_ascii_case("auto") {
-            return Ok(None);
-        }
-        let n: usize = self.nperseg.trim().parse().map_err(|_| {
-            Error::InvalidArgument(format!(
-                "--nperseg must be a number of samples or `auto`, got `{}`",
-                self.nperseg
-            ))
-        })?;
-        if !(MIN_NPERSEG..=MAX_NPERSEG).contains(&n) {
-            return Err(Error::InvalidArgument(format!(
-                "--nperseg must be in {MIN_NPERSEG}..={MAX_NPERSEG} samples, got {n}"
-            )));
-        }
-        Ok(Some(n))
-    }
-
-    /// The Welch settings for logs whose shortest has `min_len` samples.
-    pub fn welch(&self, min_len: usize) -> Result<Welch> {
-        let nperseg = match self.nperseg_fixed()? {
-            Some(n) => n,
-            None => auto_nperseg(min_len),
+    /// The library options these flags describe.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when `--nperseg` is neither a number nor `auto`.
+    pub fn options(&self) -> Result<FrfOptions> {
+        let nperseg = if self.nperseg.eq_ignore_ascii_case("auto") {
+            None
+        } else {
+            Some(self.nperseg.trim().parse().map_err(|_| {
+                Error::InvalidArgument(format!(
+                    "--nperseg must be a number of samples or `auto`, got `{}`",
+                    self.nperseg
+                ))
+            })?)
         };
-        Ok(Welch {
+        Ok(FrfOptions {
             nperseg,
-            noverlap: self.overlap,
-            window: self.window.window(),
-            detrend: self.detrend.detrend(),
+            overlap: self.overlap,
+            window: self.window,
+            detrend: self.detrend,
+            period: self.period,
+            skip_periods: self.skip_periods,
+            gate: self.gate,
         })
     }
 
-    /// The period-synchronous settings, if `--period` was given.
-    pub fn periodic(&self) -> Option<PeriodicAveraging> {
-        self.period.map(|p| PeriodicAveraging {
-            skip_periods: self.skip_periods,
-            ..PeriodicAveraging::new(p)
-        })
+    /// Checks option values that clap cannot (see [`FrfOptions::validate`]).
+    pub fn validate(&self) -> Result<()> {
+        self.options()?.validate()
     }
 }
 
-/// Default Welch segment length: the largest power of two <= `len / 4`, within
-/// `MIN_NPERSEG..=4096`.
-pub fn auto_nperseg(len: usize) -> usize {
-    let target = (len / 4).clamp(MIN_NPERSEG, 4096);
-    let mut n = MIN_NPERSEG;
-    while n * 2 <= target {
-        n *= 2;
-    }
-    n
+/// Computes the report of `ferrosid frf` for already-read logs ([`crate::ops::frf::estimate`]
+/// with these flags, progress on stderr).
+pub fn estimate(logs: &[Log], etfe: &EtfeArgs) -> Result<FrfReport> {
+    crate::ops::frf::estimate(logs, &etfe.options()?, &TerminalProgress::default())
 }
 
 /// Arguments of `ferrosid frf`.
@@ -266,328 +189,6 @@ pub struct Args {
     /// Print machine-readable JSON instead of the table.
     #[arg(long)]
     pub json: bool,
-}
-
-/// One log as described in reports.
-#[derive(Debug, Clone, Serialize)]
-pub struct LogSummary {
-    /// Path as given.
-    pub path: String,
-    /// Samples.
-    pub samples: usize,
-    /// Sample rate, Hz.
-    pub fs_hz: f64,
-    /// Input channel names.
-    pub inputs: Vec<String>,
-    /// Output channel names.
-    pub outputs: Vec<String>,
-    /// Reader warnings (clipping, constant output).
-    pub warnings: Vec<String>,
-}
-
-impl LogSummary {
-    /// Summary of a log.
-    pub fn of(log: &Log) -> Self {
-        Self {
-            path: log.path.display().to_string(),
-            samples: log.len(),
-            fs_hz: log.fs(),
-            inputs: log.inputs.iter().map(|c| c.name.clone()).collect(),
-            outputs: log.outputs.iter().map(|c| c.name.clone()).collect(),
-            warnings: log.warnings.clone(),
-        }
-    }
-}
-
-/// Estimator description in the JSON output.
-#[derive(Debug, Clone, Serialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum MethodSummary {
-    /// Welch H1.
-    Welch {
-        /// Segment length, samples.
-        nperseg: usize,
-        /// Overlap, samples.
-        noverlap: usize,
-        /// Window.
-        window: WindowArg,
-        /// Detrending.
-        detrend: DetrendArg,
-        /// Bin spacing, Hz.
-        resolution_hz: f64,
-    },
-    /// Period-synchronous averaging.
-    Periodic {
-        /// Period, samples.
-        period: usize,
-        /// Skipped leading periods.
-        skip_periods: usize,
-    },
-}
-
-/// One frequency-response estimate (one input/output pair), columnar.
-#[derive(Debug, Clone, Serialize)]
-pub struct FrfEstimate {
-    /// Input channel name.
-    pub input: String,
-    /// Output channel name.
-    pub output: String,
-    /// Log(s) it comes from.
-    pub logs: Vec<String>,
-    /// Averages: Welch segments or periods.
-    pub n_averages: usize,
-    /// Bin frequencies, Hz.
-    pub freq_hz: Vec<f64>,
-    /// Real part of H.
-    pub re: Vec<f64>,
-    /// Imaginary part of H.
-    pub im: Vec<f64>,
-    /// 20 log10 |H| (null where H is undefined).
-    pub mag_db: Vec<f64>,
-    /// Phase of H in degrees, wrapped to (-180, 180].
-    pub phase_deg: Vec<f64>,
-    /// Magnitude-squared coherence.
-    pub coherence: Vec<f64>,
-    /// Standard deviation of H (period-synchronous averaging only).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub std_h: Option<Vec<f64>>,
-    /// True where the bin passes the gate (coherence >= gate and, for Welch, input power
-    /// present; see [`crate::spectral::Etfe::gate`]).
-    pub gated: Vec<bool>,
-    /// Runs of bins rejected by the gate.
-    pub excluded_bands: Vec<ExcludedBand>,
-    /// Why bins cannot pass the gate beyond coherence (e.g. too few averages), if anything.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub notes: Vec<String>,
-}
-
-/// The JSON document of `ferrosid frf --json`.
-#[derive(Debug, Clone, Serialize)]
-pub struct FrfReport {
-    /// Always "frf".
-    pub command: &'static str,
-    /// Logs read.
-    pub logs: Vec<LogSummary>,
-    /// Estimator.
-    pub method: MethodSummary,
-    /// Coherence gate threshold.
-    pub gate: f64,
-    /// One estimate per pair (Welch) or per log and pair (periodic).
-    pub estimates: Vec<FrfEstimate>,
-    /// How the numerics treat signal scale.
-    pub normalisation: &'static str,
-}
-
-/// What `frf` says about signal scale (also in its JSON report).
-pub const NORMALISATION_NOTE: &str = "signals are normalised internally by exact powers of two \
-    before the FFTs, so H and coherence do not depend on the signals' units (densities are \
-    reported in the log's units)";
-
-/// Magnitude in dB (NaN where H is not finite or zero).
-pub fn mag_db(h: Complex64) -> f64 {
-    let a = h.norm();
-    if a.is_finite() && a > 0.0 {
-        20.0 * a.log10()
-    } else {
-        f64::NAN
-    }
-}
-
-/// Phase in degrees wrapped to (-180, 180] (NaN where H is not finite).
-pub fn phase_deg(h: Complex64) -> f64 {
-    if !(h.re.is_finite() && h.im.is_finite()) {
-        return f64::NAN;
-    }
-    let d = h.im.atan2(h.re).to_degrees();
-    if d <= -180.0 {
-        d + 360.0
-    } else {
-        d
-    }
-}
-
-impl FrfEstimate {
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        input: &str,
-        output: &str,
-        logs: Vec<String>,
-        n_averages: usize,
-        freq_hz: &[f64],
-        h: &[Complex64],
-        coherence: &[f64],
-        std_h: Option<Vec<f64>>,
-        gated: Vec<bool>,
-        excluded_bands: Vec<ExcludedBand>,
-    ) -> Self {
-        Self {
-            input: input.into(),
-            output: output.into(),
-            logs,
-            n_averages,
-            freq_hz: freq_hz.to_vec(),
-            re: h.iter().map(|z| z.re).collect(),
-            im: h.iter().map(|z| z.im).collect(),
-            mag_db: h.iter().map(|&z| mag_db(z)).collect(),
-            phase_deg: h.iter().map(|&z| phase_deg(z)).collect(),
-            coherence: coherence.to_vec(),
-            std_h,
-            gated,
-            excluded_bands,
-            notes: Vec::new(),
-        }
-    }
-
-    fn from_welch(e: &Etfe, input: &str, output: &str, logs: Vec<String>, gate: f64) -> Self {
-        let mut est = Self::new(
-            input,
-            output,
-            logs,
-            e.n_averages,
-            &e.freq_hz,
-            &e.h,
-            &e.coherence,
-            None,
-            e.gate(gate),
-            e.excluded_bands(gate),
-        );
-        est.notes.extend(e.too_few_averages());
-        est
-    }
-
-    fn from_periodic(p: &PeriodicFrf, input: &str, output: &str, log: String, gate: f64) -> Self {
-        Self::new(
-            input,
-            output,
-            vec![log],
-            p.n_periods,
-            &p.freq_hz,
-            &p.h,
-            &p.coherence,
-            Some(p.var_h.iter().map(|v| v.sqrt()).collect()),
-            p.gate(gate),
-            p.excluded_bands(gate),
-        )
-    }
-
-    /// Number of bins that pass the gate.
-    pub fn n_gated(&self) -> usize {
-        self.gated.iter().filter(|&&g| g).count()
-    }
-}
-
-/// Checks that all logs share the first log's sample rate (relative 1e-9) and channel counts,
-/// as pooling requires; the error names the offending file.
-pub fn check_compatible(logs: &[Log]) -> Result<()> {
-    let Some(first) = logs.first() else {
-        return Err(Error::InvalidArgument("no log given".into()));
-    };
-    for l in &logs[1..] {
-        if ((l.ts - first.ts) / first.ts).abs() > 1e-9 {
-            return Err(Error::Data {
-                file: l.path.clone(),
-                msg: format!(
-                    "sample rate {} Hz differs from {} Hz of {}; logs pooled together must \
-                     share the sample rate",
-                    l.fs(),
-                    first.fs(),
-                    first.path.display()
-                ),
-            });
-        }
-        if l.inputs.len() != first.inputs.len() || l.outputs.len() != first.outputs.len() {
-            return Err(Error::Data {
-                file: l.path.clone(),
-                msg: format!(
-                    "{} inputs and {} outputs, but {} has {} and {}",
-                    l.inputs.len(),
-                    l.outputs.len(),
-                    first.path.display(),
-                    first.inputs.len(),
-                    first.outputs.len()
-                ),
-            });
-        }
-    }
-    Ok(())
-}
-
-/// Computes the report of `ferrosid frf` for already-read logs.
-pub fn estimate(logs: &[Log], etfe: &EtfeArgs) -> Result<FrfReport> {
-    etfe.validate()?;
-    check_compatible(logs)?;
-    let first = &logs[0];
-    let (m, p) = (first.inputs.len(), first.outputs.len());
-    let mut estimates = Vec::new();
-    let method;
-    if let Some(per) = etfe.periodic() {
-        method = MethodSummary::Periodic {
-            period: per.period,
-            skip_periods: per.skip_periods,
-        };
-        let pb = output::progress((logs.len() * m * p) as u64, "period-synchronous FRF");
-        for log in logs {
-            for j in 0..m {
-                for i in 0..p {
-                    let r = per.frf_log(log, j, i)?;
-                    estimates.push(FrfEstimate::from_periodic(
-                        &r,
-                        &log.inputs[j].name,
-                        &log.outputs[i].name,
-                        log.path.display().to_string(),
-                        etfe.gate,
-                    ));
-                    pb.inc(1);
-                }
-            }
-        }
-        pb.finish_and_clear();
-    } else {
-        let min_len = logs.iter().map(Log::len).min().unwrap_or(0);
-        let welch = etfe.welch(min_len)?;
-        for log in logs {
-            require_len(
-                log,
-                welch.nperseg,
-                &format!("Welch with nperseg = {}", welch.nperseg),
-            )?;
-        }
-        method = MethodSummary::Welch {
-            nperseg: welch.nperseg,
-            noverlap: welch.overlap(),
-            window: etfe.window,
-            detrend: etfe.detrend,
-            resolution_hz: first.fs() / welch.nperseg as f64,
-        };
-        let names: Vec<String> = logs.iter().map(|l| l.path.display().to_string()).collect();
-        let pb = output::progress((logs.len() * m * p) as u64, "Welch spectra");
-        for j in 0..m {
-            for i in 0..p {
-                let mut acc = welch.accumulator(first.fs())?;
-                for log in logs {
-                    acc.add(&log.inputs[j].data, &log.outputs[i].data)?;
-                    pb.inc(1);
-                }
-                let e = acc.finish()?;
-                estimates.push(FrfEstimate::from_welch(
-                    &e,
-                    &first.inputs[j].name,
-                    &first.outputs[i].name,
-                    names.clone(),
-                    etfe.gate,
-                ));
-            }
-        }
-        pb.finish_and_clear();
-    }
-    Ok(FrfReport {
-        command: "frf",
-        logs: logs.iter().map(LogSummary::of).collect(),
-        method,
-        gate: etfe.gate,
-        estimates,
-        normalisation: NORMALISATION_NOTE,
-    })
 }
 
 /// Human-readable rendering of a report.

@@ -22,49 +22,26 @@
 //!
 //! Exit status: 0 when the model was identified and, if `--crossover-hz` was given, every
 //! compared bin is within the phase bound; 1 when that phase checklist fails.
-use super::frf::{check_compatible, EtfeArgs, LogArgs, LogSummary};
-use super::output::{self, fixed, general, Align, Table};
+use super::frf::{EtfeArgs, LogArgs};
+use super::output::{self, fixed, general, Align, Table, TerminalProgress};
 use super::ExitCode;
-use crate::data::OperatingPoint;
-use crate::data::{Channel, Log};
 use crate::error::{Error, Result};
 use crate::io::file_safety::{check_writable, refuse_input_overwrite, write_atomic};
-use crate::lti::{StateSpace, StateSpaceData};
-use crate::n4sid::{n4sid, N4sidOptions, N4sidSummary, OrderSelection, Weighting, MAX_BLOCK_ROWS};
-use crate::operating_point::operating_point_of;
-use crate::preprocess::MAX_DECIMATION;
-use crate::preprocess::{preprocess, Preprocessing, Step};
-use crate::validate::{
-    compare_with_etfe, residual_test, simulation_fit_log, simulation_fit_operating_point,
-    EtfeComparison, InitialState, ResidualTest, SimulationFit, PHASE_BOUND_DEG,
+use crate::n4sid::{N4sidOptions, OrderSelection, Weighting};
+pub use crate::ops::identify::{
+    identify as identify_with, Continuous, IdentifyOptions, IdentifyReport, PairComparison,
+    Root, Validation, NORMALISATION_NOTE,
 };
-use clap::ValueEnum;
-use num_complex::Complex64;
-use serde::Serialize;
+use crate::data::Log;
+use crate::preprocess::Removal;
+use crate::validate::PHASE_BOUND_DEG;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// Offset/trend removal applied to every log before identification.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DetrendMode {
-    /// Subtract each channel's mean.
-    Mean,
-    /// Subtract each channel's least-squares line.
-    Trend,
-    /// Leave the data as measured.
-    None,
-}
-
-/// Subspace weighting.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum WeightingArg {
-    /// PO-MOESP (SLICOT IB01AD METH='M').
-    Moesp,
-    /// Canonical variate analysis.
-    Cva,
-}
+/// The `--remove` values (the library's [`crate::preprocess::Removal`]).
+pub use crate::preprocess::Removal as DetrendMode;
+/// The `--weighting` values (the library's [`crate::n4sid::Weighting`]).
+pub use crate::n4sid::Weighting as WeightingArg;
 
 /// Arguments of `ferrosid identify`.
 #[derive(Debug, Clone, clap::Args)]
@@ -117,11 +94,11 @@ pub struct Args {
     #[arg(long, value_name = "X")]
     pub stable_margin: Option<f64>,
     /// Subspace weighting.
-    #[arg(long, value_enum, default_value_t = WeightingArg::Moesp)]
-    pub weighting: WeightingArg,
+    #[arg(long, value_enum, default_value_t = Weighting::Moesp)]
+    pub weighting: Weighting,
     /// Offset removal before identification.
-    #[arg(long = "remove", value_enum, default_value_t = DetrendMode::Mean)]
-    pub remove: DetrendMode,
+    #[arg(long = "remove", value_enum, default_value_t = Removal::Mean)]
+    pub remove: Removal,
     /// Anti-aliased decimation by this integer factor (after offset removal).
     #[arg(long, value_name = "Q")]
     pub decimate: Option<usize>,
@@ -145,141 +122,6 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
-/// A pole or zero with its natural frequency and damping.
-#[derive(Debug, Clone, Serialize)]
-pub struct Root {
-    /// Real part (z-plane for discrete, s-plane in rad/s for continuous roots).
-    pub re: f64,
-    /// Imaginary part.
-    pub im: f64,
-    /// Natural frequency |s|/2π in Hz (s = ln(z)/ts for discrete roots).
-    pub freq_hz: f64,
-    /// Damping ratio −Re(s)/|s| (1 for a real stable root at s = 0 limit).
-    pub damping: f64,
-}
-
-impl Root {
-    fn continuous(s: Complex64) -> Self {
-        let w = s.norm();
-        Self {
-            re: s.re,
-            im: s.im,
-            freq_hz: w / (2.0 * std::f64::consts::PI),
-            damping: if w > 0.0 { -s.re / w } else { 1.0 },
-        }
-    }
-
-    fn discrete(z: Complex64, ts: f64) -> Self {
-        let s = if z.norm() > 0.0 {
-            z.ln() / ts
-        } else {
-            Complex64::new(f64::NEG_INFINITY, 0.0)
-        };
-        let w = s.norm();
-        Self {
-            re: z.re,
-            im: z.im,
-            freq_hz: w / (2.0 * std::f64::consts::PI),
-            damping: if w > 0.0 && w.is_finite() {
-                -s.re / w
-            } else {
-                1.0
-            },
-        }
-    }
-}
-
-/// The continuous-time equivalent.
-#[derive(Debug, Clone, Serialize)]
-pub struct Continuous {
-    /// The model (ts = 0).
-    pub model: StateSpaceData,
-    /// Poles, ascending natural frequency (s-plane).
-    pub poles: Vec<Root>,
-    /// Transmission zeros below the Nyquist frequency (SISO only), ascending frequency.
-    pub zeros: Vec<Root>,
-}
-
-/// Validation results.
-#[derive(Debug, Clone, Serialize)]
-pub struct Validation {
-    /// Validation log path, or `estimation data`.
-    pub data: String,
-    /// Preprocessing of the validation log (absent when validating on the estimation data).
-    pub preprocessing: Option<Preprocessing>,
-    /// Free-run simulation fit.
-    pub fit: SimulationFit,
-    /// ETFE settings used for the comparison.
-    pub etfe: String,
-    /// Coherence gate threshold.
-    pub gate: f64,
-    /// Model vs ETFE per (output, input) pair at the gated bins up to `f_max_hz`.
-    pub phase: Vec<PairComparison>,
-    /// Residual correlation tests.
-    pub residuals: ResidualTest,
-    /// Free-run fit on the raw validation log through the model's operating point (the model
-    /// sees u − u0, its output is compared with y − y0): how the model file performs on data as
-    /// recorded. Absent without `--validate`, or with decimation (the raw log is then not at
-    /// the model's rate), with the reason in `operating_point_fit_note`.
-    pub operating_point_fit: Option<SimulationFit>,
-    /// Why `operating_point_fit` is absent, when it is.
-    pub operating_point_fit_note: Option<String>,
-}
-
-/// Model-versus-ETFE comparison of one channel pair.
-#[derive(Debug, Clone, Serialize)]
-pub struct PairComparison {
-    /// Input channel name.
-    pub input: String,
-    /// Output channel name.
-    pub output: String,
-    /// True when the bound is a checklist verdict (`--crossover-hz` given); false when the
-    /// comparison covers all gated bins up to Nyquist for information only.
-    pub checklist: bool,
-    /// The comparison.
-    pub comparison: EtfeComparison,
-}
-
-/// The JSON document of `ferrosid identify --json`.
-#[derive(Debug, Clone, Serialize)]
-pub struct IdentifyReport {
-    /// Always "identify".
-    pub command: &'static str,
-    /// Estimation logs.
-    pub logs: Vec<LogSummary>,
-    /// Preprocessing record of each estimation log.
-    pub preprocessing: Vec<Preprocessing>,
-    /// Samples used for estimation (after preprocessing and concatenation).
-    pub estimation_samples: usize,
-    /// Sample time of the model, s.
-    pub ts: f64,
-    /// N4SID options used.
-    pub options: N4sidOptions,
-    /// N4SID result (model, order, singular values, reason, poles, warnings).
-    pub n4sid: N4sidSummary,
-    /// Discrete poles with natural frequency and damping.
-    pub poles: Vec<Root>,
-    /// Continuous-time equivalent, if it exists.
-    pub continuous: Option<Continuous>,
-    /// Validation.
-    pub validation: Validation,
-    /// Every warning (reader, concatenation, N4SID, continuous-time conversion).
-    pub warnings: Vec<String>,
-    /// Phase checklist verdict: `None` without `--crossover-hz`.
-    pub phase_checklist_passed: Option<bool>,
-    /// The model file written, if any.
-    pub model_file: Option<String>,
-    /// Operating point and preprocessing of the model (also stored in the model file).
-    pub operating_point: OperatingPoint,
-    /// How the numerics treat signal scale.
-    pub normalisation: &'static str,
-}
-
-/// What `identify` says about signal scale (also in its JSON report).
-pub const NORMALISATION_NOTE: &str = "signals are normalised internally (N4SID: per-channel RMS; \
-    spectra, fits and correlations: exact powers of two), so results do not depend on the \
-    signals' units; every number is reported in the log's units";
-
 fn parse_range(s: &str) -> Result<(usize, usize)> {
     let bad = || {
         Error::InvalidArgument(format!(
@@ -300,6 +142,9 @@ fn parse_range(s: &str) -> Result<(usize, usize)> {
 
 impl Args {
     /// N4SID options from the flags.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `--order 0` or a malformed `--order-range`.
     pub fn n4sid_options(&self) -> Result<N4sidOptions> {
         let order = match (self.order, &self.order_range) {
             (Some(n), _) => {
@@ -314,20 +159,10 @@ impl Args {
             }
             (None, None) => OrderSelection::Auto,
         };
-        if let Some(m) = self.stable_margin {
-            if !(m.is_finite() && m > 0.0 && m < 1.0) {
-                return Err(Error::InvalidArgument(format!(
-                    "--stable-margin must be in (0, 1), got {m}"
-                )));
-            }
-        }
         Ok(N4sidOptions {
             block_rows: self.block_rows,
             order,
-            weighting: match self.weighting {
-                WeightingArg::Moesp => Weighting::Moesp,
-                WeightingArg::Cva => Weighting::Cva,
-            },
+            weighting: self.weighting,
             estimate_d: !self.no_d,
             d_significance: self.d_auto.then_some(2.0),
             stability_margin: self.stable_margin,
@@ -335,304 +170,31 @@ impl Args {
         })
     }
 
-    fn steps(&self) -> Vec<Step> {
-        let mut steps = Vec::new();
-        match self.remove {
-            DetrendMode::Mean => steps.push(Step::RemoveMean),
-            DetrendMode::Trend => steps.push(Step::RemoveTrend),
-            DetrendMode::None => {}
-        }
-        if let Some(q) = self.decimate {
-            steps.push(Step::Decimate { factor: q });
-        }
-        steps
-    }
-
-    fn check(&self) -> Result<()> {
-        self.etfe.validate()?;
-        if let Some(f) = self.crossover_hz {
-            if !(f.is_finite() && f > 0.0) {
-                return Err(Error::InvalidArgument(format!(
-                    "--crossover-hz must be > 0, got {f}"
-                )));
-            }
-        }
-        if !(self.phase_tol.is_finite() && self.phase_tol > 0.0) {
-            return Err(Error::InvalidArgument(format!(
-                "--phase-tol must be > 0 degrees, got {}",
-                self.phase_tol
-            )));
-        }
-        if self.max_lag == 0 {
-            return Err(Error::InvalidArgument("--max-lag must be >= 1".into()));
-        }
-        if !(2..=MAX_BLOCK_ROWS).contains(&self.block_rows) {
-            return Err(Error::InvalidArgument(format!(
-                "--block-rows must be in 2..={MAX_BLOCK_ROWS}, got {}",
-                self.block_rows
-            )));
-        }
-        if let Some(q) = self.decimate {
-            if !(2..=MAX_DECIMATION).contains(&q) {
-                return Err(Error::InvalidArgument(format!(
-                    "--decimate must be in 2..={MAX_DECIMATION}, got {q}"
-                )));
-            }
-        }
-        Ok(())
+    /// The library options these flags describe, checked.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming the flag that is out of range.
+    pub fn options(&self) -> Result<IdentifyOptions> {
+        let opts = IdentifyOptions {
+            n4sid: self.n4sid_options()?,
+            remove: self.remove,
+            decimate: self.decimate,
+            crossover_hz: self.crossover_hz,
+            phase_tol_deg: self.phase_tol,
+            max_lag: self.max_lag,
+            etfe: self.etfe.options()?,
+        };
+        opts.validate()?;
+        Ok(opts)
     }
 }
 
-/// Concatenates preprocessed logs (checked compatible) into one log named after the first.
-fn concatenate(logs: &[Log]) -> Log {
-    let first = &logs[0];
-    let join = |pick: &dyn Fn(&Log) -> &Vec<Channel>| -> Vec<Channel> {
-        (0..pick(first).len())
-            .map(|j| Channel {
-                name: pick(first)[j].name.clone(),
-                data: logs
-                    .iter()
-                    .flat_map(|l| pick(l)[j].data.iter().copied())
-                    .collect(),
-            })
-            .collect()
-    };
-    Log {
-        path: first.path.clone(),
-        ts: first.ts,
-        inputs: join(&|l: &Log| &l.inputs),
-        outputs: join(&|l: &Log| &l.outputs),
-        warnings: Vec::new(),
-    }
-}
-
-/// Model versus ETFE for every channel pair of the validation log.
-fn compare_pairs(
-    model: &StateSpace,
-    vlog: &Log,
-    args: &Args,
-) -> Result<(String, Vec<PairComparison>)> {
-    let report = super::frf::estimate(std::slice::from_ref(vlog), &args.etfe)?;
-    let label = match &report.method {
-        super::frf::MethodSummary::Welch {
-            nperseg, noverlap, ..
-        } => format!("Welch H1, nperseg {nperseg}, overlap {noverlap}"),
-        super::frf::MethodSummary::Periodic {
-            period,
-            skip_periods,
-        } => format!("period-synchronous, period {period}, {skip_periods} skipped"),
-    };
-    let (crossover, checklist) = match args.crossover_hz {
-        Some(f) => (f, true),
-        // Information only: every gated bin up to Nyquist.
-        None => (vlog.fs() / 4.0, false),
-    };
-    let m = vlog.inputs.len();
-    let mut out = Vec::new();
-    for (idx, e) in report.estimates.iter().enumerate() {
-        let (j, i) = (idx / vlog.outputs.len(), idx % vlog.outputs.len());
-        debug_assert!(j < m);
-        // Only finite, positive-frequency bins are handed over.
-        let keep: Vec<usize> = (0..e.freq_hz.len())
-            .filter(|&k| e.freq_hz[k] > 0.0 && e.re[k].is_finite() && e.im[k].is_finite())
-            .collect();
-        let f: Vec<f64> = keep.iter().map(|&k| e.freq_hz[k]).collect();
-        let h: Vec<Complex64> = keep
-            .iter()
-            .map(|&k| Complex64::new(e.re[k], e.im[k]))
-            .collect();
-        let g: Vec<bool> = keep.iter().map(|&k| e.gated[k]).collect();
-        let comparison = compare_with_etfe(model, i, j, &f, &h, &g, crossover, args.phase_tol)
-            .map_err(|err| match err {
-                Error::InvalidArgument(msg) => Error::Data {
-                    file: vlog.path.clone(),
-                    msg: format!("validation ETFE {} -> {}: {msg}", e.input, e.output),
-                },
-                other => other,
-            })?;
-        out.push(PairComparison {
-            input: e.input.clone(),
-            output: e.output.clone(),
-            checklist,
-            comparison,
-        });
-    }
-    Ok((label, out))
-}
-
-/// Runs the whole pipeline on already-read logs (no printing, no file writing).
+/// Identifies and validates a model from already-read logs with these flags
+/// ([`crate::ops::identify::identify`], progress on stderr; no printing, no file writing).
 pub fn identify(logs: &[Log], vlog: Option<&Log>, args: &Args) -> Result<IdentifyReport> {
-    args.check()?;
-    let opts = args.n4sid_options()?;
-    check_compatible(logs)?;
-    let steps = args.steps();
-    let mut warnings = Vec::new();
-    for l in logs.iter().chain(vlog) {
-        for w in &l.warnings {
-            warnings.push(format!("{}: {w}", l.path.display()));
-        }
-    }
-    let mut pre_logs = Vec::with_capacity(logs.len());
-    let mut records = Vec::with_capacity(logs.len());
-    for l in logs {
-        let (p, r) = preprocess(l, &steps)?;
-        pre_logs.push(p);
-        records.push(r);
-    }
-    let est = if pre_logs.len() == 1 {
-        pre_logs.swap_remove(0)
-    } else {
-        warnings.push(format!(
-            "{} estimation logs concatenated: each of the {} junctions disturbs the {} Hankel \
-             columns that span it",
-            logs.len(),
-            logs.len() - 1,
-            2 * args.block_rows - 1
-        ));
-        concatenate(&pre_logs)
-    };
-    let operating_point = operating_point_of(&records, est.inputs.len(), est.outputs.len())?;
-    let pb = output::spinner("N4SID");
-    let res = n4sid(&est, &opts);
-    pb.finish_and_clear();
-    let res = res?;
-    warnings.extend(res.warnings.iter().map(|w| format!("n4sid: {w}")));
-    let model = &res.model;
-    let mut poles: Vec<Root> = model
-        .poles()?
-        .into_iter()
-        .map(|z| Root::discrete(z, model.ts))
-        .collect();
-    poles.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz).then(a.im.total_cmp(&b.im)));
-    let continuous = match model.d2c_zoh() {
-        Ok(ct) => {
-            let mut cp: Vec<Root> = ct.poles()?.into_iter().map(Root::continuous).collect();
-            cp.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz).then(a.im.total_cmp(&b.im)));
-            let mut zeros = Vec::new();
-            if ct.is_siso() {
-                match ct.to_transfer_function().and_then(|tf| tf.zeros()) {
-                    Ok(z) => {
-                        let nyq = 0.5 / model.ts;
-                        zeros = z
-                            .into_iter()
-                            .map(Root::continuous)
-                            .filter(|r| r.freq_hz.is_finite() && r.freq_hz < nyq)
-                            .collect();
-                        zeros.sort_by(|a, b| {
-                            a.freq_hz.total_cmp(&b.freq_hz).then(a.im.total_cmp(&b.im))
-                        });
-                    }
-                    Err(e) => warnings.push(format!("zeros of the continuous model: {e}")),
-                }
-            }
-            Some(Continuous {
-                model: StateSpaceData::from(&ct),
-                poles: cp,
-                zeros,
-            })
-        }
-        Err(e) => {
-            warnings.push(format!(
-                "no continuous-time equivalent (inverse ZOH failed: {e}); the discrete model \
-                 is still valid at ts = {} s",
-                model.ts
-            ));
-            None
-        }
-    };
-
-    // Validation.
-    let pb = output::spinner("validating");
-    let (vdata, vpre, vlog_pre) = match vlog {
-        Some(v) => {
-            if v.inputs.len() != est.inputs.len() || v.outputs.len() != est.outputs.len() {
-                return Err(Error::Data {
-                    file: v.path.clone(),
-                    msg: format!(
-                        "validation log has {} inputs and {} outputs, the model {} and {}",
-                        v.inputs.len(),
-                        v.outputs.len(),
-                        est.inputs.len(),
-                        est.outputs.len()
-                    ),
-                });
-            }
-            let (p, r) = preprocess(v, &steps)?;
-            if ((p.ts - model.ts) / model.ts).abs() > 1e-9 {
-                return Err(Error::Data {
-                    file: v.path.clone(),
-                    msg: format!(
-                        "validation sample time {} s (after preprocessing) differs from the \
-                         model's {} s",
-                        p.ts, model.ts
-                    ),
-                });
-            }
-            (v.path.display().to_string(), Some(r), p)
-        }
-        None => ("estimation data".to_string(), None, est.clone()),
-    };
-    let fit = simulation_fit_log(model, &vlog_pre, InitialState::Estimate)?;
-    let (etfe_label, phase) = compare_pairs(model, &vlog_pre, args)?;
-    let u: Vec<&[f64]> = vlog_pre.inputs.iter().map(|c| c.data.as_slice()).collect();
-    let y: Vec<&[f64]> = vlog_pre.outputs.iter().map(|c| c.data.as_slice()).collect();
-    let max_lag = args.max_lag.min(vlog_pre.len() / 4).max(1);
-    let residuals = residual_test(
-        model,
-        res.kalman_gain.as_ref().map(|k| k.as_ref()),
-        &u,
-        &y,
-        max_lag,
-    )?;
-    pb.finish_and_clear();
-    let (operating_point_fit, operating_point_fit_note) = match vlog {
-        None => (None, Some("no --validate log".to_string())),
-        Some(_) if operating_point.decimation > 1 => (
-            None,
-            Some(format!(
-                "the model is decimated by {}: the raw validation log is not at its rate",
-                operating_point.decimation
-            )),
-        ),
-        Some(v) => match simulation_fit_operating_point(model, &operating_point, v) {
-            Ok(f) => (Some(f), None),
-            Err(e) => (None, Some(e.to_string())),
-        },
-    };
-    let phase_checklist_passed = args
-        .crossover_hz
-        .map(|_| phase.iter().all(|p| p.comparison.within_bound));
-    Ok(IdentifyReport {
-        command: "identify",
-        logs: logs.iter().map(LogSummary::of).collect(),
-        preprocessing: records,
-        estimation_samples: est.len(),
-        ts: model.ts,
-        options: opts,
-        poles,
-        continuous,
-        validation: Validation {
-            data: vdata,
-            preprocessing: vpre,
-            fit,
-            etfe: etfe_label,
-            gate: args.etfe.gate,
-            phase,
-            residuals,
-            operating_point_fit,
-            operating_point_fit_note,
-        },
-        warnings,
-        phase_checklist_passed,
-        model_file: args.out.as_ref().map(|p| p.display().to_string()),
-        normalisation: NORMALISATION_NOTE,
-        n4sid: {
-            let mut s = res.summary();
-            s.model.operating_point = Some(operating_point.clone());
-            s
-        },
-        operating_point,
-    })
+    let mut report = identify_with(logs, vlog, &args.options()?, &TerminalProgress::default())?;
+    report.model_file = args.out.as_ref().map(|p| p.display().to_string());
+    Ok(report)
 }
 
 fn roots_table(roots: &[Root], s_plane: bool) -> String {
@@ -908,8 +470,7 @@ fn describe_step(step: &crate::preprocess::StepRecord) -> String {
 
 /// Runs `ferrosid identify`.
 pub fn run(args: &Args) -> Result<ExitCode> {
-    args.check()?;
-    args.n4sid_options()?;
+    args.options()?;
     if let Some(out) = &args.out {
         let inputs: Vec<&std::path::Path> = args
             .logs

@@ -197,6 +197,43 @@ pub fn spinner(msg: &str) -> ProgressBar {
     pb
 }
 
+/// The library's [`crate::ops::Progress`] drawn on stderr: a bar for steps of known length, a
+/// spinner otherwise (hidden when stderr is not a terminal).
+#[derive(Debug, Default)]
+pub struct TerminalProgress {
+    bar: std::sync::Mutex<Option<ProgressBar>>,
+}
+
+impl crate::ops::Progress for TerminalProgress {
+    fn begin(&self, what: &str, total: Option<u64>) {
+        let pb = match total {
+            Some(n) => progress(n, what),
+            None => spinner(what),
+        };
+        if let Ok(mut b) = self.bar.lock() {
+            if let Some(old) = b.replace(pb) {
+                old.finish_and_clear();
+            }
+        }
+    }
+
+    fn advance(&self, n: u64) {
+        if let Ok(b) = self.bar.lock() {
+            if let Some(pb) = b.as_ref() {
+                pb.inc(n);
+            }
+        }
+    }
+
+    fn end(&self) {
+        if let Ok(mut b) = self.bar.lock() {
+            if let Some(pb) = b.take() {
+                pb.finish_and_clear();
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -22,8 +22,9 @@
 //! 4 when identification fails numerically.
 use super::ExitCode;
 use crate::error::{Error, Result};
+use crate::output::{prepare_output_dir, write_outputs_to};
 use crate::pipeline::{
-    prepare_output_dir, run_pipeline, write_outputs_to, LoadedConfig, ReceiptsDocument,
+    run_pipeline, LoadedConfig, ReceiptsDocument,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};

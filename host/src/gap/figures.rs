@@ -9,7 +9,7 @@
 //!   first second (at most 2000 samples) after the warm-up; bottom: their residuals.
 use super::diagnose::Diagnosis;
 use crate::error::Result;
-use crate::report::plot::{colors, render, Band, Kind, LegendAt, Panel, RefLine, Series};
+use crate::plot::{colors, render, Band, Kind, LegendAt, Panel, RefLine, Series};
 use crate::spectral::Welch;
 
 fn verdict_label(d: &Diagnosis) -> String {

@@ -2,8 +2,10 @@
 //! which parts of the model are estimated.
 use serde::Serialize;
 
-/// How the weighted projection is formed before the SVD (see the module docs).
+/// How the weighted projection is formed before the SVD (see the module docs). Also the
+/// `--weighting` value of `ferrosid identify` (feature `cli`: `moesp`, `cva`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Weighting {
     /// PO-MOESP: SVD of L₃₂ (W₁ = I, W₂ = Π⊥_{U_f}). Default.
     Moesp,

@@ -5,6 +5,7 @@
 //! below states its unit and default. Unknown keys are errors (a typo must not silently fall
 //! back to a default). Paths are relative to the directory of the TOML file.
 use crate::error::{Error, Result};
+pub use crate::preprocess::Removal;
 use crate::preprocess::Step;
 use crate::spectral::{Welch, Window};
 use serde::{Deserialize, Serialize};
@@ -98,18 +99,6 @@ pub struct LogEntry {
     pub fs: Option<f64>,
 }
 
-/// Mean/trend removal choice of `[preprocess].remove`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Removal {
-    /// Keep offsets (only for data already centred).
-    None,
-    /// Subtract each channel's mean (default).
-    Mean,
-    /// Subtract each channel's least-squares line.
-    Trend,
-}
-
 /// `[preprocess]`: applied identically to every log, in this order: removal, decimation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -141,18 +130,7 @@ impl Default for Preprocess {
 impl Preprocess {
     /// The preprocessing steps in the order applied.
     pub fn steps(&self) -> Vec<Step> {
-        let mut s = Vec::new();
-        match self.remove {
-            Removal::None => {}
-            Removal::Mean => s.push(Step::RemoveMean),
-            Removal::Trend => s.push(Step::RemoveTrend),
-        }
-        if self.decimate > 1 {
-            s.push(Step::Decimate {
-                factor: self.decimate,
-            });
-        }
-        s
+        crate::preprocess::steps(self.remove, self.decimate)
     }
 }
 

@@ -5,9 +5,9 @@
 //!
 //! [`run_pipeline`] computes everything into a [`PipelineRun`] (pure: no files written, no
 //! clock read); [`document::ReceiptsDocument`] is its `receipts.json` (schema in
-//! `docs/receipts-schema.md`) and [`crate::report`] renders the HTML report and SVG figures.
-//! [`write_outputs`] writes `receipts.json`, `model.json`, `pid.json`, `wm.json`, `report.html`
-//! and `figures/*.svg` into an output directory. The same logs and settings give
+//! `docs/receipts-schema.md`); the layers above render it: [`crate::report`] (HTML report and
+//! SVG figures) and [`crate::output`] (`receipts.json`, `model.json`, `pid.json`, `wm.json`,
+//! `report.html` and `figures/*.svg` in an output directory). The same logs and settings give
 //! byte-identical files (no time stamps, no hash-ordered maps, shortest round-trip floats).
 //!
 //! Which data feed which stage:
@@ -29,35 +29,27 @@
 pub mod compensation_stage;
 pub mod config;
 pub mod document;
-pub mod fleet;
 pub mod gap_stage;
+mod stages;
 
 use crate::data::Log;
 use crate::error::{Error, Result};
-use crate::io::file_safety::OutputDir;
-use crate::io::{read_log, LogSpec};
 use crate::lti::StateSpace;
-use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, OrderSelection};
-use crate::preprocess::{preprocess, Preprocessing};
-use crate::robust::audit::{audit_nonlinearity, AuditOptions, FrfRun, NonlinearityAudit};
-use crate::robust::pid::{implemented_loop, tune_pid, PidTuningSpec, TunedPid};
+use crate::n4sid::N4sidResult;
+use crate::ops::codegen::{receipt_line, weight_coefficients, CodegenParts, ControllerSource};
+use crate::preprocess::Preprocessing;
+use crate::robust::audit::NonlinearityAudit;
+use crate::robust::pid::TunedPid;
 use crate::robust::receipts::{
-    compute_receipts, cross_validation_receipt, etfe_phase_receipt, loop_curves,
-    missing_cross_validation_receipt, phase_agreement, Comparison, CrossValidation, EtfeView,
-    LoopCurves, Receipt, ReceiptInputs, ReceiptKind, ReceiptLimits, Receipts, ReceiptsReport,
+    missing_cross_validation_receipt, LoopCurves, Receipts, ReceiptsReport,
 };
-use crate::robust::uncertainty::{
-    fit_uncertainty_weight, multiplicative_envelope, UncertaintyWeight, WeightFitOptions,
-};
+use crate::robust::uncertainty::UncertaintyWeight;
 use crate::spectral::Etfe;
-use crate::validate::{
-    residual_test, simulation_fit_log, InitialState, ResidualTest, SimulationFit,
-};
-use num_complex::Complex64;
+use crate::validate::{ResidualTest, SimulationFit};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 pub use config::{LoadedConfig, PipelineConfig};
 pub use document::ReceiptsDocument;
@@ -238,6 +230,47 @@ impl PipelineRun {
         d
     }
 
+    /// The parts of a firmware header from this run, without the disk (the input of
+    /// [`crate::ops::codegen::codegen_input`]): G0 with the operating point of the estimation
+    /// run, the tuned controller, the fitted W_m, every receipt and the digests of the pipeline
+    /// file and the logs. The same parts `ferrosid codegen` reads from `model.json`,
+    /// `pid.json`, `wm.json` and `receipts.json`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when the run has no uncertainty weight (the power-up check
+    /// needs one; `weight_note` says why it is missing).
+    pub fn codegen_parts(&self) -> Result<CodegenParts> {
+        let weight = self.weight.as_ref().ok_or_else(|| {
+            Error::InvalidArgument(format!(
+                "the run has no uncertainty weight for the power-up check: {}",
+                self.weight_note.as_deref().unwrap_or("not fitted")
+            ))
+        })?;
+        let model_file = self.model_file();
+        let sources = std::iter::once(&self.pipeline_file)
+            .chain(&self.inputs)
+            .map(|f| ferrosid_codegen::SourceDigest {
+                label: format!("{}: {}", f.role, f.path),
+                sha256: f.sha256.clone(),
+            })
+            .collect();
+        Ok(CodegenParts {
+            compensation: None,
+            model: self.model().clone(),
+            model_origin: Path::new(&self.pipeline_file.path).to_path_buf(),
+            operating_point: model_file.operating_point,
+            controller: self.tuned.as_ref().map(|t| ControllerSource::Tuned {
+                pid: t.pid,
+                discrete: t.discrete.clone(),
+                crossover_hz: Some(t.design.crossover_hz),
+                prewarp_hz: None,
+            }),
+            weight: weight_coefficients(weight),
+            receipts: self.receipts.receipts.iter().map(receipt_line).collect(),
+            sources,
+        })
+    }
+
     /// The estimation run.
     pub fn nominal_run(&self) -> &LogData {
         &self.runs[self.nominal]
@@ -306,399 +339,77 @@ fn dc_gain_of(model: &StateSpace) -> f64 {
     }
 }
 
-/// Reads one log of the pipeline and records its provenance.
-fn ingest(
-    cfg: &LoadedConfig,
-    key: &str,
-    role: &str,
-    name: &str,
-    entry: &config::LogEntry,
-) -> Result<(Log, InputFile)> {
-    let s = &cfg.config.signals;
-    let path = cfg.resolve(&entry.file);
-    let bytes = std::fs::read(&path).map_err(|source| Error::Io {
-        file: path.clone(),
-        source,
-    })?;
-    let spec = LogSpec {
-        inputs: vec![entry.input.clone().unwrap_or_else(|| s.input.clone())],
-        outputs: vec![entry.output.clone().unwrap_or_else(|| s.output.clone())],
-        time: entry.time.clone().or_else(|| s.time.clone()),
-        time_scale: s.time_scale,
-        fs: entry.fs.or(s.fs),
-        ..LogSpec::default()
-    };
-    let mut spec = spec;
-    if let Some(j) = s.time_jitter {
-        spec.checks.time_jitter_rel = j;
-    }
-    let log = read_log(&path, &spec).map_err(|e| match e {
-        Error::InvalidArgument(m) => cfg.key_error(&format!("{key}.file"), m),
-        other => other,
-    })?;
-    let file = InputFile {
-        role: role.into(),
-        name: name.into(),
-        path: display_path(&entry.file),
-        sha256: sha256_hex(&bytes),
-        bytes: bytes.len() as u64,
-        samples: log.len(),
-        fs_hz: log.fs(),
-        warnings: log.warnings.clone(),
-    };
-    Ok((log, file))
-}
-
-/// Runs the whole chain on a loaded configuration. `progress` is called with the name of each
-/// stage as it starts (for progress displays). Errors: data errors (unreadable or invalid
-/// logs, mismatched sample rates; [`Error::Io`], [`Error::Parse`], [`Error::Data`], naming the
-/// file), configuration errors naming the pipeline file and key, and numerical failures of
-/// identification ([`Error::Numerical`]). A controller that cannot be tuned, an audit that
-/// finds nonlinearity or a failing limit is *not* an error: it is a failing receipt.
+/// Runs the whole chain on a loaded configuration, one [`stages`] function per stage.
+/// `progress` is called with the name of each stage as it starts (for progress displays).
+/// Errors: data errors (unreadable or invalid logs, mismatched sample rates; [`Error::Io`],
+/// [`Error::Parse`], [`Error::Data`], naming the file), configuration errors naming the
+/// pipeline file and key, and numerical failures of identification ([`Error::Numerical`]). A
+/// controller that cannot be tuned, an audit that finds nonlinearity or a failing limit is
+/// *not* an error: it is a failing receipt.
 pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<PipelineRun> {
     let c = &cfg.config;
     let names = cfg.run_names();
-    let pipeline_file = InputFile {
-        role: "pipeline".into(),
-        name: cfg
-            .path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        path: cfg
-            .path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        sha256: sha256_hex(cfg.text.as_bytes()),
-        bytes: cfg.text.len() as u64,
-        samples: 0,
-        fs_hz: 0.0,
-        warnings: Vec::new(),
-    };
-    let title = c.name.clone().unwrap_or_else(|| {
-        cfg.path
-            .file_stem()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "pipeline".into())
-    });
-
-    // 1. Ingest.
     progress("ingest");
-    let mut raw = Vec::new();
-    let mut inputs = Vec::new();
-    for (i, entry) in c.runs.iter().enumerate() {
-        let (log, file) = ingest(cfg, &format!("runs[{i}]"), "run", &names[i], entry)?;
-        raw.push((names[i].clone(), entry.amplitude, log));
-        inputs.push(file);
-    }
-    let raw_val = match &c.validation {
-        Some(v) => {
-            let name = v.name.clone().unwrap_or_else(|| "validation".into());
-            let (log, file) = ingest(cfg, "validation", "validation", &name, v)?;
-            inputs.push(file);
-            Some((name, v.amplitude, log))
-        }
-        None => None,
-    };
-    let ts0 = raw[0].2.ts;
-    for (_, _, log) in raw.iter().chain(raw_val.iter()) {
-        if (log.ts - ts0).abs() > 1e-9 * ts0 {
-            return Err(Error::Data {
-                file: log.path.clone(),
-                msg: format!(
-                    "sample rate {} Hz differs from {} Hz of `{}`: every log of a pipeline \
-                     must share one sample rate (one ETFE grid, one model)",
-                    log.fs(),
-                    1.0 / ts0,
-                    raw[0].2.path.display()
-                ),
-            });
-        }
-    }
-
-    // 2. Preprocess, 3. ETFE + coherence.
-    progress("preprocess");
-    let steps = c.preprocess.steps();
-    let welch = c.etfe.welch();
-    let prep = |name: String, amp: Option<f64>, log: Log, written: String| -> Result<LogData> {
-        let raw = log;
-        let (log, mut record) = preprocess(&raw, &steps)?;
-        // Record the path as written in the pipeline file, not as resolved from the current
-        // directory, so receipts.json does not depend on where `ferrosid run` was started.
-        record.source = written;
-        let etfe = welch.etfe_log(&log, 0, 0)?;
-        let (amplitude, is_rms) = match amp {
-            Some(a) => (a, false),
-            None => (rms(log.u()), true),
-        };
-        Ok(LogData {
-            name,
-            amplitude,
-            amplitude_is_rms: is_rms,
-            log,
-            raw,
-            preprocessing: record,
-            etfe,
-        })
-    };
-    progress("etfe");
-    let mut runs = Vec::new();
-    for (i, (name, amp, log)) in raw.into_iter().enumerate() {
-        runs.push(prep(name, amp, log, inputs[i].path.clone())?);
-    }
-    let validation = match raw_val {
-        Some((name, amp, log)) => {
-            let written = inputs.last().map(|f| f.path.clone()).unwrap_or_default();
-            Some(prep(name, amp, log, written)?)
-        }
-        None => None,
-    };
+    let ingested = stages::ingest_all(cfg, &names)?;
+    let (runs, validation, inputs) = stages::prepare_logs(cfg, ingested, progress)?;
     let fs = runs[0].log.fs();
     let fc_target = c.control.crossover_hz;
-    if fc_target >= 0.5 * fs {
-        return Err(cfg.key_error(
-            "control.crossover_hz",
-            format!(
-                "{fc_target} Hz is at or above the Nyquist frequency {} Hz of the data",
-                0.5 * fs
-            ),
-        ));
-    }
+    stages::check_crossover(cfg, fs)?;
 
-    // 4. N4SID on the estimation run.
     progress("n4sid");
-    let nominal = match &c.identification.run {
-        Some(r) => names.iter().position(|n| n == r).unwrap_or(0),
-        None => {
-            let mut best = 0;
-            for (i, r) in runs.iter().enumerate() {
-                if r.amplitude > runs[best].amplitude {
-                    best = i;
-                }
-            }
-            best
-        }
-    };
-    let id = &c.identification;
-    let order = match (id.order, id.order_min, id.order_max) {
-        (Some(n), _, _) => OrderSelection::Fixed(n),
-        (None, None, None) => OrderSelection::Auto,
-        (None, lo, hi) => OrderSelection::Range {
-            min: lo.unwrap_or(1),
-            max: hi.unwrap_or(((id.block_rows - 1).min(20)).max(lo.unwrap_or(1))),
-        },
-    };
-    let opts = N4sidOptions {
-        block_rows: id.block_rows,
-        order,
-        estimate_d: id.estimate_d,
-        stability_margin: id.stability_margin,
-        ..N4sidOptions::default()
-    };
-    let ident = n4sid(&runs[nominal].log, &opts).map_err(|e| match e {
-        Error::InvalidArgument(m) => cfg.key_error("identification", m),
-        other => other,
-    })?;
+    let nominal = stages::nominal_index(cfg, &names, &runs);
+    let ident = stages::identify_nominal(cfg, &runs[nominal])?;
     let model = ident.model.clone();
     let modes = modes_of(&model)?;
     let dc_gain = dc_gain_of(&model);
 
-    // 5. Validation.
     progress("validation");
-    let (validation_fit, residuals) = match &validation {
-        Some(v) => {
-            let fit = simulation_fit_log(&model, &v.log, InitialState::Estimate)?;
-            let lag = RESIDUAL_MAX_LAG.min(v.log.len() / 4).max(1);
-            let res = residual_test(
-                &model,
-                ident.kalman_gain.as_ref().map(|k| k.as_ref()),
-                &[v.log.u()],
-                &[v.log.y()],
-                lag,
-            )
-            .ok();
-            (Some(fit), res)
-        }
-        None => (None, None),
-    };
+    let (validation_fit, residuals) = stages::validate_nominal(&ident, validation.as_ref())?;
 
     let mut receipts = Receipts::default();
-
-    // 6. Nonlinearity audit.
     progress("audit");
-    let a = &c.audit;
-    let audit = if runs.len() >= 2 {
-        let frf: Vec<FrfRun> = runs
-            .iter()
-            .map(|r| FrfRun {
-                label: r.name.clone(),
-                amplitude: r.amplitude,
-                freq_hz: r.etfe.freq_hz.clone(),
-                h: r.etfe.h.clone(),
-                coherence: r.etfe.coherence.clone(),
-            })
-            .collect();
-        let opts = AuditOptions {
-            crossover_hz: fc_target,
-            band_factor: a.band_factor,
-            max_gain_shift_db: a.max_gain_shift_db,
-            max_phase_shift_deg: a.max_phase_shift_deg,
-            min_coherence: a.min_coherence,
-            coherence_band_factor: a.coherence_band_factor,
-        };
-        Some(audit_nonlinearity(&frf, &opts).map_err(|e| match e {
-            Error::InvalidArgument(m) => cfg.key_error("audit", m),
-            other => other,
-        })?)
-    } else {
-        None
-    };
-    push_audit_receipts(&mut receipts, audit.as_ref(), a, fc_target);
+    let audit = stages::audit_runs(cfg, &runs, fc_target)?;
+    stages::push_audit_receipts(&mut receipts, audit.as_ref(), &c.audit, fc_target);
 
-    // 7. Uncertainty weight.
     progress("uncertainty");
-    let (envelope, weight, weight_note) = uncertainty(cfg, &model, &runs, validation.as_ref())?;
+    let (envelope, weight, weight_note) =
+        stages::uncertainty(cfg, &model, &runs, validation.as_ref())?;
 
-    // 8. Robust PID tuning.
     progress("tuning");
-    let k = &c.control;
-    let mut spec = PidTuningSpec::new(fc_target);
-    spec.ms_max = k.ms_max;
-    spec.weight = weight.clone();
-    spec.ks_max = k
-        .limit_control_effort
-        .then(|| k.actuator_limit / k.reference_amplitude);
-    spec.rolloff_ratio = k.rolloff_ratio.map(|r| (r, k.rolloff_zeta));
-    spec.integral = k.integral;
-    spec.derivative = k.derivative;
-    spec.min_crossover_scale = k.min_crossover_scale;
-    let (tuned, tuning_error) = match tune_pid(&model, &spec) {
-        Ok(t) => (Some(t), None),
-        Err(Error::InvalidArgument(m)) | Err(Error::Numerical(m)) => (None, Some(m)),
-        Err(e) => return Err(e),
-    };
-    let min_fc = k.min_crossover_scale * fc_target;
-    receipts.push(Receipt::new(
-        ReceiptKind::ControllerDesign,
-        "achieved design crossover of the robust PID (highest crossover meeting M_s, ‖W_m T‖∞ \
-         < 1 and the actuator limit)",
-        tuned.as_ref().map_or(f64::NAN, |t| t.design.crossover_hz),
-        Comparison::AtLeast,
-        min_fc,
-        "Hz",
-        match (&tuned, &tuning_error) {
-            (Some(t), _) => format!(
-                "target {} Hz; phase-margin target {:.1} deg, integral ratio {:.3}, lead ratio \
-                 {:.3}; {} candidates evaluated",
-                fmt_num(fc_target),
-                t.design.phase_margin_target_deg,
-                t.design.integral_ratio,
-                t.design.lead_ratio,
-                t.candidates_evaluated
-            ),
-            (None, Some(e)) => e.clone(),
-            (None, None) => String::new(),
-        },
+    let tuning = stages::tune(c, &model, weight.as_ref())?;
+    receipts.push(stages::controller_design_receipt(
+        c,
+        tuning.as_ref().map_err(String::as_str),
     ));
+    let (tuned, tuning_error) = match tuning {
+        Ok(t) => (Some(t), None),
+        Err(e) => (None, Some(e)),
+    };
 
-    // 9. Receipts.
     progress("receipts");
-    let r = &c.receipts;
     let fc = tuned.as_ref().map_or(fc_target, |t| t.design.crossover_hz);
-    let mut limits = ReceiptLimits::for_crossover(fc);
-    limits.ms_max = k.ms_max;
-    if let Some(v) = r.gain_margin_db_min {
-        limits.gain_margin_db_min = v;
-    }
-    if let Some(v) = r.phase_margin_deg_min {
-        limits.phase_margin_deg_min = v;
-    }
-    if let Some(v) = r.mt_max {
-        limits.mt_max = v;
-    }
-    if let Some(v) = r.disturbance_bandwidth_hz_min {
-        limits.disturbance_bandwidth_hz_min = v;
-    }
-    if let Some(v) = r.overshoot_pct_max {
-        limits.overshoot_pct_max = v;
-    }
-    if let Some(v) = r.settling_time_s_max {
-        limits.settling_time_s_max = v;
-    }
-    if let Some(v) = r.etfe_phase_error_deg_max {
-        limits.etfe_phase_error_deg_max = v;
-    }
-    if let Some(v) = r.etfe_max_freq_factor {
-        limits.etfe_max_freq_factor = v;
-    }
-    let cv_min = r
+    let cv_min = c
+        .receipts
         .cross_validation_fit_min
         .unwrap_or(config::DEFAULT_CV_FIT_MIN);
-    let cross_validation = validation_fit.as_ref().map(|f| CrossValidation {
-        fit_percent: f.fit_percent[0],
-        limit_percent: cv_min,
-        detail: format!(
-            "free-run simulation of G0 on `{}` ({} samples), initial state estimated; NRMSE {}",
-            validation.as_ref().map_or("", |v| v.name.as_str()),
-            validation.as_ref().map_or(0, |v| v.log.len()),
-            fmt_num(f.nrmse[0])
-        ),
-    });
-    let nom = &runs[nominal].etfe;
-    let gate = nom.gate(c.etfe.coherence_gate);
-    let view = EtfeView {
-        freq_hz: &nom.freq_hz,
-        h: &nom.h,
-        gate: Some(&gate),
-    };
-    let (loop_report, curves) = match &tuned {
-        Some(t) => {
-            let inp = ReceiptInputs {
-                plant: &model,
-                pid: &t.pid,
-                controller_ts: None,
-                crossover_hz: fc,
-                weight: weight.as_ref(),
-                actuator_limit: k.actuator_limit,
-                actuator_unit: &c.signals.input_unit,
-                reference_amplitude: k.reference_amplitude,
-                etfe: Some(view),
-                cross_validation: cross_validation.clone(),
-                limits,
-                anti_windup: k.anti_windup,
-            };
-            let rep = compute_receipts(&inp)?;
-            for rc in &rep.receipts.receipts {
-                receipts.push(rc.clone());
-            }
-            let (lp, _) = implemented_loop(&model, &t.pid, None, Some(fc))?;
-            let nyq = 0.5 * fs;
-            let f_lo = (fc / 50.0).min(0.5 * nom.freq_hz.get(1).copied().unwrap_or(fc));
-            let grid = log_grid(f_lo, nyq * 0.999, 600);
-            let curves = loop_curves(&lp, weight.as_ref(), &grid)?;
-            (Some(rep), Some(curves))
-        }
-        None => {
-            // Without a controller the loop receipts cannot be issued (they are absent and the
-            // failing `controller_design` receipt says why); the model receipts still are.
-            let p = phase_agreement(&model, &view, limits.etfe_max_freq_factor * fc)?;
-            receipts.push(etfe_phase_receipt(
-                &p,
-                limits.etfe_phase_error_deg_max,
-                format!(
-                    "{} gated bins up to {} Hz (target crossover; no controller)",
-                    p.bins_used,
-                    fmt_num(p.f_max_hz)
-                ),
-            ));
-            if let Some(cv) = &cross_validation {
-                receipts.push(cross_validation_receipt(cv));
-            }
-            (None, None)
-        }
-    };
-    if cross_validation.is_none() {
+    let cross_validation =
+        stages::cross_validation_of(validation_fit.as_ref(), validation.as_ref(), cv_min);
+    let has_cross_validation = cross_validation.is_some();
+    let (loop_report, curves) = stages::loop_receipts(
+        c,
+        stages::LoopStageInputs {
+            model: &model,
+            tuned: tuned.as_ref(),
+            weight: weight.as_ref(),
+            nominal: &runs[nominal],
+            fs,
+            fc,
+            limits: stages::receipt_limits(c, fc),
+            cross_validation,
+        },
+        &mut receipts,
+    )?;
+    if !has_cross_validation {
         receipts.push(missing_cross_validation_receipt(cv_min));
     }
     let flags = gap_stage::triggers(
@@ -718,9 +429,9 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     );
     progress("done");
     Ok(PipelineRun {
-        title,
+        title: stages::title(cfg),
         config: c.clone(),
-        pipeline_file,
+        pipeline_file: stages::pipeline_file_entry(cfg),
         inputs,
         runs,
         validation,
@@ -765,300 +476,6 @@ pub fn fmt_num(v: f64) -> String {
         let digits = (3 - v.abs().log10().floor() as i32).max(0) as usize;
         format!("{v:.digits$}")
     }
-}
-
-fn push_audit_receipts(
-    rs: &mut Receipts,
-    audit: Option<&NonlinearityAudit>,
-    a: &config::AuditSettings,
-    fc: f64,
-) {
-    let Some(au) = audit else {
-        rs.push(Receipt::new(
-            ReceiptKind::NonlinearityAudit,
-            "dual-amplitude nonlinearity audit near crossover",
-            f64::NAN,
-            Comparison::AtLeast,
-            2.0,
-            "runs",
-            "fewer than two `[[runs]]` at different amplitudes: linearity near crossover was \
-             not checked"
-                .into(),
-        ));
-        return;
-    };
-    let g = &au.worst_gain_shift_db;
-    rs.push(Receipt::new(
-        ReceiptKind::AuditGainShift,
-        "largest gain shift between excitation amplitudes within the audit band",
-        g.value.abs(),
-        Comparison::AtMost,
-        a.max_gain_shift_db,
-        "dB",
-        format!(
-            "{} between `{}` and `{}` at {} Hz; band {}–{} Hz ({} bins); {} flagged band(s)",
-            fmt_num(g.value),
-            g.run_a,
-            g.run_b,
-            fmt_num(g.f_hz),
-            fmt_num(au.band_hz.0),
-            fmt_num(au.band_hz.1),
-            au.bins_examined,
-            au.shift_bands.len()
-        ),
-    ));
-    let p = &au.worst_phase_shift_deg;
-    rs.push(Receipt::new(
-        ReceiptKind::AuditPhaseShift,
-        "largest phase shift between excitation amplitudes within the audit band",
-        p.value.abs(),
-        Comparison::AtMost,
-        a.max_phase_shift_deg,
-        "deg",
-        format!(
-            "{} deg between `{}` and `{}` at {} Hz",
-            fmt_num(p.value),
-            p.run_a,
-            p.run_b,
-            fmt_num(p.f_hz)
-        ),
-    ));
-    let (lo, hi) = (fc / a.coherence_band_factor, fc * a.coherence_band_factor);
-    let mut worst = (f64::INFINITY, f64::NAN);
-    for b in au.bins.iter().filter(|b| b.f_hz >= lo && b.f_hz <= hi) {
-        if b.min_coherence < worst.0 {
-            worst = (b.min_coherence, b.f_hz);
-        }
-    }
-    rs.push(Receipt::new(
-        ReceiptKind::AuditCoherence,
-        "lowest coherence of any run near crossover",
-        if worst.0.is_finite() {
-            worst.0
-        } else {
-            f64::NAN
-        },
-        Comparison::AtLeast,
-        a.min_coherence,
-        "1",
-        if worst.0.is_finite() {
-            format!(
-                "at {} Hz, window {}–{} Hz; {} coherence drop(s)",
-                fmt_num(worst.1),
-                fmt_num(lo),
-                fmt_num(hi),
-                au.coherence_drops.len()
-            )
-        } else {
-            format!(
-                "no bin in the coherence window {}–{} Hz",
-                fmt_num(lo),
-                fmt_num(hi)
-            )
-        },
-    ));
-}
-
-type UncertaintyOut = (
-    Option<EnvelopeData>,
-    Option<UncertaintyWeight>,
-    Option<String>,
-);
-
-fn uncertainty(
-    cfg: &LoadedConfig,
-    model: &StateSpace,
-    runs: &[LogData],
-    validation: Option<&LogData>,
-) -> Result<UncertaintyOut> {
-    let u = &cfg.config.uncertainty;
-    let gate = cfg.config.etfe.coherence_gate;
-    let family: Vec<&LogData> = match &u.family {
-        Some(names) => names
-            .iter()
-            .filter_map(|n| {
-                if n == "validation" {
-                    validation
-                } else {
-                    runs.iter().find(|l| &l.name == n)
-                }
-            })
-            .collect(),
-        None => runs.iter().chain(validation).collect(),
-    };
-    let grid = &runs[0].etfe.freq_hz;
-    let nyq = 0.5 * runs[0].log.fs();
-    let ok: Vec<bool> = (0..grid.len())
-        .map(|i| {
-            grid[i] > 0.0 && grid[i] < nyq && family.iter().all(|m| m.etfe.coherence[i] >= gate)
-        })
-        .collect();
-    let idx: Vec<usize> = (0..grid.len()).filter(|&i| ok[i]).collect();
-    if idx.len() < 3 {
-        return Ok((
-            None,
-            None,
-            Some(format!(
-                "only {} bins where every family member ({}) passes the coherence gate {}: no \
-                 uncertainty weight; robust stability is not checked",
-                idx.len(),
-                family
-                    .iter()
-                    .map(|m| m.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                gate
-            )),
-        ));
-    }
-    let f: Vec<f64> = idx.iter().map(|&i| grid[i]).collect();
-    let ev = model.freq_evaluator();
-    let mut g0 = Vec::with_capacity(f.len());
-    for &fi in &f {
-        g0.push(ev.at_rad_s(2.0 * PI * fi)?[(0, 0)]);
-    }
-    let fam: Vec<Vec<Complex64>> = family
-        .iter()
-        .map(|m| idx.iter().map(|&i| m.etfe.h[i]).collect())
-        .collect();
-    let measured_level = multiplicative_envelope(&g0, &fam)?;
-    let measured = f.len();
-    let f_first = f[0];
-    let f_top = f[measured - 1];
-    // Below the measured band: one decade at a stated level (default: hold the largest l_m of
-    // the lowest measured octave), so the weight is not an unconstrained extrapolation there.
-    let below = u.below_band_level.unwrap_or_else(|| {
-        f.iter()
-            .zip(&measured_level)
-            .filter(|(fi, _)| **fi <= 2.0 * f_first)
-            .map(|(_, l)| *l)
-            .fold(0.0, f64::max)
-    });
-    let mut freq = Vec::new();
-    let mut level = Vec::new();
-    for fi in log_grid(f_first / 10.0, f_first, 9).into_iter().take(8) {
-        freq.push(fi);
-        level.push(below);
-    }
-    let below_bins = freq.len();
-    freq.extend_from_slice(&f);
-    level.extend_from_slice(&measured_level);
-    // Above the measured band: the unmeasured bins up to Nyquist and two decades beyond (a
-    // sampled loop sees the continuous weight up to s = ∞ through the Tustin map).
-    if u.beyond_band_level > 0.0 {
-        for &fi in grid.iter().filter(|&&fi| fi > f_top && fi < nyq) {
-            freq.push(fi);
-            level.push(u.beyond_band_level);
-        }
-        for fi in log_grid(nyq, 100.0 * nyq, 13) {
-            freq.push(fi);
-            level.push(u.beyond_band_level);
-        }
-    }
-    let w = fit_uncertainty_weight(
-        &freq,
-        &level,
-        &WeightFitOptions {
-            order: u.order,
-            min_level: u.min_level,
-            ..WeightFitOptions::default()
-        },
-    )?;
-    Ok((
-        Some(EnvelopeData {
-            freq_hz: freq,
-            level,
-            below: below_bins,
-            measured,
-            family: family.iter().map(|m| m.name.clone()).collect(),
-            f_top_hz: f_top,
-        }),
-        Some(w),
-        None,
-    ))
-}
-
-/// Files written by [`write_outputs`], relative to the output directory.
-pub const OUTPUT_FILES: [&str; 5] = [
-    "receipts.json",
-    "model.json",
-    "pid.json",
-    "wm.json",
-    "report.html",
-];
-
-/// Every path (relative to the output directory) that [`write_outputs`] may write or remove:
-/// [`OUTPUT_FILES`] and `figures/<name>.svg` for each of [`crate::report::FIGURE_NAMES`].
-pub fn output_paths() -> Vec<PathBuf> {
-    OUTPUT_FILES
-        .iter()
-        .map(PathBuf::from)
-        .chain(
-            crate::report::FIGURE_NAMES
-                .iter()
-                .map(|n| Path::new("figures").join(format!("{n}.svg"))),
-        )
-        .collect()
-}
-
-/// Takes `dir` for writing before any computation (see [`crate::io::file_safety`]): creates
-/// it, takes its lock, and checks that none of [`output_paths`] exists there unless ferrosid
-/// wrote it.
-///
-/// # Errors
-/// [`Error::Io`] naming the directory, the lock holder or the file that would be replaced.
-pub fn prepare_output_dir(dir: &Path) -> Result<OutputDir> {
-    let out = OutputDir::acquire(dir)?;
-    let paths = output_paths();
-    out.check_replaceable(paths.iter().map(PathBuf::as_path))?;
-    Ok(out)
-}
-
-/// Writes `receipts.json`, `model.json` (`{"a","b","c","d","ts"}`, the discrete G0 for
-/// `ferrosid gap --sim` and `ferrosid codegen --model`), `pid.json` (the tuning result, for
-/// `codegen --pid`; absent without a controller), `wm.json` (the fitted weight, for
-/// `codegen --wm`; absent without one), `report.html` and `figures/*.svg` into `dir` (created
-/// if missing), through [`prepare_output_dir`] and [`write_outputs_to`]. Returns the paths
-/// written.
-pub fn write_outputs(run: &PipelineRun, dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut out = prepare_output_dir(dir)?;
-    write_outputs_to(run, &mut out)
-}
-
-/// Writes the outputs of `run` into a held output directory. Every file is written atomically
-/// and listed in the directory's manifest; `pid.json`/`wm.json` and figures that this run does
-/// not produce are removed only when an earlier ferrosid run wrote them (the manifest says so),
-/// so the directory describes this run and no user file is ever deleted.
-pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
-    let doc = ReceiptsDocument::from_run(run);
-    written.push(out.write(Path::new("receipts.json"), &doc.to_json()?)?);
-    written.push(out.write(Path::new("model.json"), &json_pretty(&run.model_file())?)?);
-    match &run.tuned {
-        Some(t) => written.push(out.write(Path::new("pid.json"), &json_pretty(t)?)?),
-        None => out.remove_stale(Path::new("pid.json"))?,
-    }
-    match &run.weight {
-        Some(w) => written.push(out.write(Path::new("wm.json"), &json_pretty(w)?)?),
-        None => out.remove_stale(Path::new("wm.json"))?,
-    }
-    let figures = crate::report::figures(run)?;
-    for f in &figures {
-        written.push(out.write(
-            &Path::new("figures").join(format!("{}.svg", f.name)),
-            &f.svg,
-        )?);
-    }
-    for name in crate::report::FIGURE_NAMES {
-        if !figures.iter().any(|f| f.name == name) {
-            out.remove_stale(&Path::new("figures").join(format!("{name}.svg")))?;
-        }
-    }
-    written.push(out.write(
-        Path::new("report.html"),
-        &crate::report::render_html(run, &figures)?,
-    )?);
-    Ok(written)
 }
 
 /// Pretty JSON with a trailing newline (non-finite floats become `null`).

@@ -21,14 +21,13 @@
 //! `verdict`, `receipts`, `frequency-response`, `coherence`, `order`, `robustness`,
 //! `sensitivity`, `step`, `audit`, `validation`, `controller`, `provenance`.
 mod gap_section;
-pub mod plot;
 
 use crate::error::Result;
 use crate::pipeline::document::{weight_high_gain, weight_low_gain};
 use crate::pipeline::{fmt_num, log_grid, PipelineRun};
 use crate::robust::receipts::ReceiptKind;
+use crate::plot::{self, colors, Band, Kind, LegendAt, Panel, RefLine, Series};
 use num_complex::Complex64;
-use plot::{colors, Band, Kind, LegendAt, Panel, RefLine, Series};
 use std::fmt::Write as _;
 
 /// Names of all figures the report can contain (file stems in `figures/`).

@@ -564,24 +564,8 @@ pub struct ReceiptsReport {
 /// Computes all receipts for the loop `inp.plant` + `inp.pid` (see the module docs). Failing
 /// loops produce failing receipts, not errors; errors are reserved for invalid inputs.
 pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
+    check_inputs(inp)?;
     let fc = inp.crossover_hz;
-    if !(fc.is_finite() && fc > 0.0) {
-        return Err(Error::InvalidArgument(format!(
-            "receipts: crossover {fc} Hz must be finite and > 0"
-        )));
-    }
-    if !(inp.actuator_limit.is_finite() && inp.actuator_limit > 0.0) {
-        return Err(Error::InvalidArgument(format!(
-            "receipts: actuator limit {} must be finite and > 0",
-            inp.actuator_limit
-        )));
-    }
-    if !(inp.reference_amplitude.is_finite() && inp.reference_amplitude > 0.0) {
-        return Err(Error::InvalidArgument(format!(
-            "receipts: reference amplitude {} must be finite and > 0",
-            inp.reference_amplitude
-        )));
-    }
     let lim = &inp.limits;
     let (lp, dpid) = implemented_loop(inp.plant, inp.pid, inp.controller_ts, Some(fc))?;
     let domain = if lp.is_discrete() {
@@ -611,7 +595,55 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
     ));
     let wc = 2.0 * PI * fc;
     let m = margins(&lp.l, Some((wc / 100.0, wc * 100.0))).ok();
-    match &m {
+    push_margin_receipts(&mut rs, m.as_ref(), lim);
+    let norms = push_norm_receipts(&mut rs, inp, &lp, stable)?;
+    let (kd, simulated) = saturated_step_of(inp, &lp, dpid, &domain)?;
+    push_step_receipts(&mut rs, inp, &simulated);
+    let pa = match &inp.etfe {
+        Some(e) => Some(push_etfe_receipt(&mut rs, inp.plant, e, lim, fc)?),
+        None => None,
+    };
+    if let Some(cv) = &inp.cross_validation {
+        rs.push(cross_validation_receipt(cv));
+    }
+    Ok(ReceiptsReport {
+        receipts: rs,
+        margins: m,
+        norms,
+        closed_loop_poles: poles.iter().map(|p| [p.re, p.im]).collect(),
+        discrete_controller: Some(kd),
+        step: simulated.0.ok(),
+        phase_agreement: pa,
+    })
+}
+
+/// Refuses a crossover, actuator limit or reference amplitude that is not finite and > 0.
+fn check_inputs(inp: &ReceiptInputs<'_>) -> Result<()> {
+    let fc = inp.crossover_hz;
+    if !(fc.is_finite() && fc > 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "receipts: crossover {fc} Hz must be finite and > 0"
+        )));
+    }
+    if !(inp.actuator_limit.is_finite() && inp.actuator_limit > 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "receipts: actuator limit {} must be finite and > 0",
+            inp.actuator_limit
+        )));
+    }
+    if !(inp.reference_amplitude.is_finite() && inp.reference_amplitude > 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "receipts: reference amplitude {} must be finite and > 0",
+            inp.reference_amplitude
+        )));
+    }
+    Ok(())
+}
+
+/// The gain- and phase-margin receipts (failing, with the reason, when the margins could not
+/// be computed).
+fn push_margin_receipts(rs: &mut Receipts, m: Option<&Margins>, lim: &ReceiptLimits) {
+    match m {
         Some(m) => {
             rs.push(Receipt::new(
                 ReceiptKind::GainMargin,
@@ -679,6 +711,19 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
             }
         }
     }
+}
+
+/// The peak receipts (M_s, M_t, ‖W_m T‖∞ with a weight, disturbance-rejection bandwidth,
+/// control effort); norms are infinite for an unstable loop.
+fn push_norm_receipts(
+    rs: &mut Receipts,
+    inp: &ReceiptInputs<'_>,
+    lp: &FeedbackLoop,
+    stable: bool,
+) -> Result<ClosedLoopNorms> {
+    let lim = &inp.limits;
+    let fc = inp.crossover_hz;
+    let wc = 2.0 * PI * fc;
     let norm = |sys: &StateSpace| -> Option<HinfNorm> {
         if stable {
             hinf_norm(sys).ok()
@@ -686,20 +731,9 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
             None
         }
     };
-    let unstable_note = "closed loop unstable: norm infinite";
     let ms = norm(&lp.s);
     let mt = norm(&lp.t);
     let ks = norm(&lp.ks);
-    let peak_detail = |h: &Option<HinfNorm>| -> String {
-        match h {
-            Some(h) => format!(
-                "Hamiltonian bisection (rel. tol {:e}), peak at {} Hz",
-                h.rel_tol,
-                fmt_sig(h.peak_f_hz)
-            ),
-            None => unstable_note.into(),
-        }
-    };
     let val = |h: &Option<HinfNorm>| h.map_or(f64::INFINITY, |h| h.gamma);
     rs.push(Receipt::new(
         ReceiptKind::SensitivityPeak,
@@ -768,12 +802,12 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
                     fmt_sig(g),
                     w.order
                 ),
-                _ => unstable_note.into(),
+                _ => UNSTABLE_NOTE.into(),
             },
         ));
     }
     let dbw = if stable {
-        disturbance_rejection_bandwidth_hz(&lp, fc).ok()
+        disturbance_rejection_bandwidth_hz(lp, fc).ok()
     } else {
         None
     };
@@ -786,7 +820,7 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
         "Hz",
         match dbw {
             Some(_) => "grid bracketing + bisection on |S(jω)| = 1/√2".into(),
-            None => unstable_note.into(),
+            None => UNSTABLE_NOTE.into(),
         },
     ));
     rs.push(Receipt::new(
@@ -805,12 +839,43 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
                 fmt_sig(h.peak_f_hz),
                 fmt_sig(inp.reference_amplitude)
             ),
-            None => unstable_note.into(),
+            None => UNSTABLE_NOTE.into(),
         },
     ));
-    // Saturated step on the sampled loop (a continuous design is sampled at 1/(200 f_c)).
-    let (gd, kd, sim_note) = match &dpid {
-        Some(d) => (lp.plant.clone(), d.clone(), domain.clone()),
+    Ok(ClosedLoopNorms {
+        ms,
+        mt,
+        ks,
+        wm_t,
+        wm_t_grid,
+    })
+}
+
+/// Detail of a peak receipt: the H∞ computation, or why there is no finite value.
+const UNSTABLE_NOTE: &str = "closed loop unstable: norm infinite";
+
+fn peak_detail(h: &Option<HinfNorm>) -> String {
+    match h {
+        Some(h) => format!(
+            "Hamiltonian bisection (rel. tol {:e}), peak at {} Hz",
+            h.rel_tol,
+            fmt_sig(h.peak_f_hz)
+        ),
+        None => UNSTABLE_NOTE.into(),
+    }
+}
+
+/// The saturated step on the sampled loop (a continuous design is sampled at 1/(200 f_c)):
+/// the discrete controller simulated and the response (or why the simulation failed).
+fn saturated_step_of(
+    inp: &ReceiptInputs<'_>,
+    lp: &FeedbackLoop,
+    dpid: Option<DiscretePid>,
+    domain: &str,
+) -> Result<(DiscretePid, (Result<StepResponse>, String))> {
+    let fc = inp.crossover_hz;
+    let (gd, kd, sim_note) = match dpid {
+        Some(d) => (lp.plant.clone(), d, domain.to_string()),
         None => {
             let ts = 1.0 / (200.0 * fc);
             // A discrete plant always yields a discrete controller above, so the plant here is
@@ -826,13 +891,24 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
     let spec = StepSpec {
         amplitude: inp.reference_amplitude,
         actuator_limit: inp.actuator_limit,
-        duration_s: (lim.settling_time_s_max * 2.0).max(50.0 / fc),
+        duration_s: (inp.limits.settling_time_s_max * 2.0).max(50.0 / fc),
         anti_windup: inp.anti_windup,
         settle_band: 0.02,
     };
     let step = saturated_step(&gd, &kd, &spec);
+    Ok((kd, (step, sim_note)))
+}
+
+/// The step receipts (actuator demand, overshoot, settling time), failing when the
+/// simulation failed.
+fn push_step_receipts(
+    rs: &mut Receipts,
+    inp: &ReceiptInputs<'_>,
+    (step, sim_note): &(Result<StepResponse>, String),
+) {
+    let lim = &inp.limits;
     let aw = if inp.anti_windup { "with" } else { "without" };
-    match &step {
+    match step {
         Ok(s) => {
             rs.push(Receipt::new(
                 ReceiptKind::StepActuatorDemand,
@@ -906,56 +982,43 @@ pub fn compute_receipts(inp: &ReceiptInputs<'_>) -> Result<ReceiptsReport> {
             }
         }
     }
-    let pa = match &inp.etfe {
-        Some(e) => {
-            let p = phase_agreement(inp.plant, e, lim.etfe_max_freq_factor * fc)?;
-            rs.push(etfe_phase_receipt(
-                &p,
-                lim.etfe_phase_error_deg_max,
-                if p.bins_used == 0 {
-                    format!("no gated ETFE bin below {} Hz", fmt_sig(p.f_max_hz))
-                } else {
-                    format!(
-                        "{} gated bins up to {} Hz; worst at {} Hz; octave slices: {}",
-                        p.bins_used,
-                        fmt_sig(p.f_max_hz),
-                        fmt_sig(p.at_hz),
-                        p.slices
-                            .iter()
-                            .map(|s| format!(
-                                "{}–{} Hz: {} deg ({} bins)",
-                                fmt_sig(s.f_lo_hz),
-                                fmt_sig(s.f_hi_hz),
-                                fmt_sig(s.max_abs_error_deg),
-                                s.bins
-                            ))
-                            .collect::<Vec<_>>()
-                            .join("; ")
-                    )
-                },
-            ));
-            Some(p)
-        }
-        None => None,
-    };
-    if let Some(cv) = &inp.cross_validation {
-        rs.push(cross_validation_receipt(cv));
-    }
-    Ok(ReceiptsReport {
-        receipts: rs,
-        margins: m,
-        norms: ClosedLoopNorms {
-            ms,
-            mt,
-            ks,
-            wm_t,
-            wm_t_grid,
+}
+
+/// The ETFE phase-agreement receipt of the plant model against the measured ETFE.
+fn push_etfe_receipt(
+    rs: &mut Receipts,
+    plant: &StateSpace,
+    e: &EtfeView<'_>,
+    lim: &ReceiptLimits,
+    fc: f64,
+) -> Result<PhaseAgreement> {
+    let p = phase_agreement(plant, e, lim.etfe_max_freq_factor * fc)?;
+    rs.push(etfe_phase_receipt(
+        &p,
+        lim.etfe_phase_error_deg_max,
+        if p.bins_used == 0 {
+            format!("no gated ETFE bin below {} Hz", fmt_sig(p.f_max_hz))
+        } else {
+            format!(
+                "{} gated bins up to {} Hz; worst at {} Hz; octave slices: {}",
+                p.bins_used,
+                fmt_sig(p.f_max_hz),
+                fmt_sig(p.at_hz),
+                p.slices
+                    .iter()
+                    .map(|s| format!(
+                        "{}–{} Hz: {} deg ({} bins)",
+                        fmt_sig(s.f_lo_hz),
+                        fmt_sig(s.f_hi_hz),
+                        fmt_sig(s.max_abs_error_deg),
+                        s.bins
+                    ))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
         },
-        closed_loop_poles: poles.iter().map(|p| [p.re, p.im]).collect(),
-        discrete_controller: Some(kd),
-        step: step.ok(),
-        phase_agreement: pa,
-    })
+    ));
+    Ok(p)
 }
 
 /// The `cross_validation_fit` receipt of a fit on fresh data.

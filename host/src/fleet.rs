@@ -21,9 +21,12 @@
 //! fit. Across units, for each parameter: count, min, median, max, mean and sample standard
 //! deviation. Oscillatory modes are matched across units by rank (1st, 2nd, ... lightly
 //! damped pair in increasing frequency).
-use super::config::LoadedConfig;
-use super::document::{weight_high_gain, weight_low_gain};
-use super::{run_pipeline, Mode, PipelineRun};
+use crate::pipeline::config::LoadedConfig;
+use crate::pipeline::document::{weight_high_gain, weight_low_gain};
+use crate::output::prepare_output_dir;
+use crate::output::write_outputs_to;
+use crate::pipeline::{json_pretty, run_pipeline, Mode, PipelineRun};
+use crate::robust::receipts::ReceiptKind;
 use crate::error::{Error, Result};
 use crate::io::file_safety::OutputDir;
 use rayon::prelude::*;
@@ -200,7 +203,7 @@ impl UnitResult {
                 .as_ref()
                 .map(|w| weight_high_gain(&w.num, &w.den)),
             crossover_hz: run.tuned.as_ref().map(|t| t.design.crossover_hz),
-            ms: rs.get("sensitivity_peak").map(|r| r.value),
+            ms: rs.of_kind(ReceiptKind::SensitivityPeak).map(|r| r.value),
             validation_fit_percent: run.validation_fit.as_ref().map(|f| f.fit_percent[0]),
             out_dir,
         }
@@ -442,7 +445,7 @@ pub fn run_fleet(
     let mut unit_dirs: Vec<Option<OutputDir>> = match &opts.out_dir {
         Some(o) => serials
             .iter()
-            .map(|serial| super::prepare_output_dir(&o.join(serial)).map(Some))
+            .map(|serial| prepare_output_dir(&o.join(serial)).map(Some))
             .collect::<Result<_>>()?,
         None => serials.iter().map(|_| None).collect(),
     };
@@ -460,7 +463,7 @@ pub fn run_fleet(
                     let run = run_pipeline(&cfg, &|_| {})?;
                     let out = match unit_dir {
                         Some(d) => {
-                            super::write_outputs_to(&run, d)?;
+                            write_outputs_to(&run, d)?;
                             Some(d.path().to_string_lossy().replace('\\', "/"))
                         }
                         None => None,
@@ -481,7 +484,7 @@ pub fn run_fleet(
     if let Some(top) = &mut top {
         top.write(
             Path::new(FLEET_SUMMARY_FILE),
-            &super::json_pretty(&summary)?,
+            &json_pretty(&summary)?,
         )?;
     }
     Ok(summary)

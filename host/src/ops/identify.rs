@@ -1,0 +1,539 @@
+//! `identify` as a library call: from logs to a validated discrete state-space model.
+//!
+//! Steps (every one is recorded in the [`IdentifyReport`]):
+//! 1. preprocess each log the same way ([`crate::preprocess`]: mean or trend removal, optional
+//!    anti-aliased decimation);
+//! 2. several estimation logs are concatenated after preprocessing (same sample rate and
+//!    channels required); each junction disturbs the `block_rows` Hankel columns that span it,
+//!    which the report states;
+//! 3. N4SID ([`crate::n4sid`]) with automatic order selection or a fixed order / order range;
+//! 4. continuous-time equivalent by the inverse ZOH ([`crate::lti::StateSpace::d2c_zoh`]), or a
+//!    warning when the discrete poles do not allow one (e.g. poles on the negative real axis);
+//! 5. validation ([`crate::validate`]) on a validation log (or, without it, on the estimation
+//!    data, labelled as such): free-run simulation fit (NRMSE, fit %), model versus ETFE at
+//!    every coherence-gated bin up to twice the crossover with the phase checklist, residual
+//!    auto/cross-correlation tests at 99 % confidence, and the fit through the model's
+//!    operating point on the raw validation log ([`crate::operating_point`]).
+use super::frf::{check_compatible, LogSummary, MethodSummary};
+use super::Progress;
+use crate::data::{Channel, Log, OperatingPoint};
+use crate::error::{Error, Result};
+use crate::lti::{StateSpace, StateSpaceData};
+use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, N4sidSummary, MAX_BLOCK_ROWS};
+use crate::operating_point::operating_point_of;
+use crate::preprocess::{preprocess, Preprocessing, Removal, Step, MAX_DECIMATION};
+use crate::validate::{
+    compare_with_etfe, residual_test, simulation_fit_log, simulation_fit_operating_point,
+    EtfeComparison, InitialState, ResidualTest, SimulationFit, PHASE_BOUND_DEG,
+};
+use num_complex::Complex64;
+use serde::Serialize;
+
+/// Settings of an identification. Error messages name the options as the command line
+/// spells them.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentifyOptions {
+    /// N4SID options (horizon, order choice, weighting, feedthrough, stability margin).
+    pub n4sid: N4sidOptions,
+    /// Offset removal applied to every log.
+    pub remove: Removal,
+    /// Anti-aliased decimation factor (2..=[`MAX_DECIMATION`]), after offset removal.
+    pub decimate: Option<usize>,
+    /// Crossover frequency in Hz: enables the phase checklist up to twice this frequency.
+    pub crossover_hz: Option<f64>,
+    /// Phase bound of the checklist, degrees.
+    pub phase_tol_deg: f64,
+    /// Largest lag of the residual correlation tests, samples.
+    pub max_lag: usize,
+    /// Validation ETFE settings.
+    pub etfe: super::frf::FrfOptions,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        Self {
+            n4sid: N4sidOptions::default(),
+            remove: Removal::Mean,
+            decimate: None,
+            crossover_hz: None,
+            phase_tol_deg: PHASE_BOUND_DEG,
+            max_lag: 25,
+            etfe: super::frf::FrfOptions::default(),
+        }
+    }
+}
+
+impl IdentifyOptions {
+    /// Checks the values the N4SID call itself does not.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming the option.
+    pub fn validate(&self) -> Result<()> {
+        self.etfe.validate()?;
+        if let Some(f) = self.crossover_hz {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(Error::InvalidArgument(format!(
+                    "--crossover-hz must be > 0, got {f}"
+                )));
+            }
+        }
+        if !(self.phase_tol_deg.is_finite() && self.phase_tol_deg > 0.0) {
+            return Err(Error::InvalidArgument(format!(
+                "--phase-tol must be > 0 degrees, got {}",
+                self.phase_tol_deg
+            )));
+        }
+        if self.max_lag == 0 {
+            return Err(Error::InvalidArgument("--max-lag must be >= 1".into()));
+        }
+        if !(2..=MAX_BLOCK_ROWS).contains(&self.n4sid.block_rows) {
+            return Err(Error::InvalidArgument(format!(
+                "--block-rows must be in 2..={MAX_BLOCK_ROWS}, got {}",
+                self.n4sid.block_rows
+            )));
+        }
+        if let Some(q) = self.decimate {
+            if !(2..=MAX_DECIMATION).contains(&q) {
+                return Err(Error::InvalidArgument(format!(
+                    "--decimate must be in 2..={MAX_DECIMATION}, got {q}"
+                )));
+            }
+        }
+        if let Some(m) = self.n4sid.stability_margin {
+            if !(m.is_finite() && m > 0.0 && m < 1.0) {
+                return Err(Error::InvalidArgument(format!(
+                    "--stable-margin must be in (0, 1), got {m}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The preprocessing steps applied to every log.
+    pub fn steps(&self) -> Vec<Step> {
+        crate::preprocess::steps(self.remove, self.decimate.unwrap_or(1))
+    }
+}
+
+/// A pole or zero with its natural frequency and damping.
+#[derive(Debug, Clone, Serialize)]
+pub struct Root {
+    /// Real part (z-plane for discrete, s-plane in rad/s for continuous roots).
+    pub re: f64,
+    /// Imaginary part.
+    pub im: f64,
+    /// Natural frequency |s|/2π in Hz (s = ln(z)/ts for discrete roots).
+    pub freq_hz: f64,
+    /// Damping ratio −Re(s)/|s| (1 for a real stable root at s = 0 limit).
+    pub damping: f64,
+}
+
+impl Root {
+    fn continuous(s: Complex64) -> Self {
+        let w = s.norm();
+        Self {
+            re: s.re,
+            im: s.im,
+            freq_hz: w / (2.0 * std::f64::consts::PI),
+            damping: if w > 0.0 { -s.re / w } else { 1.0 },
+        }
+    }
+
+    fn discrete(z: Complex64, ts: f64) -> Self {
+        let s = if z.norm() > 0.0 {
+            z.ln() / ts
+        } else {
+            Complex64::new(f64::NEG_INFINITY, 0.0)
+        };
+        let w = s.norm();
+        Self {
+            re: z.re,
+            im: z.im,
+            freq_hz: w / (2.0 * std::f64::consts::PI),
+            damping: if w > 0.0 && w.is_finite() {
+                -s.re / w
+            } else {
+                1.0
+            },
+        }
+    }
+}
+
+/// The continuous-time equivalent.
+#[derive(Debug, Clone, Serialize)]
+pub struct Continuous {
+    /// The model (ts = 0).
+    pub model: StateSpaceData,
+    /// Poles, ascending natural frequency (s-plane).
+    pub poles: Vec<Root>,
+    /// Transmission zeros below the Nyquist frequency (SISO only), ascending frequency.
+    pub zeros: Vec<Root>,
+}
+
+/// Validation results.
+#[derive(Debug, Clone, Serialize)]
+pub struct Validation {
+    /// Validation log path, or `estimation data`.
+    pub data: String,
+    /// Preprocessing of the validation log (absent when validating on the estimation data).
+    pub preprocessing: Option<Preprocessing>,
+    /// Free-run simulation fit.
+    pub fit: SimulationFit,
+    /// ETFE settings used for the comparison.
+    pub etfe: String,
+    /// Coherence gate threshold.
+    pub gate: f64,
+    /// Model vs ETFE per (output, input) pair at the gated bins up to `f_max_hz`.
+    pub phase: Vec<PairComparison>,
+    /// Residual correlation tests.
+    pub residuals: ResidualTest,
+    /// Free-run fit on the raw validation log through the model's operating point (the model
+    /// sees u − u0, its output is compared with y − y0): how the model file performs on data as
+    /// recorded. Absent without `--validate`, or with decimation (the raw log is then not at
+    /// the model's rate), with the reason in `operating_point_fit_note`.
+    pub operating_point_fit: Option<SimulationFit>,
+    /// Why `operating_point_fit` is absent, when it is.
+    pub operating_point_fit_note: Option<String>,
+}
+
+/// Model-versus-ETFE comparison of one channel pair.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairComparison {
+    /// Input channel name.
+    pub input: String,
+    /// Output channel name.
+    pub output: String,
+    /// True when the bound is a checklist verdict (`--crossover-hz` given); false when the
+    /// comparison covers all gated bins up to Nyquist for information only.
+    pub checklist: bool,
+    /// The comparison.
+    pub comparison: EtfeComparison,
+}
+
+/// The JSON document of `ferrosid identify --json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct IdentifyReport {
+    /// Always "identify".
+    pub command: &'static str,
+    /// Estimation logs.
+    pub logs: Vec<LogSummary>,
+    /// Preprocessing record of each estimation log.
+    pub preprocessing: Vec<Preprocessing>,
+    /// Samples used for estimation (after preprocessing and concatenation).
+    pub estimation_samples: usize,
+    /// Sample time of the model, s.
+    pub ts: f64,
+    /// N4SID options used.
+    pub options: N4sidOptions,
+    /// N4SID result (model, order, singular values, reason, poles, warnings).
+    pub n4sid: N4sidSummary,
+    /// Discrete poles with natural frequency and damping.
+    pub poles: Vec<Root>,
+    /// Continuous-time equivalent, if it exists.
+    pub continuous: Option<Continuous>,
+    /// Validation.
+    pub validation: Validation,
+    /// Every warning (reader, concatenation, N4SID, continuous-time conversion).
+    pub warnings: Vec<String>,
+    /// Phase checklist verdict: `None` without `--crossover-hz`.
+    pub phase_checklist_passed: Option<bool>,
+    /// The model file written, if any.
+    pub model_file: Option<String>,
+    /// Operating point and preprocessing of the model (also stored in the model file).
+    pub operating_point: OperatingPoint,
+    /// How the numerics treat signal scale.
+    pub normalisation: &'static str,
+}
+
+/// What `identify` says about signal scale (also in its JSON report).
+pub const NORMALISATION_NOTE: &str = "signals are normalised internally (N4SID: per-channel RMS; \
+    spectra, fits and correlations: exact powers of two), so results do not depend on the \
+    signals' units; every number is reported in the log's units";
+
+/// Concatenates preprocessed logs (checked compatible) into one log named after the first.
+fn concatenate(logs: &[Log]) -> Log {
+    let first = &logs[0];
+    let join = |pick: &dyn Fn(&Log) -> &Vec<Channel>| -> Vec<Channel> {
+        (0..pick(first).len())
+            .map(|j| Channel {
+                name: pick(first)[j].name.clone(),
+                data: logs
+                    .iter()
+                    .flat_map(|l| pick(l)[j].data.iter().copied())
+                    .collect(),
+            })
+            .collect()
+    };
+    Log {
+        path: first.path.clone(),
+        ts: first.ts,
+        inputs: join(&|l: &Log| &l.inputs),
+        outputs: join(&|l: &Log| &l.outputs),
+        warnings: Vec::new(),
+    }
+}
+
+/// Model versus ETFE for every channel pair of the validation log.
+fn compare_pairs(
+    model: &StateSpace,
+    vlog: &Log,
+    opts: &IdentifyOptions,
+    progress: &dyn Progress,
+) -> Result<(String, Vec<PairComparison>)> {
+    let report = super::frf::estimate(std::slice::from_ref(vlog), &opts.etfe, progress)?;
+    let label = match &report.method {
+        MethodSummary::Welch {
+            nperseg, noverlap, ..
+        } => format!("Welch H1, nperseg {nperseg}, overlap {noverlap}"),
+        MethodSummary::Periodic {
+            period,
+            skip_periods,
+        } => format!("period-synchronous, period {period}, {skip_periods} skipped"),
+    };
+    let (crossover, checklist) = match opts.crossover_hz {
+        Some(f) => (f, true),
+        // Information only: every gated bin up to Nyquist.
+        None => (vlog.fs() / 4.0, false),
+    };
+    let m = vlog.inputs.len();
+    let mut out = Vec::new();
+    for (idx, e) in report.estimates.iter().enumerate() {
+        let (j, i) = (idx / vlog.outputs.len(), idx % vlog.outputs.len());
+        debug_assert!(j < m);
+        // Only finite, positive-frequency bins are handed over.
+        let keep: Vec<usize> = (0..e.freq_hz.len())
+            .filter(|&k| e.freq_hz[k] > 0.0 && e.re[k].is_finite() && e.im[k].is_finite())
+            .collect();
+        let f: Vec<f64> = keep.iter().map(|&k| e.freq_hz[k]).collect();
+        let h: Vec<Complex64> = keep
+            .iter()
+            .map(|&k| Complex64::new(e.re[k], e.im[k]))
+            .collect();
+        let g: Vec<bool> = keep.iter().map(|&k| e.gated[k]).collect();
+        let comparison = compare_with_etfe(model, i, j, &f, &h, &g, crossover, opts.phase_tol_deg)
+            .map_err(|err| match err {
+                Error::InvalidArgument(msg) => Error::Data {
+                    file: vlog.path.clone(),
+                    msg: format!("validation ETFE {} -> {}: {msg}", e.input, e.output),
+                },
+                other => other,
+            })?;
+        out.push(PairComparison {
+            input: e.input.clone(),
+            output: e.output.clone(),
+            checklist,
+            comparison,
+        });
+    }
+    Ok((label, out))
+}
+
+/// Identifies a model from already-read estimation logs and validates it on `vlog` (or on the
+/// estimation data without one). No printing, no files; the report's `model_file` is left
+/// `None` for the caller that writes one.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for options out of range; [`Error::Data`] naming the log whose
+/// channels or sample rate do not match; [`Error::Numerical`] when N4SID cannot be trusted.
+pub fn identify(
+    logs: &[Log],
+    vlog: Option<&Log>,
+    opts: &IdentifyOptions,
+    progress: &dyn Progress,
+) -> Result<IdentifyReport> {
+    opts.validate()?;
+    check_compatible(logs)?;
+    let steps = opts.steps();
+    let mut warnings = Vec::new();
+    for l in logs.iter().chain(vlog) {
+        for w in &l.warnings {
+            warnings.push(format!("{}: {w}", l.path.display()));
+        }
+    }
+    let mut pre_logs = Vec::with_capacity(logs.len());
+    let mut records = Vec::with_capacity(logs.len());
+    for l in logs {
+        let (p, r) = preprocess(l, &steps)?;
+        pre_logs.push(p);
+        records.push(r);
+    }
+    let est = if pre_logs.len() == 1 {
+        pre_logs.swap_remove(0)
+    } else {
+        warnings.push(format!(
+            "{} estimation logs concatenated: each of the {} junctions disturbs the {} Hankel \
+             columns that span it",
+            logs.len(),
+            logs.len() - 1,
+            2 * opts.n4sid.block_rows - 1
+        ));
+        concatenate(&pre_logs)
+    };
+    let operating_point = operating_point_of(&records, est.inputs.len(), est.outputs.len())?;
+    progress.begin("N4SID", None);
+    let res = n4sid(&est, &opts.n4sid);
+    progress.end();
+    let res = res?;
+    warnings.extend(res.warnings.iter().map(|w| format!("n4sid: {w}")));
+    let model = &res.model;
+    let mut poles: Vec<Root> = model
+        .poles()?
+        .into_iter()
+        .map(|z| Root::discrete(z, model.ts))
+        .collect();
+    sort_roots(&mut poles);
+    let continuous = continuous_equivalent(model, &mut warnings)?;
+    progress.begin("validating", None);
+    let validation = validate_model(&res, &est, vlog, &operating_point, opts, progress);
+    progress.end();
+    let validation = validation?;
+    let phase_checklist_passed = opts
+        .crossover_hz
+        .map(|_| validation.phase.iter().all(|p| p.comparison.within_bound));
+    Ok(IdentifyReport {
+        command: "identify",
+        logs: logs.iter().map(LogSummary::of).collect(),
+        preprocessing: records,
+        estimation_samples: est.len(),
+        ts: model.ts,
+        options: opts.n4sid.clone(),
+        poles,
+        continuous,
+        validation,
+        warnings,
+        phase_checklist_passed,
+        model_file: None,
+        normalisation: NORMALISATION_NOTE,
+        n4sid: {
+            let mut s = res.summary();
+            s.model.operating_point = Some(operating_point.clone());
+            s
+        },
+        operating_point,
+    })
+}
+
+/// Sorts roots by natural frequency, then imaginary part.
+fn sort_roots(r: &mut [Root]) {
+    r.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz).then(a.im.total_cmp(&b.im)));
+}
+
+/// The continuous-time equivalent of `model` (inverse ZOH) with its poles and, for a SISO
+/// model, its zeros below Nyquist; `None` with a warning when the inverse ZOH fails.
+fn continuous_equivalent(
+    model: &StateSpace,
+    warnings: &mut Vec<String>,
+) -> Result<Option<Continuous>> {
+    let ct = match model.d2c_zoh() {
+        Ok(ct) => ct,
+        Err(e) => {
+            warnings.push(format!(
+                "no continuous-time equivalent (inverse ZOH failed: {e}); the discrete model \
+                 is still valid at ts = {} s",
+                model.ts
+            ));
+            return Ok(None);
+        }
+    };
+    let mut cp: Vec<Root> = ct.poles()?.into_iter().map(Root::continuous).collect();
+    sort_roots(&mut cp);
+    let mut zeros = Vec::new();
+    if ct.is_siso() {
+        match ct.to_transfer_function().and_then(|tf| tf.zeros()) {
+            Ok(z) => {
+                let nyq = 0.5 / model.ts;
+                zeros = z
+                    .into_iter()
+                    .map(Root::continuous)
+                    .filter(|r| r.freq_hz.is_finite() && r.freq_hz < nyq)
+                    .collect();
+                sort_roots(&mut zeros);
+            }
+            Err(e) => warnings.push(format!("zeros of the continuous model: {e}")),
+        }
+    }
+    Ok(Some(Continuous {
+        model: StateSpaceData::from(&ct),
+        poles: cp,
+        zeros,
+    }))
+}
+
+/// Validation of the identified model on `vlog` (preprocessed like the estimation logs) or, without
+/// one, on the preprocessed estimation data `est`.
+fn validate_model(
+    res: &N4sidResult,
+    est: &Log,
+    vlog: Option<&Log>,
+    operating_point: &OperatingPoint,
+    opts: &IdentifyOptions,
+    progress: &dyn Progress,
+) -> Result<Validation> {
+    let model = &res.model;
+    let (vdata, vpre, vlog_pre) = match vlog {
+        Some(v) => {
+            if v.inputs.len() != est.inputs.len() || v.outputs.len() != est.outputs.len() {
+                return Err(Error::Data {
+                    file: v.path.clone(),
+                    msg: format!(
+                        "validation log has {} inputs and {} outputs, the model {} and {}",
+                        v.inputs.len(),
+                        v.outputs.len(),
+                        est.inputs.len(),
+                        est.outputs.len()
+                    ),
+                });
+            }
+            let (p, r) = preprocess(v, &opts.steps())?;
+            if ((p.ts - model.ts) / model.ts).abs() > 1e-9 {
+                return Err(Error::Data {
+                    file: v.path.clone(),
+                    msg: format!(
+                        "validation sample time {} s (after preprocessing) differs from the \
+                         model's {} s",
+                        p.ts, model.ts
+                    ),
+                });
+            }
+            (v.path.display().to_string(), Some(r), p)
+        }
+        None => ("estimation data".to_string(), None, est.clone()),
+    };
+    let fit = simulation_fit_log(model, &vlog_pre, InitialState::Estimate)?;
+    let (etfe_label, phase) = compare_pairs(model, &vlog_pre, opts, progress)?;
+    let u: Vec<&[f64]> = vlog_pre.inputs.iter().map(|c| c.data.as_slice()).collect();
+    let y: Vec<&[f64]> = vlog_pre.outputs.iter().map(|c| c.data.as_slice()).collect();
+    let max_lag = opts.max_lag.min(vlog_pre.len() / 4).max(1);
+    let residuals = residual_test(
+        model,
+        res.kalman_gain.as_ref().map(|k| k.as_ref()),
+        &u,
+        &y,
+        max_lag,
+    )?;
+    let (operating_point_fit, operating_point_fit_note) = match vlog {
+        None => (None, Some("no --validate log".to_string())),
+        Some(_) if operating_point.decimation > 1 => (
+            None,
+            Some(format!(
+                "the model is decimated by {}: the raw validation log is not at its rate",
+                operating_point.decimation
+            )),
+        ),
+        Some(v) => match simulation_fit_operating_point(model, operating_point, v) {
+            Ok(f) => (Some(f), None),
+            Err(e) => (None, Some(e.to_string())),
+        },
+    };
+    Ok(Validation {
+        data: vdata,
+        preprocessing: vpre,
+        fit,
+        etfe: etfe_label,
+        gate: opts.etfe.gate,
+        phase,
+        residuals,
+        operating_point_fit,
+        operating_point_fit_note,
+    })
+}

@@ -1,0 +1,94 @@
+//! A finished run's output directory: `receipts.json`, `model.json`, `pid.json`, `wm.json`,
+//! `report.html` and `figures/*.svg`, written atomically through
+//! [`crate::io::file_safety::OutputDir`].
+//!
+//! This sits above [`crate::report`] in the layer table (`host/tests/layers.rs`): the pipeline
+//! computes a [`PipelineRun`], the report renders it, and this module writes both renderings
+//! and the JSON documents to disk. The same logs and settings give byte-identical files.
+use crate::error::Result;
+use crate::io::file_safety::OutputDir;
+use crate::pipeline::{json_pretty, PipelineRun, ReceiptsDocument};
+use std::path::{Path, PathBuf};
+
+/// Files written by [`write_outputs`], relative to the output directory.
+pub const OUTPUT_FILES: [&str; 5] = [
+    "receipts.json",
+    "model.json",
+    "pid.json",
+    "wm.json",
+    "report.html",
+];
+
+/// Every path (relative to the output directory) that [`write_outputs`] may write or remove:
+/// [`OUTPUT_FILES`] and `figures/<name>.svg` for each of [`crate::report::FIGURE_NAMES`].
+pub fn output_paths() -> Vec<PathBuf> {
+    OUTPUT_FILES
+        .iter()
+        .map(PathBuf::from)
+        .chain(
+            crate::report::FIGURE_NAMES
+                .iter()
+                .map(|n| Path::new("figures").join(format!("{n}.svg"))),
+        )
+        .collect()
+}
+
+/// Takes `dir` for writing before any computation (see [`crate::io::file_safety`]): creates
+/// it, takes its lock, and checks that none of [`output_paths`] exists there unless ferrosid
+/// wrote it.
+///
+/// # Errors
+/// [`Error::Io`] naming the directory, the lock holder or the file that would be replaced.
+pub fn prepare_output_dir(dir: &Path) -> Result<OutputDir> {
+    let out = OutputDir::acquire(dir)?;
+    let paths = output_paths();
+    out.check_replaceable(paths.iter().map(PathBuf::as_path))?;
+    Ok(out)
+}
+
+/// Writes `receipts.json`, `model.json` (`{"a","b","c","d","ts"}`, the discrete G0 for
+/// `ferrosid gap --sim` and `ferrosid codegen --model`), `pid.json` (the tuning result, for
+/// `codegen --pid`; absent without a controller), `wm.json` (the fitted weight, for
+/// `codegen --wm`; absent without one), `report.html` and `figures/*.svg` into `dir` (created
+/// if missing), through [`prepare_output_dir`] and [`write_outputs_to`]. Returns the paths
+/// written.
+pub fn write_outputs(run: &PipelineRun, dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out = prepare_output_dir(dir)?;
+    write_outputs_to(run, &mut out)
+}
+
+/// Writes the outputs of `run` into a held output directory. Every file is written atomically
+/// and listed in the directory's manifest; `pid.json`/`wm.json` and figures that this run does
+/// not produce are removed only when an earlier ferrosid run wrote them (the manifest says so),
+/// so the directory describes this run and no user file is ever deleted.
+pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    let doc = ReceiptsDocument::from_run(run);
+    written.push(out.write(Path::new("receipts.json"), &doc.to_json()?)?);
+    written.push(out.write(Path::new("model.json"), &json_pretty(&run.model_file())?)?);
+    match &run.tuned {
+        Some(t) => written.push(out.write(Path::new("pid.json"), &json_pretty(t)?)?),
+        None => out.remove_stale(Path::new("pid.json"))?,
+    }
+    match &run.weight {
+        Some(w) => written.push(out.write(Path::new("wm.json"), &json_pretty(w)?)?),
+        None => out.remove_stale(Path::new("wm.json"))?,
+    }
+    let figures = crate::report::figures(run)?;
+    for f in &figures {
+        written.push(out.write(
+            &Path::new("figures").join(format!("{}.svg", f.name)),
+            &f.svg,
+        )?);
+    }
+    for name in crate::report::FIGURE_NAMES {
+        if !figures.iter().any(|f| f.name == name) {
+            out.remove_stale(&Path::new("figures").join(format!("{name}.svg")))?;
+        }
+    }
+    written.push(out.write(
+        Path::new("report.html"),
+        &crate::report::render_html(run, &figures)?,
+    )?);
+    Ok(written)
+}

@@ -1,0 +1,352 @@
+//! The host crate's import arrows point down the chain (issue 11, `architecture.md`):
+//! log → signals → spectra → model → validation → bound → controller + receipts → gap
+//! diagnosis → commands → pipeline → report → output files → front ends.
+//!
+//! How it is checked: every `.rs` file under `host/src/` is scanned (comments and string
+//! literals removed) for `crate::<module>` paths, including grouped `crate::{a, b}` ones. The
+//! file's own top-level module is its first path component below `src/`. Each import must go
+//! to a module of the same or a lower layer of [`LAYERS`], and two top-level modules may not
+//! import each other (a cycle inside one layer is one concept split wrongly). A new top-level
+//! module fails the test until it is placed in the table. Cross-module paths are written
+//! `crate::...` throughout the crate (`super::` never leaves a top-level module), so this scan
+//! sees every arrow; `main.rs` is the binary and uses only `ferrosid::cli`.
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// The layer table, bottom (1) to top. An import may point to the same layer or below.
+const LAYERS: &[(&str, u8)] = &[
+    // 1. In-memory logs, errors, readers, wire formats, SVG plot primitives: no numerics.
+    ("error", 1),
+    ("data", 1),
+    ("io", 1),
+    ("target_frame", 1),
+    ("plot", 1),
+    // 2. Signal conditioning, spectra, LTI algebra, the operating point of a log.
+    ("preprocess", 2),
+    ("spectral", 2),
+    ("lti", 2),
+    ("operating_point", 2),
+    // 3. Models from data and their validation.
+    ("n4sid", 3),
+    ("greybox", 3),
+    ("rational_fit", 3),
+    ("validate", 3),
+    // 4. Bounds and controllers: audit, W_m, norms, PID tuning, receipts.
+    ("robust", 4),
+    // 5. Sim-to-real diagnosis, limit cycles, compensation design.
+    ("gap", 5),
+    ("limit_cycle", 5),
+    ("compensation", 5),
+    // 6. Each command's whole job as a library call (typed options in, typed result out).
+    ("ops", 6),
+    // 7. The pipeline: the ops composed into one typed run.
+    ("pipeline", 7),
+    // 8. HTML report and SVG figures of a finished run.
+    ("report", 8),
+    // 9. Writing a run's output directory; many units' runs and their directories.
+    ("output", 9),
+    ("fleet", 9),
+    // 10. Front ends: argument mapping, rendering, exit codes.
+    ("cli", 10),
+];
+
+/// Known arrows that break the table, each with the reason it is still there. The test fails
+/// when one of them disappears, so the list cannot outlive the problem.
+const KNOWN_UPWARD: &[(&str, &str, &str)] = &[(
+    "robust",
+    "gap",
+    "robust uses gap::optim (Nelder–Mead, golden section); the optimisers belong in a low \
+     numerics module, a move inside gap/ (owned by the gap work)",
+)];
+
+/// Removes comments, string and char literals from Rust source, keeping line structure.
+fn strip_comments_and_strings(src: &str) -> String {
+    let b: Vec<char> = src.chars().collect();
+    let mut out = String::with_capacity(src.len());
+    let mut i = 0;
+    while i < b.len() {
+        let c = b[i];
+        let next = b.get(i + 1).copied();
+        if c == '/' && next == Some('/') {
+            while i < b.len() && b[i] != '\n' {
+                i += 1;
+            }
+        } else if c == '/' && next == Some('*') {
+            let mut depth = 0;
+            while i < b.len() {
+                if b[i] == '/' && b.get(i + 1) == Some(&'*') {
+                    depth += 1;
+                    i += 2;
+                } else if b[i] == '*' && b.get(i + 1) == Some(&'/') {
+                    depth -= 1;
+                    i += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    if b[i] == '\n' {
+                        out.push('\n');
+                    }
+                    i += 1;
+                }
+            }
+        } else if c == 'r'
+            && (next == Some('"') || next == Some('#'))
+            && (i == 0 || !(b[i - 1].is_alphanumeric() || b[i - 1] == '_'))
+        {
+            // Raw string r"..." / r#"..."#.
+            let mut j = i + 1;
+            let mut hashes = 0;
+            while b.get(j) == Some(&'#') {
+                hashes += 1;
+                j += 1;
+            }
+            if b.get(j) != Some(&'"') {
+                out.push(c);
+                i += 1;
+                continue;
+            }
+            j += 1;
+            loop {
+                if j >= b.len() {
+                    break;
+                }
+                if b[j] == '"' && (0..hashes).all(|k| b.get(j + 1 + k) == Some(&'#')) {
+                    j += 1 + hashes;
+                    break;
+                }
+                if b[j] == '\n' {
+                    out.push('\n');
+                }
+                j += 1;
+            }
+            out.push_str("\"\"");
+            i = j;
+        } else if c == '"' {
+            i += 1;
+            while i < b.len() && b[i] != '"' {
+                if b[i] == '\\' {
+                    i += 1;
+                } else if b[i] == '\n' {
+                    out.push('\n');
+                }
+                i += 1;
+            }
+            out.push_str("\"\"");
+            i += 1;
+        } else if c == '\''
+            && (matches!((next, b.get(i + 2)), (Some(_), Some('\''))) || next == Some('\\'))
+        {
+            // A char literal ('x' or '\n'), not a lifetime.
+            i += 1;
+            while i < b.len() && b[i] != '\'' {
+                if b[i] == '\\' {
+                    i += 1;
+                }
+                i += 1;
+            }
+            out.push_str("' '");
+            i += 1;
+        } else {
+            out.push(c);
+            i += 1;
+        }
+    }
+    out
+}
+
+/// Top-level modules named by `crate::` paths in (stripped) source, with the line of each.
+fn crate_imports(code: &str) -> Vec<(String, usize)> {
+    let mut found = Vec::new();
+    for (ln, line) in code.lines().enumerate() {
+        let mut rest = line;
+        while let Some(p) = rest.find("crate::") {
+            let before = rest[..p].chars().next_back();
+            rest = &rest[p + "crate::".len()..];
+            if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+                continue; // e.g. `ferrosid_crate::`
+            }
+            if let Some(group) = rest.strip_prefix('{') {
+                // `crate::{a, b::c, self}`: the first identifier of each top-level item.
+                let mut depth = 0;
+                let mut item_start = true;
+                let mut ident = String::new();
+                for ch in group.chars() {
+                    match ch {
+                        '{' => depth += 1,
+                        '}' if depth == 0 => break,
+                        '}' => depth -= 1,
+                        ',' if depth == 0 => {
+                            if !ident.is_empty() {
+                                found.push((std::mem::take(&mut ident), ln + 1));
+                            }
+                            item_start = true;
+                            continue;
+                        }
+                        _ => {}
+                    }
+                    if item_start && depth == 0 {
+                        if ch.is_alphanumeric() || ch == '_' {
+                            ident.push(ch);
+                            continue;
+                        } else if !ident.is_empty() {
+                            found.push((std::mem::take(&mut ident), ln + 1));
+                            item_start = false;
+                        }
+                    }
+                }
+                if !ident.is_empty() {
+                    found.push((ident, ln + 1));
+                }
+            } else {
+                let ident: String = rest
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                if !ident.is_empty() {
+                    found.push((ident, ln + 1));
+                }
+            }
+        }
+    }
+    found
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).expect("read src dir") {
+        let p = e.expect("dir entry").path();
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The top-level module a file belongs to (`None` for the crate root files).
+fn top_module(src: &Path, file: &Path) -> Option<String> {
+    let rel = file.strip_prefix(src).expect("file under src");
+    let first = rel.components().next()?.as_os_str().to_string_lossy().into_owned();
+    match first.as_str() {
+        "lib.rs" | "main.rs" => None,
+        f => Some(f.trim_end_matches(".rs").to_string()),
+    }
+}
+
+/// Every (from, to) arrow between top-level modules, with one example location each.
+fn arrows(src: &Path) -> BTreeMap<(String, String), String> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    files.sort();
+    let mut arrows = BTreeMap::new();
+    for f in &files {
+        let Some(from) = top_module(src, f) else {
+            continue;
+        };
+        let code = strip_comments_and_strings(&std::fs::read_to_string(f).expect("read"));
+        for (to, line) in crate_imports(&code) {
+            if to != from && to != "self" {
+                let at = format!("{}:{line}", f.strip_prefix(src).unwrap().display());
+                arrows.entry((from.clone(), to)).or_insert(at);
+            }
+        }
+    }
+    arrows
+}
+
+/// Violations of the table (unknown modules, upward arrows, two-way arrows), as messages.
+fn violations(arrows: &BTreeMap<(String, String), String>, modules: &BTreeSet<String>) -> Vec<String> {
+    let layer: BTreeMap<&str, u8> = LAYERS.iter().copied().collect();
+    let mut bad = Vec::new();
+    for m in modules {
+        if !layer.contains_key(m.as_str()) {
+            bad.push(format!("module `{m}` is not in the layer table of tests/layers.rs"));
+        }
+    }
+    for ((from, to), at) in arrows {
+        let known = KNOWN_UPWARD.iter().any(|(f, t, _)| f == from && t == to);
+        // Unknown modules are reported above; a `crate::X` that is no module (a root
+        // re-export such as `crate::Error`) has no layer of its own.
+        let (Some(&lf), Some(&lt)) = (layer.get(from.as_str()), layer.get(to.as_str())) else {
+            continue;
+        };
+        if lt > lf && !known {
+            bad.push(format!(
+                "{at}: `{from}` (layer {lf}) imports `{to}` (layer {lt}), which is above it"
+            ));
+        }
+        if from < to && arrows.contains_key(&(to.clone(), from.clone())) && !known {
+            bad.push(format!(
+                "`{from}` and `{to}` import each other ({at} and {})",
+                arrows[&(to.clone(), from.clone())]
+            ));
+        }
+    }
+    bad
+}
+
+fn src_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
+}
+
+fn top_modules(src: &Path) -> BTreeSet<String> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    files.iter().filter_map(|f| top_module(src, f)).collect()
+}
+
+#[test]
+fn imports_point_down_the_layer_table() {
+    let src = src_dir();
+    let arrows = arrows(&src);
+    let bad = violations(&arrows, &top_modules(&src));
+    assert!(bad.is_empty(), "layer violations:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn known_upward_arrows_are_still_there() {
+    // When one of these is cut, delete it from KNOWN_UPWARD.
+    let arrows = arrows(&src_dir());
+    for (from, to, why) in KNOWN_UPWARD {
+        assert!(
+            arrows.contains_key(&(from.to_string(), to.to_string())),
+            "`{from}` → `{to}` is gone; remove it from KNOWN_UPWARD ({why})"
+        );
+    }
+}
+
+#[test]
+fn every_table_entry_is_unique() {
+    let names: BTreeSet<&str> = LAYERS.iter().map(|(n, _)| *n).collect();
+    assert_eq!(names.len(), LAYERS.len());
+}
+
+#[test]
+fn the_scanner_finds_real_imports_and_ignores_comments_and_strings() {
+    let code = strip_comments_and_strings(
+        "//! see [`crate::report`]\n\
+         use crate::lti::StateSpace; // crate::pipeline\n\
+         let s = \"crate::cli\"; let r = r#\"crate::fleet\"#; let c = '\"';\n\
+         /* crate::output */ use crate::{error::Result, spectral, self};\n\
+         fn f<'a>(x: &'a str) { crate::gap::rng::x(); }\n",
+    );
+    let mods: Vec<String> = crate_imports(&code).into_iter().map(|(m, _)| m).collect();
+    assert_eq!(mods, ["lti", "error", "spectral", "self", "gap"]);
+}
+
+#[test]
+fn an_upward_arrow_and_a_cycle_are_reported() {
+    let mut arrows = BTreeMap::new();
+    arrows.insert(("lti".into(), "report".into()), "lti/x.rs:3".to_string());
+    arrows.insert(("spectral".into(), "preprocess".into()), "spectral.rs:1".to_string());
+    arrows.insert(("preprocess".into(), "spectral".into()), "preprocess.rs:2".to_string());
+    let modules: BTreeSet<String> = ["lti", "report", "spectral", "preprocess", "widgets"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let bad = violations(&arrows, &modules);
+    assert_eq!(bad.len(), 3, "{bad:#?}");
+    assert!(bad[0].contains("`widgets` is not in the layer table"));
+    assert!(bad.iter().any(|m| m.contains("`lti` (layer 2) imports `report` (layer 8)")));
+    assert!(bad.iter().any(|m| m.contains("`preprocess` and `spectral` import each other")));
+}
