@@ -29,6 +29,7 @@ pub mod detect;
 pub mod lure;
 pub mod predict;
 pub mod receipt;
+pub mod residual;
 pub mod simulate;
 
 pub use describing::DescribingFunction;
@@ -36,4 +37,5 @@ pub use detect::{detect, DetectOptions, SimulatedLimitCycle};
 pub use lure::{LureLoop, Nonlinearity, Site};
 pub use predict::{predict, predict_with, PredictOptions, PredictedLimitCycle};
 pub use receipt::{analyse, receipt, AnalysisOptions, LimitCycleAnalysis};
+pub use residual::Residual;
 pub use simulate::{simulate, SimSpec, SimulatedRun};

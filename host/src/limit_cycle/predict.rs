@@ -189,7 +189,7 @@ pub fn predict(
 }
 
 /// [`predict`] with the describing function given as a function of the amplitude (e.g. the
-/// residual nonlinearity of a compensated loop, [`crate::compensation::residual`]); `nl`
+/// residual nonlinearity of a compensated loop, [`crate::limit_cycle::residual`]); `nl`
 /// supplies the site, threshold and amplitude scale. `h_a` is the relative step of the
 /// numerical derivatives in A and `tol` Newton's tolerance relative to |L| (use larger values,
 /// e.g. 1e-3 and 1e-6, for a describing function computed by quadrature).

@@ -2,7 +2,7 @@
 //! tuned loop with one diagnosed nonlinearity, with or without its compensation.
 //!
 //! [`analyse`] runs both: [`predict`](super::predict()) (for a compensated loop on the residual
-//! nonlinearity, [`crate::compensation::Residual`]) and [`simulate`](super::simulate()) from a
+//! nonlinearity, [`crate::limit_cycle::Residual`]) and [`simulate`](super::simulate()) from a
 //! start-up kick, then [`detect`](super::detect()) on the nonlinearity's input. [`receipt`]
 //! turns the result into a [`Receipt`] of kind [`ReceiptKind::LimitCycle`]:
 //!
@@ -25,7 +25,7 @@ use super::detect::{detect, DetectOptions, SimulatedLimitCycle};
 use super::lure::{LureLoop, Nonlinearity, Site};
 use super::predict::{predict_with, PredictOptions, PredictedLimitCycle};
 use super::simulate::{simulate, SimSpec};
-use crate::compensation::Residual;
+use crate::limit_cycle::Residual;
 use crate::error::{Error, Result};
 use crate::robust::receipts::{Comparison, Receipt, ReceiptKind};
 use ferrosid_codegen::Compensation;

@@ -17,7 +17,7 @@
 //!
 //! The recorded signal `nl_input` is the nonlinearity's input at each sample (u for `drive` —
 //! with a compensation, the command u_c before the dead-zone/backlash inverses, the input of
-//! the residual nonlinearity [`crate::compensation::Residual`] —
+//! the residual nonlinearity [`crate::limit_cycle::Residual`] —
 //! y for `sensor`, the velocity for `velocity`): the signal whose amplitude the describing
 //! function predicts.
 use super::lure::{LureLoop, Nonlinearity, Site};

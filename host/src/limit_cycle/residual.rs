@@ -15,7 +15,7 @@
 //! * Anything else (anti-windup, a part for another site): the effect's own N — anti-windup
 //!   acts on the controller's integrator, outside the describing-function model; its effect is
 //!   seen in the simulation only.
-use crate::limit_cycle::{DescribingFunction, Nonlinearity, Site};
+use super::{DescribingFunction, Nonlinearity, Site};
 use ferrosid_codegen::Compensation;
 use num_complex::Complex64;
 use std::f64::consts::PI;
