@@ -17,12 +17,12 @@
 //! output as the velocity, the friction force enters either at the input or at the slowest real
 //! mode only (the driven body behind faster drive dynamics, e.g. a motor's electrical lag:
 //! [`FrictionPort`]). Quantization is estimated from the lattice of the measured outputs.
-pub use super::friction_port::{slowest_mode, FrictionPort};
-use super::friction_port::fit_linear_params_body;
 use super::effect::{
     deadzone, delay_signal, quantize, resonance_filter, saturation, Effect, EffectKind, Play,
     RateLimiter, StickSlip, NULL_RESONANCE_CYCLES_PER_SAMPLE,
 };
+use super::friction_port::fit_linear_params_body;
+pub use super::friction_port::{slowest_mode, FrictionPort};
 use super::modal::{FitSet, ModalModel};
 use super::optim::levenberg_marquardt_steps;
 use super::place::{default_place, Candidate, Place, PlacedEffect};
@@ -512,7 +512,9 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
             })
             .collect()
     });
-    let body = model.motor_friction().and_then(|lb| Some((lb, model.body_mode()?)));
+    let body = model
+        .motor_friction()
+        .and_then(|lb| Some((lb, model.body_mode()?)));
     let cost = if let Some(((level, breakaway), b)) = body {
         let mut wd = Vec::with_capacity(td.u.len());
         let mut f = Vec::with_capacity(td.u.len());
@@ -757,10 +759,7 @@ pub fn fit_placed(
             let mut picked: Vec<Fitted> = Vec::new();
             // Friction on the slowest mode is a basin of its own kind, not of its level: its
             // best grid point is screened too.
-            let slowest = grid
-                .iter()
-                .find(|g| g.model.body_mode().is_some())
-                .cloned();
+            let slowest = grid.iter().find(|g| g.model.body_mode().is_some()).cloned();
             for g in grid {
                 if picked.len() >= grid_starts(cand) {
                     break;
@@ -1347,8 +1346,7 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
             // (position output); otherwise both proxies are tried.
             let grid = log_grid(0.01 * s, 1.5 * s, 12);
             let mut all = Vec::new();
-            let sources: &[(VelocitySource, FrictionPort)] = if base.linear.real.contains(&1.0)
-            {
+            let sources: &[(VelocitySource, FrictionPort)] = if base.linear.real.contains(&1.0) {
                 &[(VelocitySource::OutputDerivative, FrictionPort::Input)]
             } else if place == Place::Motor && slowest_mode(&base.linear).is_some() {
                 &[
@@ -1366,14 +1364,7 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
                 all.extend(grid.iter().filter_map(|&p| {
                     let mut b = base.clone();
                     b.friction_port = port;
-                    eval_added(
-                        td,
-                        &b,
-                        Effect::CoulombFriction { level: p },
-                        place,
-                        vel,
-                        1,
-                    )
+                    eval_added(td, &b, Effect::CoulombFriction { level: p }, place, vel, 1)
                 }));
             }
             all
@@ -1569,8 +1560,9 @@ mod tests {
         .unwrap();
         lin.residues = vec![-2.0, 0.5];
         lin.offset = 0.1;
-        let mut m = AugmentedModel::linear(lin.clone())
-            .with_added(PlacedEffect::at_default(Effect::CoulombFriction { level: 0.2 }));
+        let mut m = AugmentedModel::linear(lin.clone()).with_added(PlacedEffect::at_default(
+            Effect::CoulombFriction { level: 0.2 },
+        ));
         m.friction_port = FrictionPort::SlowestMode;
         let b = m.body_mode().expect("eligible");
         assert_eq!(b, 1);

@@ -66,7 +66,6 @@ impl AugmentedModel {
         }
         Some((y, fm))
     }
-
 }
 
 /// The slowest real mode of a modal model, the body of [`FrictionPort::SlowestMode`]: the
@@ -176,4 +175,3 @@ pub(crate) fn fit_linear_params_body(
     lin.offset = c[j];
     Some(())
 }
-
