@@ -108,11 +108,13 @@ fn benchmark_subset_holds_the_measured_aggregates() {
     );
 }
 
-// Measured on the diagnosis of h/gapacc (issue 9, session 4), 46 cases: same 8/8, indep 28/38
-// (74 %), cross-family 9/15 (60 %), 0 `none` verdicts above twice the noise floor, 0 linear
-// re-fits worse than the nominal, place right 30/30, median (worst) parameter error 0.9 %
-// (103 %). NOT MET (issue 9 targets): >= 95 % overall (here 36/46 = 78 %), >= 90 %
-// cross-family (60 %), worst parameter error <= 25 % (103 %).
+// Measured on the diagnosis of h/gap9 (issue 9, session 5: friction on the slowest mode, the
+// stick-band rules of gap/select/nested.rs), 46 cases: same 8/8, indep 30/38 (79 %),
+// cross-family 10/15 (67 %), 0 `none` verdicts above twice the noise floor, 0 linear re-fits
+// worse than the nominal, place right 32/32, median (worst) parameter error 0.3 % (100 %).
+// (Session 4, h/gapacc: indep 28/38, cross-family 9/15.) NOT MET (issue 9 targets): >= 95 %
+// overall (here 38/46 = 83 %), >= 90 % cross-family (67 %), worst parameter error <= 25 %
+// (100 %).
 const SAME_RIGHT: usize = 8;
-const INDEP_RIGHT: usize = 28;
-const CROSS_RIGHT: usize = 9;
+const INDEP_RIGHT: usize = 30;
+const CROSS_RIGHT: usize = 10;

@@ -818,7 +818,7 @@ pub fn diagnose(
                 .effect
                 .kind()
                 .is_friction()
-                .then(|| sc.model.velocity.name().to_string()),
+                .then(|| sc.model.velocity_label().to_string()),
             vanished: false,
         })
     };

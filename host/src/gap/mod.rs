@@ -8,6 +8,7 @@ pub mod effect;
 pub mod evidence;
 pub mod figures;
 pub mod fit;
+pub mod friction_port;
 pub mod locate;
 pub mod modal;
 pub mod noise;

@@ -798,7 +798,7 @@ impl ModalModel {
 
 /// Solves the symmetric positive semi-definite system g·c = h after equilibrating by the
 /// diagonal, with a relative ridge of 1e-12 for nearly collinear regressors.
-fn solve_scaled(g: &Mat<f64>, h: &Mat<f64>) -> Option<Vec<f64>> {
+pub(crate) fn solve_scaled(g: &Mat<f64>, h: &Mat<f64>) -> Option<Vec<f64>> {
     let k = g.nrows();
     let s: Vec<f64> = (0..k)
         .map(|i| {
