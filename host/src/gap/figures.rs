@@ -1,4 +1,4 @@
-//! SVG figures of a gap diagnosis (rendered with [`crate::report::plot`]):
+//! SVG figures of a gap diagnosis (rendered with [`crate::plot`]):
 //!
 //! * `gap_frequency.svg` — top: the multiplicative error |G_meas − G_sim|/|G_sim| of the nominal
 //!   sim against the training logs' pooled H1 estimate (coherence-gated bins), the threshold,
