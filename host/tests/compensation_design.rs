@@ -1,21 +1,10 @@
 //! Compensation design from gap verdicts: which part each diagnosed effect gets, disabled for
 //! `none`/`unexplained`, and clear errors for bad diagnoses and options.
+mod limit_cycle_support;
 use ferrosid::compensation::{design_from, parse_verdict, ControlStep, DesignOptions};
 use ferrosid::gap::report::VerdictEffect;
 use ferrosid::robust::pid::Pid;
-use std::collections::BTreeMap;
-
-fn ve(effect: &str, place: &str, params: &[(&str, f64)]) -> VerdictEffect {
-    VerdictEffect {
-        effect: effect.into(),
-        place: place.into(),
-        params: params
-            .iter()
-            .map(|(k, v)| (k.to_string(), *v))
-            .collect::<BTreeMap<_, _>>(),
-        share: 1.0,
-    }
-}
+use limit_cycle_support::verdict as ve;
 
 fn opts() -> DesignOptions {
     DesignOptions::new("ferrosid gap on a.csv,b.csv", 0.01, 0.05)

@@ -1,44 +1,22 @@
 //! The compensation stage: limit-cycle receipts before/after and the choice (compensate,
 //! widen W_m, keep) for the friction loop of limit_cycle_loops.rs and for verdicts without
 //! anything to compensate.
+mod limit_cycle_support;
 use ferrosid::compensation::DesignOptions;
 use ferrosid::gap::report::VerdictEffect;
 use ferrosid::limit_cycle::AnalysisOptions;
-use ferrosid::lti::{poly_mul, StateSpace, TransferFunction};
+use ferrosid::lti::StateSpace;
 use ferrosid::pipeline::compensation_stage::{
     compensation_stage_from, Choice, CompensationStageOptions,
 };
-use ferrosid::robust::pid::{tune_pid, DiscretePid, PidTuningSpec};
-use std::collections::BTreeMap;
-use std::f64::consts::PI;
+use ferrosid::robust::pid::DiscretePid;
+use limit_cycle_support::{speed_plant_with_actuator_lag, tuned, verdict as ve, TS};
 
 fn friction_loop() -> (StateSpace, DiscretePid) {
-    let wa = 2.0 * PI * 40.0;
-    let g = TransferFunction::new(
-        vec![200.0 * wa * wa],
-        poly_mul(&[0.2, 1.0], &[1.0, 1.4 * wa, wa * wa]),
-        0.0,
-    )
-    .unwrap()
-    .to_state_space()
-    .unwrap();
-    let mut spec = PidTuningSpec::new(5.0);
-    spec.controller_ts = Some(1e-3);
-    let pid = tune_pid(&g, &spec).unwrap().discrete.unwrap();
+    let g = speed_plant_with_actuator_lag();
+    let pid = tuned(&g, 5.0, None);
     // The loop as the pipeline has it: G0 discrete at the controller rate.
-    (g.c2d_zoh(1e-3).unwrap(), pid)
-}
-
-fn ve(effect: &str, place: &str, params: &[(&str, f64)]) -> VerdictEffect {
-    VerdictEffect {
-        effect: effect.into(),
-        place: place.into(),
-        params: params
-            .iter()
-            .map(|(k, v)| (k.to_string(), *v))
-            .collect::<BTreeMap<_, _>>(),
-        share: 1.0,
-    }
+    (g.c2d_zoh(TS).unwrap(), pid)
 }
 
 fn opts() -> CompensationStageOptions {

@@ -17,36 +17,21 @@
 //! agrees with the simulation within 25 % in frequency and 20 % in amplitude (measured:
 //! friction 40.1 vs 39.9 Hz, 0.0312 vs 0.0316 rad/s; dead zone 1.95 vs 1.88 Hz, 0.747 vs
 //! 0.654 N; backlash 1.80 vs 1.47 Hz, 0.0123 vs 0.0110 N·m).
+mod limit_cycle_support;
 use ferrosid::compensation::{design_from, DesignOptions};
 use ferrosid::gap::effect::Effect;
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::gap::place::{Place, PlacedEffect};
 use ferrosid::gap::plant::Plant;
-use ferrosid::gap::report::VerdictEffect;
 use ferrosid::limit_cycle::*;
-use ferrosid::lti::{poly_mul, StateSpace, TransferFunction};
-use ferrosid::robust::pid::{tune_pid, DiscretePid, Pid, PidTuningSpec};
+use ferrosid::lti::{poly_mul, TransferFunction};
+use ferrosid::robust::pid::Pid;
 use ferrosid::robust::receipts::ReceiptKind;
-use std::collections::BTreeMap;
+use limit_cycle_support::{speed_plant_with_actuator_lag, tuned, unity_p, verdict};
 use std::f64::consts::PI;
 
-fn tuned(plant: &StateSpace, fc: f64, rolloff: Option<(f64, f64)>) -> DiscretePid {
-    let mut spec = PidTuningSpec::new(fc);
-    spec.controller_ts = Some(1e-3);
-    spec.rolloff_ratio = rolloff;
-    tune_pid(plant, &spec).unwrap().discrete.unwrap()
-}
-
 fn friction_loop() -> LureLoop {
-    let wa = 2.0 * PI * 40.0;
-    let g = TransferFunction::new(
-        vec![200.0 * wa * wa],
-        poly_mul(&[0.2, 1.0], &[1.0, 1.4 * wa, wa * wa]),
-        0.0,
-    )
-    .unwrap()
-    .to_state_space()
-    .unwrap();
+    let g = speed_plant_with_actuator_lag();
     LureLoop::new(&g, &tuned(&g, 5.0, None), VelocitySource::Output).unwrap()
 }
 
@@ -62,18 +47,6 @@ fn dead_zone_loop() -> LureLoop {
     .discretize(1e-3, None)
     .unwrap();
     LureLoop::new(&ax, &pid, VelocitySource::OutputDerivative).unwrap()
-}
-
-fn verdict(effect: &str, place: &str, params: &[(&str, f64)]) -> VerdictEffect {
-    VerdictEffect {
-        effect: effect.into(),
-        place: place.into(),
-        params: params
-            .iter()
-            .map(|(k, v)| (k.to_string(), *v))
-            .collect::<BTreeMap<_, _>>(),
-        share: 1.0,
-    }
 }
 
 fn one_stable(a: &LimitCycleAnalysis) -> PredictedLimitCycle {
@@ -233,15 +206,7 @@ fn relay_with_third_order_plant_matches_the_closed_form() {
         .to_state_space()
         .unwrap();
     // Unity feedback through a P controller of gain 1.
-    let pid = Pid {
-        kp: 1.0,
-        ki: 0.0,
-        kd: 0.0,
-        tau_f: 0.0,
-        rolloff: None,
-    }
-    .discretize(1e-4, None)
-    .unwrap();
+    let pid = unity_p(1e-4);
     let lp = LureLoop::new(&g, &pid, VelocitySource::Output).unwrap();
     // An ideal relay on the command.
     let nl = Nonlinearity {

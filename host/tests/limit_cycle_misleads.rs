@@ -7,12 +7,14 @@
 //! Loop: the positioning axis of `gap::plant` (2 kg, 10 N·s/m, output mm), PID kp 0.3 N/mm,
 //! ki 5 N/(mm·s), kd 0.03 N·s/mm, τ_f 2 ms, 1 ms sample time; stiction sliding 0.5 N,
 //! breakaway 1.0 N. Measured: hunting at 1.15 Hz, velocity first harmonic 10.9 mm/s.
+mod limit_cycle_support;
 use ferrosid::gap::effect::Effect;
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::gap::place::{Place, PlacedEffect};
 use ferrosid::gap::plant::Plant;
 use ferrosid::limit_cycle::*;
 use ferrosid::robust::pid::Pid;
+use limit_cycle_support::unity_p;
 
 #[test]
 fn stiction_hunting_is_missed_by_the_describing_function_and_found_by_simulation() {
@@ -66,15 +68,7 @@ fn sampling_makes_a_nyquist_cycle_whose_amplitude_the_describing_function_overst
         .unwrap()
         .to_state_space()
         .unwrap();
-    let pid = Pid {
-        kp: 1.0,
-        ki: 0.0,
-        kd: 0.0,
-        tau_f: 0.0,
-        rolloff: None,
-    }
-    .discretize(ts, None)
-    .unwrap();
+    let pid = unity_p(ts);
     let lp = LureLoop::new(&g, &pid, VelocitySource::Output).unwrap();
     let nl = Nonlinearity {
         df: DescribingFunction::Relay { level: m },
