@@ -386,7 +386,8 @@ pub struct ResidualTest {
     pub independence_ok: bool,
 }
 
-fn demeaned(x: &[f64]) -> Vec<f64> {
+/// `x` minus its mean.
+pub(crate) fn demeaned(x: &[f64]) -> Vec<f64> {
     let m = x.iter().sum::<f64>() / x.len() as f64;
     x.iter().map(|v| v - m).collect()
 }

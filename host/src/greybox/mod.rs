@@ -259,12 +259,8 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             ),
         });
     }
-    let demean = |x: &[f64]| {
-        let m = x.iter().sum::<f64>() / x.len() as f64;
-        x.iter().map(|v| v - m).collect::<Vec<f64>>()
-    };
-    let u = demean(data.u[0]);
-    let y = demean(data.y[0]);
+    let u = crate::validate::demeaned(data.u[0]);
+    let y = crate::validate::demeaned(data.y[0]);
     let (ur, yr) = ([u.as_slice()], [y.as_slice()]);
     let centred = ChannelSet {
         u: &ur,
