@@ -32,13 +32,13 @@
 use crate::error::{Error, Result};
 use crate::gap::effect::{deadzone, quantize, saturation, Play};
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::f64::consts::PI;
 
 /// A nonlinearity with its parameters, all in the units of its input signal (input units for
 /// drive effects and friction forces, output units for sensor effects) except friction, whose
 /// *input* is a velocity and whose *output* (`level`) is a force in plant input units.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum DescribingFunction {
     /// Ideal relay ±`level` (Coulomb friction against velocity).

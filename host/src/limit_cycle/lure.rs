@@ -60,7 +60,7 @@ impl Site {
 }
 
 /// One nonlinearity of the loop: its describing function and its site.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Nonlinearity {
     /// The nonlinearity with its parameters.
     pub df: DescribingFunction,

@@ -69,7 +69,7 @@ impl Default for AnalysisOptions {
 }
 
 /// Prediction and simulation of one nonlinearity in the loop.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LimitCycleAnalysis {
     /// The nonlinearity analysed.
     pub nonlinearity: Nonlinearity,
