@@ -375,24 +375,50 @@ where
         .draw()
         .map_err(&e)?;
     let (xrange, yrange) = (chart.x_range(), chart.y_range());
-    let (ylo, yhi) = (yrange.start, yrange.end);
-    let (xlo, xhi) = (xrange.start, xrange.end);
-    // Shaded bands, clipped to the x range.
+    let b = Bounds {
+        x: (xrange.start, xrange.end),
+        y: (yrange.start, yrange.end),
+    };
+    draw_bands(name, &mut chart, p, b)?;
+    draw_rules(name, &mut chart, p, b)?;
+    for s in &p.series {
+        draw_series(name, &mut chart, p, s, b)?;
+    }
+    draw_legend(name, &mut chart, p)
+}
+
+/// A panel's chart: SVG backend, two f64 axes (linear or logarithmic).
+type Chart<'a, 'b, X, Y> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<X, Y>>;
+
+/// The drawn axis ranges `(lo, hi)` of a panel.
+#[derive(Clone, Copy)]
+struct Bounds {
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+/// Shaded x-bands, clipped to the x range; the first one carries the band label.
+fn draw_bands<X, Y>(name: &str, chart: &mut Chart<'_, '_, X, Y>, p: &Panel, b: Bounds) -> Result<()>
+where
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    let e = err(name);
     let mut first_band = true;
-    for b in &p.bands {
-        let (a, c) = (b.x0.max(xlo), b.x1.min(xhi));
+    for band in &p.bands {
+        let (a, c) = (band.x0.max(b.x.0), band.x1.min(b.x.1));
         if a.is_nan() || c.is_nan() || a > c {
             continue;
         }
         let anno = chart
             .draw_series(std::iter::once(Rectangle::new(
-                [(a, ylo), (c, yhi)],
-                b.color.mix(0.55).filled(),
+                [(a, b.y.0), (c, b.y.1)],
+                band.color.mix(0.55).filled(),
             )))
             .map_err(&e)?;
         if first_band {
             if let Some(l) = &p.band_label {
-                let col = b.color;
+                let col = band.color;
                 anno.label(l.as_str()).legend(move |(x, y)| {
                     Rectangle::new([(x, y - 6), (x + 20, y + 6)], col.mix(0.55).filled())
                 });
@@ -400,111 +426,136 @@ where
             first_band = false;
         }
     }
-    for h in &p.hlines {
-        if !(h.at.is_finite() && h.at > ylo && h.at < yhi) {
-            continue;
-        }
-        let col = h.color;
+    Ok(())
+}
+
+/// Dashed horizontal and vertical reference lines inside the ranges, with their labels.
+fn draw_rules<X, Y>(name: &str, chart: &mut Chart<'_, '_, X, Y>, p: &Panel, b: Bounds) -> Result<()>
+where
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    let e = err(name);
+    let horizontal = p
+        .hlines
+        .iter()
+        .filter(|h| h.at.is_finite() && h.at > b.y.0 && h.at < b.y.1)
+        .map(|h| (h, [(b.x.0, h.at), (b.x.1, h.at)]));
+    let vertical = p
+        .vlines
+        .iter()
+        .filter(|v| v.at.is_finite() && v.at > b.x.0 && v.at < b.x.1)
+        .map(|v| (v, [(v.at, b.y.0), (v.at, b.y.1)]));
+    for (rule, ends) in horizontal.chain(vertical) {
+        let col = rule.color;
         let anno = chart
-            .draw_series(DashedLineSeries::new(
-                vec![(xlo, h.at), (xhi, h.at)],
-                6,
-                4,
-                col.stroke_width(1),
-            ))
+            .draw_series(DashedLineSeries::new(ends, 6, 4, col.stroke_width(1)))
             .map_err(&e)?;
-        if let Some(l) = &h.label {
+        if let Some(l) = &rule.label {
             anno.label(l.as_str())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
         }
     }
-    for v in &p.vlines {
-        if !(v.at.is_finite() && v.at > xlo && v.at < xhi) {
-            continue;
-        }
-        let col = v.color;
-        let anno = chart
-            .draw_series(DashedLineSeries::new(
-                vec![(v.at, ylo), (v.at, yhi)],
-                6,
-                4,
-                col.stroke_width(1),
-            ))
-            .map_err(&e)?;
-        if let Some(l) = &v.label {
-            anno.label(l.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
-        }
-    }
-    // Points outside the y range are not drawn and break lines (no clamping: a clamped line
-    // would draw data that is not there).
-    let tol = 1e-9 * (yhi - ylo).abs();
-    let xtol = 1e-9 * (xhi - xlo).abs();
+    Ok(())
+}
+
+/// The runs of a series' points that can be drawn: points outside the ranges (or unusable
+/// on a log axis) are not drawn and break lines (no clamping: a clamped line would draw data
+/// that is not there).
+fn drawable_pieces(p: &Panel, s: &Series, b: Bounds) -> Vec<Vec<(f64, f64)>> {
+    let tol = 1e-9 * (b.y.1 - b.y.0).abs();
+    let xtol = 1e-9 * (b.x.1 - b.x.0).abs();
     let inside = |x: f64, y: f64| {
-        p.usable(x, y) && y >= ylo - tol && y <= yhi + tol && x >= xlo - xtol && x <= xhi + xtol
+        p.usable(x, y)
+            && y >= b.y.0 - tol
+            && y <= b.y.1 + tol
+            && x >= b.x.0 - xtol
+            && x <= b.x.1 + xtol
     };
-    for s in &p.series {
-        let col = s.color;
-        // Split lines at unusable points.
-        let mut pieces: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
-        for &(x, y) in &s.points {
-            if inside(x, y) {
-                if let Some(last) = pieces.last_mut() {
-                    last.push((x, y));
-                }
-            } else if pieces.last().is_some_and(|l| !l.is_empty()) {
-                pieces.push(Vec::new());
+    let mut pieces: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+    for &(x, y) in &s.points {
+        if inside(x, y) {
+            if let Some(last) = pieces.last_mut() {
+                last.push((x, y));
             }
+        } else if pieces.last().is_some_and(|l| !l.is_empty()) {
+            pieces.push(Vec::new());
         }
-        let mut labelled = false;
-        for piece in pieces.iter().filter(|pc| !pc.is_empty()) {
-            let anno = match s.kind {
-                Kind::Line(w) => chart
-                    .draw_series(LineSeries::new(piece.iter().copied(), col.stroke_width(w)))
-                    .map_err(&e)?,
-                Kind::Dashed(w) => chart
-                    .draw_series(DashedLineSeries::new(
-                        piece.iter().copied(),
-                        7,
-                        4,
-                        col.stroke_width(w),
-                    ))
-                    .map_err(&e)?,
-                Kind::Points(r) => chart
-                    .draw_series(piece.iter().map(|&pt| Circle::new(pt, r, col.filled())))
-                    .map_err(&e)?,
-                Kind::Hollow(r) => chart
-                    .draw_series(
-                        piece
-                            .iter()
-                            .map(|&pt| Circle::new(pt, r, col.stroke_width(1))),
-                    )
-                    .map_err(&e)?,
-            };
-            if !labelled {
-                if let Some(l) = &s.label {
-                    match s.kind {
-                        Kind::Line(w) | Kind::Dashed(w) => {
-                            anno.label(l.as_str()).legend(move |(x, y)| {
-                                PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(w))
-                            });
-                        }
-                        Kind::Points(r) => {
-                            anno.label(l.as_str()).legend(move |(x, y)| {
-                                Circle::new((x + 10, y), r.max(3), col.filled())
-                            });
-                        }
-                        Kind::Hollow(r) => {
-                            anno.label(l.as_str()).legend(move |(x, y)| {
-                                Circle::new((x + 10, y), r.max(3), col.stroke_width(1))
-                            });
-                        }
-                    }
-                }
-                labelled = true;
+    }
+    pieces.retain(|pc| !pc.is_empty());
+    pieces
+}
+
+/// One series, piece by piece; its label goes on the first piece drawn.
+fn draw_series<X, Y>(
+    name: &str,
+    chart: &mut Chart<'_, '_, X, Y>,
+    p: &Panel,
+    s: &Series,
+    b: Bounds,
+) -> Result<()>
+where
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    let e = err(name);
+    let col = s.color;
+    for (i, piece) in drawable_pieces(p, s, b).iter().enumerate() {
+        let anno = match s.kind {
+            Kind::Line(w) => chart
+                .draw_series(LineSeries::new(piece.iter().copied(), col.stroke_width(w)))
+                .map_err(&e)?,
+            Kind::Dashed(w) => chart
+                .draw_series(DashedLineSeries::new(
+                    piece.iter().copied(),
+                    7,
+                    4,
+                    col.stroke_width(w),
+                ))
+                .map_err(&e)?,
+            Kind::Points(r) => chart
+                .draw_series(piece.iter().map(|&pt| Circle::new(pt, r, col.filled())))
+                .map_err(&e)?,
+            Kind::Hollow(r) => chart
+                .draw_series(
+                    piece
+                        .iter()
+                        .map(|&pt| Circle::new(pt, r, col.stroke_width(1))),
+                )
+                .map_err(&e)?,
+        };
+        let Some(l) = s.label.as_ref().filter(|_| i == 0) else {
+            continue;
+        };
+        match s.kind {
+            Kind::Line(w) | Kind::Dashed(w) => {
+                anno.label(l.as_str()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(w))
+                });
+            }
+            Kind::Points(r) => {
+                anno.label(l.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 10, y), r.max(3), col.filled()));
+            }
+            Kind::Hollow(r) => {
+                anno.label(l.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 10, y), r.max(3), col.stroke_width(1)));
             }
         }
     }
+    Ok(())
+}
+
+/// The legend box, when the panel asks for one and anything carries a label.
+fn draw_legend<'a, 'b: 'a, X, Y>(
+    name: &str,
+    chart: &mut Chart<'a, 'b, X, Y>,
+    p: &Panel,
+) -> Result<()>
+where
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
     let pos = match p.legend {
         LegendAt::UpperRight => SeriesLabelPosition::UpperRight,
         LegendAt::UpperLeft => SeriesLabelPosition::UpperLeft,
@@ -525,7 +576,7 @@ where
             .background_style(WHITE.mix(0.9))
             .border_style(RGBColor(160, 160, 160))
             .draw()
-            .map_err(&e)?;
+            .map_err(err(name))?;
     }
     Ok(())
 }
