@@ -476,7 +476,7 @@ pub(super) fn edge_bins(z: &[Quad], acc: &mut [Quad], nyq: &mut Pair, radix2_fir
 
 /// Sample `i` (`< N`) of a bank as `(u, y)`.
 #[inline(always)]
-fn sample<const N: usize>(bank: &[Pair; N], i: usize) -> (f32, f32) {
+pub(super) fn sample<const N: usize>(bank: &[Pair; N], i: usize) -> (f32, f32) {
     let [u, y] = bank[i & (N - 1)];
     (u, y)
 }
@@ -492,6 +492,7 @@ pub(super) fn set_sample<const N: usize>(bank: &mut [Pair; N], i: usize, u: f32,
 /// pair is split only at the range's own odd ends, the same for every segment). `r` is the
 /// bank's first sample: summing deviations from it keeps the sums small for signals with an
 /// offset, and so the mean accurate.
+#[inline(never)]
 pub(super) fn sum_range<const N: usize>(
     bank: &[Pair; N],
     start: usize,
@@ -541,6 +542,7 @@ pub(super) fn first_sample<const N: usize>(bank: &[Pair; N]) -> Pair {
 /// Copies samples `start + hop..end + hop` of `old` to `start..end` of `new` (the overlap that
 /// the next segment shares) and adds their deviations from `new`'s first sample
 /// (`old[hop]`, see [`sum_range`]) to `sum` in index order.
+#[inline(never)]
 pub(super) fn copy_range<const N: usize>(
     old: &[Pair; N],
     new: &mut [Pair; N],
@@ -576,6 +578,29 @@ pub(super) fn copy_range<const N: usize>(
     while a < end {
         copy_one(old, new, hop, a, r, sum);
         a += 1;
+    }
+}
+
+/// Copies samples `start + hop..end + hop` of `old` to `start..end` of `new`, four pairs
+/// (eight words) per move, without sums (see [`super::schedule::copy_sums`]).
+#[inline(never)]
+pub(super) fn copy_block<const N: usize>(
+    old: &[Pair; N],
+    new: &mut [Pair; N],
+    hop: usize,
+    start: usize,
+    end: usize,
+) {
+    let end = end.min(N.saturating_sub(hop));
+    if let (Some(src), Some(dst)) = (old.get(start + hop..end + hop), new.get_mut(start..end)) {
+        let (sc, sr) = src.as_chunks::<4>();
+        let (dc, dr) = dst.as_chunks_mut::<4>();
+        for (s, d) in sc.iter().zip(dc) {
+            *d = *s;
+        }
+        for (s, d) in sr.iter().zip(dr) {
+            *d = *s;
+        }
     }
 }
 

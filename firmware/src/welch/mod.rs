@@ -352,11 +352,14 @@ impl<const N: usize> Welch<N> {
         self.job = Job {
             phase: Phase::Copy,
             done: 0,
+            items: 0,
+            cost: 1,
             credit: 0,
             seg_start: self.fill_start as u32,
             sum: self.head_sum,
             accept,
         };
+        (self.job.items, self.job.cost) = self.phase_size();
         self.head_sum = [0.0; 2];
         self.grant = self.budget;
         self.fill ^= 1;
@@ -368,7 +371,7 @@ impl<const N: usize> Welch<N> {
     /// credit (less than one item's cost, or everything once the segment is complete).
     fn work(&mut self, mut credit: i32) -> i32 {
         loop {
-            let (items, cost) = self.phase_size();
+            let (items, cost) = (self.job.items, self.job.cost);
             if self.job.phase == Phase::Idle {
                 return 0;
             }
@@ -390,15 +393,29 @@ impl<const N: usize> Welch<N> {
         }
     }
 
-    /// `(items, ticks per item)` of the current phase.
+    /// `(items, ticks per item)` of the current phase (entered once per phase).
+    #[inline(never)]
     fn phase_size(&self) -> (u32, i32) {
         let overlap = self.cfg.overlap;
+        let hop = N - overlap.min(N - 1);
         schedule::phase_size::<N>(
             self.job.phase,
             overlap,
-            N - overlap.min(N - 1),
+            hop,
             self.job.seg_start as usize,
             self.cfg.window == Window::Hann,
+            self.copy_sums(hop),
+        )
+    }
+
+    /// Whether the segment in work's `Copy` phase sums what it copies ([`schedule::copy_sums`]).
+    #[inline(always)]
+    fn copy_sums(&self, hop: usize) -> bool {
+        schedule::copy_sums(
+            self.cfg.detrend_mean,
+            self.job.accept,
+            hop,
+            self.job.seg_start as usize,
         )
     }
 
@@ -417,7 +434,19 @@ impl<const N: usize> Welch<N> {
             }
             Phase::Sum => {
                 // Mean = reference + mean deviation (see kernels::sum_range).
-                let r = kernels::first_sample(&self.banks[(self.fill ^ 1) & 1]);
+                let work = &self.banks[(self.fill ^ 1) & 1];
+                let r = kernels::first_sample(work);
+                let hop = N - self.cfg.overlap.min(N - 1);
+                if !schedule::copy_sums(true, j.accept, hop, j.seg_start as usize) {
+                    // `head_sum` holds the sum over `hop..N` (the next segment's head) about
+                    // this bank's first sample: add it here, then refer it to the next bank's
+                    // first sample `work[hop]`.
+                    let (u, y) = kernels::sample(work, hop);
+                    let k = (N - hop) as f32;
+                    let tail = self.head_sum;
+                    j.sum = [j.sum[0] + tail[0], j.sum[1] + tail[1]];
+                    self.head_sum = [tail[0] - k * (u - r[0]), tail[1] - k * (y - r[1])];
+                }
                 let inv_n = 1.0 / N as f32;
                 j.sum = [r[0] + j.sum[0] * inv_n, r[1] + j.sum[1] * inv_n];
                 Phase::Stage(0)
@@ -434,6 +463,7 @@ impl<const N: usize> Welch<N> {
             j.credit = 0;
             self.grant = 0;
         }
+        (self.job.items, self.job.cost) = self.phase_size();
     }
 
     /// Runs items `start..start + count` of the current phase.
@@ -449,12 +479,28 @@ impl<const N: usize> Welch<N> {
             Phase::Idle => {}
             Phase::Copy => {
                 let hop = N - self.cfg.overlap.min(N - 1);
-                kernels::copy_range(work, fill, hop, start, start + count, &mut self.head_sum);
+                let sums =
+                    schedule::copy_sums(self.cfg.detrend_mean, j.accept, hop, j.seg_start as usize);
+                if sums {
+                    kernels::copy_range(work, fill, hop, start, start + count, &mut self.head_sum);
+                } else {
+                    kernels::copy_block(work, fill, hop, start, start + count);
+                }
             }
             Phase::Sum => {
-                let a = j.seg_start as usize + start;
+                let (a, b) = (
+                    j.seg_start as usize + start,
+                    j.seg_start as usize + start + count,
+                );
                 let r = kernels::first_sample(work);
-                kernels::sum_range(work, a, a + count, r, &mut j.sum);
+                let hop = N - self.cfg.overlap.min(N - 1);
+                if schedule::copy_sums(true, j.accept, hop, j.seg_start as usize) {
+                    kernels::sum_range(work, a, b, r, &mut j.sum);
+                } else {
+                    // Samples `hop..N` are the next segment's head: summed apart.
+                    kernels::sum_range(work, a, b.min(hop), r, &mut j.sum);
+                    kernels::sum_range(work, a.max(hop), b, r, &mut self.head_sum);
+                }
             }
             Phase::Stage(s) => {
                 let z = kernels::quads_mut(work);

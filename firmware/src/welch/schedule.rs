@@ -44,6 +44,10 @@ pub(super) struct Job {
     pub phase: Phase,
     /// Work items of the current phase already done.
     pub done: u32,
+    /// Work items of the current phase and ticks per item (set on entering the phase).
+    pub items: u32,
+    /// Ticks per work item of the current phase.
+    pub cost: i32,
     /// Unspent work credit (ticks).
     pub credit: i32,
     /// First sample of the work bank that was written by `push` (0 for the first segment
@@ -61,6 +65,8 @@ impl Job {
     pub const IDLE: Job = Job {
         phase: Phase::Idle,
         done: 0,
+        items: 0,
+        cost: 1,
         credit: 0,
         seg_start: 0,
         sum: [0.0; 2],
@@ -76,6 +82,9 @@ pub(super) mod cost {
     pub const COPY_EVEN: i32 = 11;
     /// Copy of one overlap sample, odd hop (sample by sample).
     pub const COPY_ODD: i32 = 20;
+    /// Copy of one overlap sample without sums (four pairs per block move), when the sums of
+    /// the overlap come from the `Sum` phase or are not needed.
+    pub const COPY_PLAIN: i32 = 3;
     /// Sum of one sample.
     pub const SUM: i32 = 6;
     /// First-stage radix-4 butterfly with centring and window.
@@ -117,13 +126,16 @@ pub(super) const fn phase_size<const N: usize>(
     hop: usize,
     seg_start: usize,
     hann: bool,
+    copy_sums: bool,
 ) -> (u32, i32) {
     let m = N / 2;
     match p {
         Phase::Idle => (0, 1),
         Phase::Copy => (
             overlap as u32,
-            if hop.is_multiple_of(2) {
+            if !copy_sums {
+                cost::COPY_PLAIN
+            } else if hop.is_multiple_of(2) {
                 cost::COPY_EVEN
             } else {
                 cost::COPY_ODD
@@ -155,20 +167,36 @@ pub(super) const fn phase_size<const N: usize>(
 /// segment after a reset sums all `N` samples), phase set-ups included.
 pub(super) const fn segment_ticks<const N: usize>(overlap: usize, hop: usize, hann: bool) -> i64 {
     let mut total = 0i64;
+    let copy_sums = copy_sums(true, true, hop, overlap);
     let phases = [Phase::Copy, Phase::Sum, Phase::Combine, Phase::Edges];
     let mut i = 0;
     while i < phases.len() {
-        let (n, c) = phase_size::<N>(phases[i], overlap, hop, 0, hann);
+        let (n, c) = phase_size::<N>(phases[i], overlap, hop, 0, hann, copy_sums);
         total += n as i64 * c as i64 + cost::PHASE as i64;
         i += 1;
     }
     let mut s = 0;
     while s < fft_stages::<N>() {
-        let (n, c) = phase_size::<N>(Phase::Stage(s as u8), overlap, hop, 0, hann);
+        let (n, c) = phase_size::<N>(Phase::Stage(s as u8), overlap, hop, 0, hann, copy_sums);
         total += n as i64 * c as i64 + cost::PHASE as i64;
         s += 1;
     }
     total
+}
+
+/// `true` when the `Copy` phase must sum the samples it copies (the next segment's mean
+/// needs them and this segment's `Sum` phase will not see them): with mean removal, for a
+/// segment that is not transformed (no `Sum` phase) or whose copied samples `hop..N` reach
+/// before the samples it summed itself (`seg_start..N`, i.e. overlap above 50 %). Otherwise
+/// the `Sum` phase keeps the sum of `hop..N` apart ([`Phase::Sum`]) and the copy is a plain
+/// block move.
+pub(super) const fn copy_sums(
+    detrend_mean: bool,
+    accept: bool,
+    hop: usize,
+    seg_start: usize,
+) -> bool {
+    detrend_mean && !(accept && hop >= seg_start)
 }
 
 /// Ticks granted per `push` while a segment is in work. Pushes run work only once the credit
@@ -192,4 +220,4 @@ pub(super) const fn budget_per_push<const N: usize>(overlap: usize, hop: usize, 
 /// Credit (ticks) below which a push does not start a slice: slices then run every few pushes
 /// and their fixed set-up cost is shared; it bounds the largest push at about this many ticks
 /// plus one push's budget.
-pub(super) const SLICE_TICKS: i32 = 3328;
+pub(super) const SLICE_TICKS: i32 = 3840;
