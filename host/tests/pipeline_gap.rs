@@ -31,6 +31,8 @@ fn config(audit_extra: &str, gap_run: &str) -> LoadedConfig {
         "example pipeline changed"
     );
     let text = text.replace("max_gain_shift_db = 3.0\n", "");
+    // The example asks for the diagnosis always; this test sets `[gap] run` itself.
+    let text = text.replace("[gap]\nrun = \"always\"\n", "");
     let text = text.replace("[audit]\n", &format!("[audit]\n{audit_extra}"));
     let text = format!("{text}\n[gap]\nrun = \"{gap_run}\"\n");
     LoadedConfig::from_text(&path, &text).expect("config")

@@ -436,6 +436,7 @@ pub(super) fn cross_validation_of(
 }
 
 /// What the loop receipts stage needs besides the configuration.
+#[derive(Clone)]
 pub(super) struct LoopStageInputs<'a> {
     /// G0.
     pub model: &'a StateSpace,
@@ -708,26 +709,29 @@ pub(super) fn uncertainty(
             level.push(u.beyond_band_level);
         }
     }
-    let w = fit_uncertainty_weight(
-        &freq,
-        &level,
+    let env = EnvelopeData {
+        freq_hz: freq,
+        level,
+        below: below_bins,
+        measured,
+        family: family.iter().map(|m| m.name.clone()).collect(),
+        f_top_hz: f_top,
+    };
+    let w = fit_weight(cfg, &env)?;
+    Ok((Some(env), Some(w), None))
+}
+
+/// W_m fitted to an envelope with the `[uncertainty]` order and floor.
+pub(super) fn fit_weight(cfg: &LoadedConfig, env: &EnvelopeData) -> Result<UncertaintyWeight> {
+    let u = &cfg.config.uncertainty;
+    fit_uncertainty_weight(
+        &env.freq_hz,
+        &env.level,
         &WeightFitOptions {
             order: u.order,
             min_level: u.min_level,
             ..WeightFitOptions::default()
         },
-    )?;
-    Ok((
-        Some(EnvelopeData {
-            freq_hz: freq,
-            level,
-            below: below_bins,
-            measured,
-            family: family.iter().map(|m| m.name.clone()).collect(),
-            f_top_hz: f_top,
-        }),
-        Some(w),
-        None,
-    ))
+    )
 }
 
