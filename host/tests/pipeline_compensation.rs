@@ -46,7 +46,12 @@ fn the_bundled_example_runs_the_whole_chain() {
     }
     assert!(!d.receipts_before.is_empty() && !d.receipts_after.is_empty());
     // The run's receipts are the audit receipts plus the chosen design's.
-    let names: Vec<&str> = run.receipts.receipts.iter().map(|r| r.name.as_str()).collect();
+    let names: Vec<&str> = run
+        .receipts
+        .receipts
+        .iter()
+        .map(|r| r.name.as_str())
+        .collect();
     for r in &d.receipts_after {
         assert!(names.contains(&r.name.as_str()), "{} missing", r.name);
     }
@@ -86,7 +91,10 @@ fn the_printed_summary_shows_diagnosis_and_choice() {
         .output()
         .expect("run ferrosid");
     let stdout = String::from_utf8_lossy(&st.stdout);
-    assert!(stdout.contains("gap diagnosis (triggered by always): verdict"), "{stdout}");
+    assert!(
+        stdout.contains("gap diagnosis (triggered by always): verdict"),
+        "{stdout}"
+    );
     assert!(stdout.contains("  compensation: "), "{stdout}");
     assert!(stdout.contains("receipts before: "), "{stdout}");
     let _ = std::fs::remove_dir_all(&out);
@@ -96,8 +104,14 @@ fn the_printed_summary_shows_diagnosis_and_choice() {
 fn switched_off_never_compensates() {
     let path = example();
     let text = std::fs::read_to_string(&path).unwrap();
-    assert!(text.contains("[compensation]\nenabled = true"), "example changed");
-    let text = text.replace("[compensation]\nenabled = true", "[compensation]\nenabled = false");
+    assert!(
+        text.contains("[compensation]\nenabled = true"),
+        "example changed"
+    );
+    let text = text.replace(
+        "[compensation]\nenabled = true",
+        "[compensation]\nenabled = false",
+    );
     let cfg = LoadedConfig::from_text(&path, &text).expect("config");
     let run = run_pipeline(&cfg, &|_| {}).expect("run");
     let d = run.compensation.decision().expect("decided");

@@ -95,6 +95,26 @@ impl Decision {
     }
 }
 
+impl Decision {
+    /// `compensation.json` ([`crate::ops::codegen::CompensationFile`]): the choice, the reason
+    /// and the block, enabled only for `compensate`.
+    pub fn file(&self) -> crate::ops::codegen::CompensationFile {
+        let mut compensation = self.stage.compensation.clone();
+        compensation.enabled = self.compensation().is_some();
+        crate::ops::codegen::CompensationFile {
+            kind: crate::ops::codegen::COMPENSATION_FILE_KIND.into(),
+            choice: match self.choice {
+                Choice::Compensate => "compensate",
+                Choice::WidenWm => "widen_wm",
+                Choice::Keep => "keep",
+            }
+            .into(),
+            reason: self.reason.clone(),
+            compensation,
+        }
+    }
+}
+
 /// The `widen_wm` branch's new design.
 #[derive(Debug, Clone, Serialize)]
 pub struct Retuned {
@@ -141,6 +161,11 @@ fn is_loop_receipt(r: &Receipt) -> bool {
                 | ReceiptKind::AuditCoherence
         )
     )
+}
+
+/// The design receipts of a list (every receipt but the audit's).
+fn design_receipts(rs: &[Receipt]) -> Vec<Receipt> {
+    rs.iter().filter(|r| is_loop_receipt(r)).cloned().collect()
 }
 
 /// Runs the stage and carries out its choice; `receipts` (the first design's) become the
@@ -202,12 +227,7 @@ pub(super) fn remedy(
             })
         }
     };
-    let mut before: Vec<Receipt> = receipts
-        .receipts
-        .iter()
-        .filter(|r| is_loop_receipt(r))
-        .cloned()
-        .collect();
+    let mut before = design_receipts(&receipts.receipts);
     before.extend(stage.receipts_before());
     let mut retuned = None;
     let after = match stage.choice {
@@ -301,12 +321,7 @@ fn widen_and_retune(
         },
         &mut rs,
     )?;
-    let mut after: Vec<Receipt> = rs
-        .receipts
-        .iter()
-        .filter(|r| is_loop_receipt(r))
-        .cloned()
-        .collect();
+    let mut after = design_receipts(&rs.receipts);
     if let (Some(pid), Some(report)) = (
         tuned.as_ref().and_then(|t| t.discrete.as_ref()),
         inp.gap.report(),
