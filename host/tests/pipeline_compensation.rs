@@ -119,3 +119,115 @@ fn switched_off_never_compensates() {
     assert!(run.compensation_block().is_none());
     assert!(d.stage.effects.iter().all(|e| e.after.is_none()));
 }
+
+/// Writes a benchmark case's logs (low, high, validation) as CSV files and a pipeline file
+/// for them into `dir`; returns the pipeline file.
+fn case_pipeline(dir: &Path, id: &str, extra: &str) -> PathBuf {
+    use ferrosid::gap::benchmark::{cases, generate};
+    let case = cases()
+        .into_iter()
+        .find(|c| c.id == id)
+        .unwrap_or_else(|| panic!("no benchmark case {id}"));
+    let data = generate(&case, 6000).expect("generate");
+    std::fs::create_dir_all(dir).unwrap();
+    let logs = data.train.iter().chain(std::iter::once(&data.validate));
+    for (log, name) in logs.zip(["low", "high", "validate"]) {
+        let mut text = String::from("t,u,y\n");
+        for (k, (u, y)) in log.u().iter().zip(log.y()).enumerate() {
+            text.push_str(&format!("{:.4},{u:e},{y:e}\n", k as f64 * log.ts));
+        }
+        std::fs::write(dir.join(format!("{name}.csv")), text).unwrap();
+    }
+    let toml = format!(
+        "name = \"{id}\"\n[signals]\ninput = \"u\"\noutput = \"y\"\ntime = \"t\"\n\n\
+         [[runs]]\nname = \"low\"\nfile = \"low.csv\"\n\n\
+         [[runs]]\nname = \"high\"\nfile = \"high.csv\"\n\n\
+         [validation]\nfile = \"validate.csv\"\n\n[identification]\nrun = \"high\"\n\n\
+         [control]\ncrossover_hz = 10.0\nactuator_limit = 12.0\nreference_amplitude = 50.0\n\n\
+         {extra}"
+    );
+    let p = dir.join("pipeline.toml");
+    std::fs::write(&p, toml).unwrap();
+    p
+}
+
+/// A DC motor with Coulomb friction on its rotor (behind the electrical lag, the gap
+/// benchmark's case `dc_motor/coulomb_friction/0`): the audit flags it, the diagnosis names the
+/// friction, the compensation stage finds no limit cycle with or without the friction
+/// feedforward and chooses `compensate`; the block reaches `codegen_parts` and
+/// `compensation.json`, which `ferrosid codegen --compensation` reads back.
+#[test]
+fn a_dc_motor_with_friction_is_compensated_automatically() {
+    let dir = scratch("dc-motor");
+    let toml = case_pipeline(
+        &dir,
+        "dc_motor/coulomb_friction/0",
+        "[compensation]\nsimulate_s = 8.0\n",
+    );
+    let cfg = LoadedConfig::load(&toml).expect("config");
+    let run = run_pipeline(&cfg, &|_| {}).expect("run");
+    println!("{}", ferrosid::pipeline::remedy::summary_lines(&run));
+    let (triggered_by, report) = match &run.gap {
+        GapStage::Diagnosed {
+            triggered_by,
+            report,
+        } => (triggered_by, report),
+        other => panic!("expected the diagnosis to trigger, got {other:?}"),
+    };
+    assert!(
+        triggered_by.iter().any(|t| t == "nonlinearity_audit"),
+        "{triggered_by:?}"
+    );
+    assert_eq!(report.verdict, "coulomb_friction");
+    let friction = report
+        .effects
+        .iter()
+        .find(|e| e.effect == "coulomb_friction" && e.place == "motor")
+        .expect("friction fit");
+    println!("velocity_from {:?}", friction.velocity_from);
+    let d = run.compensation.decision().expect("decided");
+    assert_eq!(d.choice, Choice::Compensate, "{}", d.reason);
+    let e = &d.stage.effects[0];
+    assert!(e.receipt_before.pass && e.receipt_after.as_ref().is_some_and(|r| r.pass));
+    let block = run.compensation_block().expect("compensation for the code");
+    let ff = block.friction_feedforward.expect("friction feedforward");
+    let level = report.verdict_effects[0].params["level"];
+    assert_eq!(ff.coulomb, level);
+    let parts = run.codegen_parts().expect("codegen parts");
+    assert_eq!(parts.compensation.as_ref(), Some(block));
+    // compensation.json round trip through the codegen reader.
+    let out = dir.join("out");
+    write_outputs(&run, &out).expect("write");
+    let back = ferrosid::cli::codegen::read_compensation(&out.join("compensation.json"))
+        .expect("codegen reads compensation.json");
+    // serde_json's default float parser may differ from the written value in the last bit.
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-14 * a.abs().max(b.abs());
+    let bf = back.friction_feedforward.expect("read back");
+    assert!(back.enabled && bf.velocity == ff.velocity && bf.viscous == ff.viscous);
+    assert!(close(bf.coulomb, ff.coulomb) && close(bf.smoothing_velocity, ff.smoothing_velocity));
+    assert_eq!(back.provenance.verdict, block.provenance.verdict);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A flexure stage whose friction feedforward would itself drive a slow cycle (the gap
+/// benchmark's `flexure/coulomb_friction/1`): the stage refuses to compensate and widens W_m.
+#[test]
+fn a_compensation_that_makes_a_cycle_is_refused() {
+    let dir = scratch("flexure");
+    // Default simulated time: the cycle is slow (0.6 Hz) and needs its 20 s to show.
+    let toml = case_pipeline(&dir, "flexure/coulomb_friction/1", "");
+    let cfg = LoadedConfig::load(&toml).expect("config");
+    let run = run_pipeline(&cfg, &|_| {}).expect("run");
+    println!("{}", ferrosid::pipeline::remedy::summary_lines(&run));
+    let d = run.compensation.decision().expect("decided");
+    assert_eq!(d.choice, Choice::WidenWm, "{}", d.reason);
+    let e = &d.stage.effects[0];
+    assert!(
+        e.receipt_after.as_ref().is_some_and(|r| !r.pass),
+        "{:?}",
+        e.receipt_after
+    );
+    assert!(d.retuned.is_some());
+    assert!(run.compensation_block().is_none());
+    let _ = std::fs::remove_dir_all(&dir);
+}
