@@ -76,7 +76,9 @@ pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<Pa
         None => out.remove_stale(Path::new("wm.json"))?,
     }
     match run.compensation.decision() {
-        Some(d) => written.push(out.write(Path::new("compensation.json"), &json_pretty(&d.file())?)?),
+        Some(d) => {
+            written.push(out.write(Path::new("compensation.json"), &json_pretty(&d.file())?)?)
+        }
         None => out.remove_stale(Path::new("compensation.json"))?,
     }
     let figures = crate::report::figures(run)?;

@@ -2,8 +2,8 @@
 //! when nothing flags, run when a model receipt fails, and its verdict and gap figures agree
 //! with `ferrosid gap` run by hand on the files the pipeline wrote (a second path: the model
 //! file round trip, the CLI's own log reading and operating point, the same logs).
-use ferrosid::pipeline::gap_stage::GapStage;
 use ferrosid::output::write_outputs;
+use ferrosid::pipeline::gap_stage::GapStage;
 use ferrosid::pipeline::{run_pipeline, LoadedConfig};
 use serde_json::Value;
 use std::path::{Path, PathBuf};

@@ -76,6 +76,55 @@ pub struct SimulatedRun {
     pub compensated: bool,
 }
 
+/// A drive or sensor nonlinearity with its memory (the play's position, the hysteretic
+/// relay's output), applied once per sample.
+struct NlState {
+    df: DescribingFunction,
+    play: Option<Play>,
+    hyst_out: Option<f64>,
+}
+
+impl NlState {
+    fn new(df: DescribingFunction) -> Self {
+        let play = match df {
+            DescribingFunction::Backlash { gap } => Some(Play::new(gap)),
+            _ => None,
+        };
+        Self {
+            df,
+            play,
+            hyst_out: None,
+        }
+    }
+
+    fn apply(&mut self, x: f64) -> f64 {
+        match self.df {
+            DescribingFunction::Saturation { limit } => saturation(x, limit),
+            DescribingFunction::DeadZone { width } => deadzone(x, width),
+            DescribingFunction::Quantization { step } => quantize(x, step),
+            DescribingFunction::Backlash { .. } => self.play.as_mut().map_or(x, |p| p.apply(x)),
+            DescribingFunction::RelayHysteresis { level, half_width } => {
+                let o = self
+                    .hyst_out
+                    .get_or_insert(if x < 0.0 { -level } else { level });
+                if x >= half_width {
+                    *o = level;
+                } else if x <= -half_width {
+                    *o = -level;
+                }
+                *o
+            }
+            DescribingFunction::Relay { level } | DescribingFunction::Stiction { level, .. } => {
+                if x == 0.0 {
+                    0.0
+                } else {
+                    level * x.signum()
+                }
+            }
+        }
+    }
+}
+
 /// Simulates the loop `lp` with `nl` (see the module docs), with `comp` in the control law when
 /// given and enabled. Errors for invalid parameters, a compensation that fails validation (its
 /// field named), a bad spec, or a diverging simulation (non-finite state).
@@ -165,35 +214,7 @@ pub fn simulate(
             nl.df.name()
         )));
     }
-    let mut play = match nl.df {
-        DescribingFunction::Backlash { gap } => Some(Play::new(gap)),
-        _ => None,
-    };
-    let mut hyst_out: Option<f64> = None;
-    let mut static_map = |x: f64| -> f64 {
-        match nl.df {
-            DescribingFunction::Saturation { limit } => saturation(x, limit),
-            DescribingFunction::DeadZone { width } => deadzone(x, width),
-            DescribingFunction::Quantization { step } => quantize(x, step),
-            DescribingFunction::Backlash { .. } => play.as_mut().map_or(x, |p| p.apply(x)),
-            DescribingFunction::RelayHysteresis { level, half_width } => {
-                let o = hyst_out.get_or_insert(if x < 0.0 { -level } else { level });
-                if x >= half_width {
-                    *o = level;
-                } else if x <= -half_width {
-                    *o = -level;
-                }
-                *o
-            }
-            DescribingFunction::Relay { level } | DescribingFunction::Stiction { level, .. } => {
-                if x == 0.0 {
-                    0.0
-                } else {
-                    level * x.signum()
-                }
-            }
-        }
-    };
+    let mut map = NlState::new(nl.df);
     let mut x = vec![0.0; n];
     let mut xn = vec![0.0; n];
     let mut w_prev = 0.0;
@@ -208,13 +229,13 @@ pub fn simulate(
     for k in 0..n_samples {
         let y = dot(&c, &x) + d * w_prev - xf;
         let y_m = if nl.site == Site::Sensor {
-            static_map(y)
+            map.apply(y)
         } else {
             y
         };
         let u = ctl.step(spec.reference, y_m);
         let mut w = if nl.site == Site::Drive {
-            static_map(u)
+            map.apply(u)
         } else {
             u
         };

@@ -1,7 +1,7 @@
 //! The pipeline report: one self-contained HTML file (inline CSS and SVG; no script, no
 //! network access needed to view it) and the same figures as separate SVG files.
 //!
-//! Figures ([`figures`], file names `figures/<name>.svg`):
+//! Figures ([`figures`], one function each in [`charts`]; file names `figures/<name>.svg`):
 //! * `bode` — magnitude and phase of the estimation run's ETFE (filled dots: bins passing the
 //!   coherence gate; hollow grey: rejected bins; shaded: the excluded bands), the other logs'
 //!   ETFEs (thin lines), and the identified model;
@@ -14,12 +14,15 @@
 //! * `step` — the saturated closed-loop step: output with the reference, and the actuator
 //!   command (applied and demanded) against the rails;
 //! * `audit` — gain and phase shifts between amplitudes across the audit band, thresholds;
-//! * `validation` — measured and simulated output on the validation log.
+//! * `validation` — measured and simulated output on the validation log;
+//! * `describing_function`, `limit_cycle` — the compensation stage's describing-function
+//!   picture and simulated loop without/with the compensation ([`compensation_section`]).
 //!
 //! Figures that need missing data (no controller, one run, no validation log) are left out,
 //! and the corresponding report section says why. Section ids (stable, tested):
 //! `verdict`, `receipts`, `frequency-response`, `coherence`, `order`, `robustness`,
-//! `sensitivity`, `step`, `audit`, `validation`, `controller`, `provenance`.
+//! `sensitivity`, `step`, `audit`, `validation`, `gap`, `compensation`, `controller`,
+//! `provenance`.
 mod charts;
 mod compensation_section;
 mod gap_section;
