@@ -11,8 +11,9 @@ use crate::pipeline::{json_pretty, PipelineRun, ReceiptsDocument};
 use std::path::{Path, PathBuf};
 
 /// Files written by [`write_outputs`], relative to the output directory.
-pub const OUTPUT_FILES: [&str; 5] = [
+pub const OUTPUT_FILES: [&str; 6] = [
     "receipts.json",
+    "compensation.json",
     "model.json",
     "pid.json",
     "wm.json",
@@ -73,6 +74,12 @@ pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<Pa
     match &run.weight {
         Some(w) => written.push(out.write(Path::new("wm.json"), &json_pretty(w)?)?),
         None => out.remove_stale(Path::new("wm.json"))?,
+    }
+    match run.compensation.decision() {
+        Some(d) => {
+            written.push(out.write(Path::new("compensation.json"), &json_pretty(&d.file())?)?)
+        }
+        None => out.remove_stale(Path::new("compensation.json"))?,
     }
     let figures = crate::report::figures(run)?;
     for f in &figures {

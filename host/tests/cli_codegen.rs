@@ -317,3 +317,127 @@ fn reidentify_errors_name_the_file() {
     a[1] = "whatever.log";
     assert!(matches!(cmd(&a).unwrap_err(), Error::InvalidArgument(_)));
 }
+
+/// A `compensation.json` as `ferrosid run` writes it, with `choice`, `enabled` and the friction
+/// level substituted.
+/// Writes `text` to `dir/name` and returns the path.
+fn write_in(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.display().to_string()
+}
+
+fn compensation_json(choice: &str, enabled: bool, coulomb: &str) -> String {
+    format!(
+        r#"{{"kind": "ferrosid.compensation/1", "choice": "{choice}", "reason": "test",
+  "compensation": {{"enabled": {enabled},
+    "provenance": {{"effect": "coulomb_friction", "place": "motor",
+      "verdict": "coulomb_friction", "source": "test"}},
+    "friction_feedforward": {{"coulomb": {coulomb}, "viscous": 0.0,
+      "smoothing_velocity": 0.01, "velocity": {{"kind": "output"}}}}}}}}"#
+    )
+}
+
+#[test]
+fn compensation_file_goes_into_the_header_and_bad_ones_are_named() {
+    let dir = scratch("comp");
+    let f = inputs(&dir);
+    let out = dir.join("gen").display().to_string();
+    let w = |name: &str, text: &str| write_in(&dir, name, text);
+    let with_comp = |path: &str| {
+        let mut a: Vec<String> = codegen_args(&f, &out)
+            .into_iter()
+            .map(String::from)
+            .collect();
+        a.extend(["--compensation".to_string(), path.to_string()]);
+        a
+    };
+    let cmd = |a: Vec<String>| cmd(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    // A good file: the block is in the header, enabled.
+    let good = w("c.json", &compensation_json("compensate", true, "0.008"));
+    cmd(with_comp(&good)).expect("codegen with compensation");
+    let h = std::fs::read_to_string(dir.join("gen/unit_7.h")).unwrap();
+    assert!(h.to_lowercase().contains("coulomb"), "{h}");
+    // Round trip of the typed file (the pipeline writes it, codegen reads it back).
+    let text = compensation_json("compensate", true, "0.008");
+    let parsed: ferrosid::ops::codegen::CompensationFile = serde_json::from_str(&text).unwrap();
+    let back: ferrosid::ops::codegen::CompensationFile =
+        serde_json::from_str(&serde_json::to_string(&parsed).unwrap()).unwrap();
+    assert_eq!(parsed, back);
+    parsed.validate().unwrap();
+    // Bad files: each error names the file and what is wrong.
+    for (name, text, what) in [
+        ("c1.json", "{\n\"kind\": 1,\n oops }".to_string(), "line"),
+        (
+            "c2.json",
+            compensation_json("compensate", true, "0.008").replace("/1", "/9"),
+            "kind",
+        ),
+        (
+            "c3.json",
+            compensation_json("tune_harder", false, "0.008"),
+            "choice",
+        ),
+        (
+            "c4.json",
+            compensation_json("widen_wm", true, "0.008"),
+            "enabled",
+        ),
+        (
+            "c5.json",
+            compensation_json("compensate", true, "-1.0"),
+            "coulomb",
+        ),
+        (
+            "c6.json",
+            compensation_json("compensate", true, "0.008").replace("\"reason\"", "\"why\""),
+            "why",
+        ),
+    ] {
+        let p = w(name, &text);
+        let e = cmd(with_comp(&p)).unwrap_err();
+        let s = e.to_string();
+        assert!(s.contains(name), "{name}: {s}");
+        assert!(s.contains(what), "{name}: {s}");
+    }
+}
+
+#[test]
+fn pid_files_are_read_as_typed_formats() {
+    let dir = scratch("pidtypes");
+    let f = inputs(&dir);
+    let out = dir.join("gen").display().to_string();
+    let w = |name: &str, text: &str| write_in(&dir, name, text);
+    let run_with = |pid: &str| {
+        let mut g = f.clone();
+        g[1] = pid.to_string();
+        cmd(&codegen_args(&g, &out))
+            .map(|_| std::fs::read_to_string(dir.join("gen/unit_7.h")).unwrap())
+    };
+    // A discrete PID is used as is.
+    let d = w(
+        "d.json",
+        r#"{"ts": 0.001, "prewarp_hz": null, "kp": 0.5, "ki_d": 0.002, "a_d": 0.6,
+            "b_d": 4.0, "rolloff": null, "num": [1.0], "den": [1.0]}"#,
+    );
+    let h = run_with(&d).expect("discrete");
+    assert!(h.contains("PID_KI_D = 0.002f;"), "{h}");
+    // A tuning result: its discrete controller.
+    let t = w(
+        "t.json",
+        r#"{"pid": {"kp": 0.8, "ki": 4.0, "kd": 0.01, "tau_f": 0.002, "rolloff": null},
+            "discrete": {"ts": 0.001, "prewarp_hz": 5.0, "kp": 0.7, "ki_d": 0.003,
+              "a_d": 0.5, "b_d": 3.0, "rolloff": null, "num": [1.0], "den": [1.0]},
+            "design": {"crossover_hz": 5.0, "integral_ratio": null}}"#,
+    );
+    let h = run_with(&t).expect("tuned");
+    assert!(h.contains("PID_KI_D = 0.003f;"), "{h}");
+    // A discrete PID missing a field: the error says what each format lacks.
+    let bad = w(
+        "b.json",
+        r#"{"ts": 0.001, "kp": 0.5, "a_d": 0.6, "b_d": 4.0, "num": [1.0], "den": [1.0]}"#,
+    );
+    let s = run_with(&bad).unwrap_err().to_string();
+    assert!(s.contains("b.json") && s.contains("not a PID"), "{s}");
+    assert!(s.contains("ki_d") && s.contains("`pid`"), "{s}");
+}

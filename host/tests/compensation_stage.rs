@@ -26,6 +26,7 @@ fn opts() -> CompensationStageOptions {
             amplitude_tol: 0.005,
             ..AnalysisOptions::default()
         },
+        allow_compensation: true,
     }
 }
 

@@ -7,12 +7,19 @@
 //!   object with that under `"model"` also works). A continuous model (`ts = 0`) is discretised
 //!   (ZOH) at `--ts`; a discrete one must already be at the control rate, and its inverse ZOH is
 //!   documented as the continuous model when it exists.
-//! * `--pid`: a continuous PID (`kp, ki, kd, tau_f[, rolloff]`, Tustin-discretised at the model
-//!   rate, prewarped at `--prewarp-hz`), a discrete one (`ki_d, a_d, b_d, ...`), or a tuning
-//!   result (`{"pid", "discrete", "design", ...}`, its discrete controller is used).
+//! * `--pid`: a tuning result (`{"pid", "discrete", "design", ...}`, the `pid.json` of `ferrosid
+//!   run`; its discrete controller is used), a discrete PID (`ts, kp, ki_d, a_d, b_d, num,
+//!   den[, rolloff]`) or a continuous one (`kp, ki, kd, tau_f[, rolloff]`, Tustin-discretised at
+//!   the model rate, prewarped at `--prewarp-hz`). The file is deserialised as each of the three
+//!   types in that order; the first that fits is used (their required fields exclude each
+//!   other), and the error lists why each one did not fit.
 //! * `--wm`: `{"num", "den"}` (a fitted `UncertaintyWeight`), or `--wm-level L` for a flat
 //!   relative tolerance W_m = L.
 //! * `--receipts`: `receipts.json` (`{"receipts": [...]}`, also nested one level deeper).
+//! * `--compensation`: `compensation.json` as `ferrosid run` writes it
+//!   ([`crate::ops::codegen::CompensationFile`], `"kind": "ferrosid.compensation/1"`): the
+//!   compensation block goes into the header and module (applied only when the run chose
+//!   `compensate`; otherwise it is written disabled).
 //! * `--source FILE` (repeatable): logs and settings files whose SHA-256 goes into the
 //!   provenance; the model/PID/W_m/receipts files are always included.
 //!
@@ -35,8 +42,11 @@ use crate::error::{Error, Result};
 use crate::io::file_safety::{refuse_input_overwrite, write_atomic};
 use crate::lti::{StateSpace, StateSpaceData};
 pub use crate::ops::codegen::default_check_hz;
-use crate::ops::codegen::{codegen_input, sig4, CodegenOptions, CodegenParts, ControllerSource};
-use crate::robust::pid::Pid;
+use crate::ops::codegen::{
+    codegen_input, sig4, CodegenOptions, CodegenParts, CompensationFile, ControllerSource,
+    COMPENSATION_FILE_KIND,
+};
+use crate::robust::pid::{DiscretePid, Pid};
 use ferrosid_codegen as cg;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -73,6 +83,9 @@ pub struct Args {
     /// Receipts JSON for the provenance summary.
     #[arg(long, value_name = "FILE")]
     pub receipts: Option<PathBuf>,
+    /// Compensation JSON (`compensation.json` of `ferrosid run`).
+    #[arg(long, value_name = "FILE")]
+    pub compensation: Option<PathBuf>,
     /// Source file (log, settings) whose SHA-256 goes into the provenance. Repeatable.
     #[arg(long = "source", value_name = "FILE")]
     pub sources: Vec<PathBuf>,
@@ -123,11 +136,22 @@ pub struct Args {
     pub json: bool,
 }
 
-fn read_json(path: &Path) -> Result<Value> {
+fn read_text(path: &Path) -> Result<String> {
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
         file: path.to_path_buf(),
         source,
     })?;
+    // Malformed JSON is a parse error with its line, whatever the expected type.
+    serde_json::from_str::<serde::de::IgnoredAny>(&text).map_err(|e| Error::Parse {
+        file: path.to_path_buf(),
+        line: e.line(),
+        msg: format!("not valid JSON: {e}"),
+    })?;
+    Ok(text)
+}
+
+fn read_json(path: &Path) -> Result<Value> {
+    let text = read_text(path)?;
     serde_json::from_str(&text).map_err(|e| Error::Parse {
         file: path.to_path_buf(),
         line: e.line(),
@@ -148,62 +172,86 @@ pub fn read_model(path: &Path) -> Result<StateSpace> {
 }
 
 /// [`read_model`] with the operating point the file records (None for files without one).
+/// The file is a [`StateSpaceData`], or an object with one under `"model"`.
 pub fn read_model_file(path: &Path) -> Result<(StateSpace, Option<crate::data::OperatingPoint>)> {
-    let v = read_json(path)?;
-    let inner = if v.get("a").is_some() {
-        v
-    } else if let Some(m) = v.get("model") {
-        m.clone()
-    } else {
-        return Err(data_err(
-            path,
-            "no model: expected an object with \"ts\", \"a\", \"b\", \"c\", \"d\" (or under \"model\")",
-        ));
+    #[derive(serde::Deserialize)]
+    struct Wrapped {
+        model: StateSpaceData,
+    }
+    let text = read_text(path)?;
+    let data = match serde_json::from_str::<StateSpaceData>(&text) {
+        Ok(d) => d,
+        Err(bare) => match serde_json::from_str::<Wrapped>(&text) {
+            Ok(w) => w.model,
+            Err(wrapped) => {
+                return Err(data_err(
+                    path,
+                    format!(
+                        "no model: expected an object with \"ts\", \"a\", \"b\", \"c\", \"d\" \
+                         ({bare}) or one under \"model\" ({wrapped})"
+                    ),
+                ))
+            }
+        },
     };
-    let data: StateSpaceData =
-        serde_json::from_value(inner).map_err(|e| data_err(path, format!("model fields: {e}")))?;
     let sys = StateSpace::try_from(&data).map_err(|e| data_err(path, e.to_string()))?;
     Ok((sys, data.operating_point))
 }
 
-/// Reads a PID file: a discrete PID (`ki_d`, ...), a tuning result (`pid`, `discrete`,
-/// `design`) or a continuous PID (`kp`, ...), as the controller the header is generated for
-/// (a continuous one prewarped at `prewarp_hz`).
+/// Reads a PID file (module docs: a tuning result, a discrete or a continuous PID, tried as
+/// typed formats in that order) as the controller the header is generated for (a continuous
+/// one prewarped at `prewarp_hz`).
 pub fn read_pid(path: &Path, prewarp_hz: Option<f64>) -> Result<ControllerSource> {
-    let v = read_json(path)?;
-    fn de<T: serde::de::DeserializeOwned>(path: &Path, what: &str, v: Value) -> Result<T> {
-        serde_json::from_value(v).map_err(|e| data_err(path, format!("{what}: {e}")))
+    #[derive(serde::Deserialize)]
+    struct Design {
+        crossover_hz: Option<f64>,
     }
-    if v.get("ki_d").is_some() {
-        return Ok(ControllerSource::Discrete(de(path, "discrete PID", v)?));
+    #[derive(serde::Deserialize)]
+    struct TuningFile {
+        pid: Pid,
+        discrete: Option<DiscretePid>,
+        design: Option<Design>,
     }
-    if let Some(p) = v.get("pid") {
-        let pid: Pid = de(path, "tuning result `pid`", p.clone())?;
-        let discrete = match v.get("discrete").filter(|d| !d.is_null()) {
-            Some(d) => Some(de(path, "tuning result `discrete`", d.clone())?),
-            None => None,
-        };
-        let crossover_hz = v
-            .get("design")
-            .and_then(|d| d.get("crossover_hz"))
-            .and_then(Value::as_f64);
-        return Ok(ControllerSource::Tuned {
-            pid,
-            discrete,
-            crossover_hz,
-            prewarp_hz,
-        });
-    }
-    if v.get("kp").is_some() {
-        return Ok(ControllerSource::Continuous {
-            pid: de(path, "continuous PID", v)?,
-            prewarp_hz,
-        });
-    }
+    let text = read_text(path)?;
+    let tuned = match serde_json::from_str::<TuningFile>(&text) {
+        Ok(t) => {
+            return Ok(ControllerSource::Tuned {
+                pid: t.pid,
+                discrete: t.discrete,
+                crossover_hz: t.design.and_then(|d| d.crossover_hz),
+                prewarp_hz,
+            })
+        }
+        Err(e) => e,
+    };
+    let discrete = match serde_json::from_str::<DiscretePid>(&text) {
+        Ok(d) => return Ok(ControllerSource::Discrete(d)),
+        Err(e) => e,
+    };
+    let continuous = match serde_json::from_str::<Pid>(&text) {
+        Ok(pid) => return Ok(ControllerSource::Continuous { pid, prewarp_hz }),
+        Err(e) => e,
+    };
     Err(data_err(
         path,
-        "not a PID: expected \"ki_d\" (discrete), \"kp\" (continuous) or \"pid\" (tuning result)",
+        format!(
+            "not a PID: as a tuning result ({{\"pid\", \"discrete\", \"design\"}}): {tuned}; as a \
+             discrete PID: {discrete}; as a continuous PID: {continuous}"
+        ),
     ))
+}
+
+/// Reads `compensation.json` ([`CompensationFile`], kind `ferrosid.compensation/1`) and checks
+/// it; errors name the file (and the line for malformed JSON).
+pub fn read_compensation(path: &Path) -> Result<cg::Compensation> {
+    let text = read_text(path)?;
+    let f: CompensationFile = serde_json::from_str(&text).map_err(|e| Error::Parse {
+        file: path.to_path_buf(),
+        line: e.line(),
+        msg: format!("not a compensation file ({COMPENSATION_FILE_KIND}): {e}"),
+    })?;
+    f.validate().map_err(|e| data_err(path, e.to_string()))?;
+    Ok(f.compensation)
 }
 
 /// Reads W_m coefficients (`num`, `den`) from a JSON file.
@@ -341,11 +389,18 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
         }
         None => Vec::new(),
     };
+    let compensation = match &args.compensation {
+        Some(p) => {
+            sources.push(digest_file(p, "compensation")?);
+            Some(read_compensation(p)?)
+        }
+        None => None,
+    };
     for s in &args.sources {
         sources.push(digest_file(s, "source")?);
     }
     let parts = CodegenParts {
-        compensation: None,
+        compensation,
         model,
         model_origin: model_path.to_path_buf(),
         operating_point,
@@ -384,6 +439,8 @@ pub struct InputFiles {
     pub pid: Option<PathBuf>,
     /// `--wm` file.
     pub wm: Option<PathBuf>,
+    /// `--compensation` file.
+    pub compensation: Option<PathBuf>,
     /// The sample time came from `--ts` (a continuous model discretised), not from the file.
     pub ts_flag: bool,
 }
@@ -395,6 +452,7 @@ impl InputFiles {
             model: args.model.clone(),
             pid: args.pid.clone(),
             wm: args.wm.clone(),
+            compensation: args.compensation.clone(),
             ts_flag: args.ts.is_some(),
         }
     }
@@ -419,6 +477,7 @@ pub fn codegen_error(e: cg::Error, files: &InputFiles) -> Error {
                 "model" | "continuous" => files.model.as_ref(),
                 "pid" => files.pid.as_ref(),
                 "weight" => files.wm.as_ref(),
+                "compensation" => files.compensation.as_ref(),
                 _ => None,
             };
             match file {
@@ -452,7 +511,7 @@ pub fn generate_to_dir(
     let h = out_dir.join(&g.c_file_name);
     let r = out_dir.join(&g.rs_file_name);
     for path in [&h, &r] {
-        let inputs: Vec<&Path> = [&files.model, &files.pid, &files.wm]
+        let inputs: Vec<&Path> = [&files.model, &files.pid, &files.wm, &files.compensation]
             .into_iter()
             .flatten()
             .map(PathBuf::as_path)

@@ -23,9 +23,7 @@
 use super::ExitCode;
 use crate::error::{Error, Result};
 use crate::output::{prepare_output_dir, write_outputs_to};
-use crate::pipeline::{
-    run_pipeline, LoadedConfig, ReceiptsDocument,
-};
+use crate::pipeline::{run_pipeline, LoadedConfig, ReceiptsDocument};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
@@ -112,6 +110,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
                 None => "no controller (tuning infeasible)".into(),
             }
         ));
+        s.push_str(&crate::pipeline::remedy::summary_lines(&run));
         s.push('\n');
         s.push_str(&doc.summary_text());
         s.push('\n');

@@ -17,6 +17,7 @@
 //! | `drive` (dead zone, saturation, backlash on the command) | command u → plant input w | C·G |
 //! | `sensor` (quantization, sensor clipping) | output y → measurement y_m | G·C |
 //! | `velocity` (Coulomb friction, stiction on the driven mass) | velocity v → friction force F (input units, subtracted at the plant input) | G_v/(1 + C·G) |
+//! | `velocity`, friction on the slowest mode ([`Body`]) | velocity v = y → force F on the body | B/(1 + C·G) |
 //!
 //! G_v is the plant from its input to the velocity friction opposes: G itself when the output
 //! is the velocity ([`VelocitySource::Output`]), s·G when the output is a position
@@ -144,9 +145,25 @@ pub struct LureLoop {
     pub controller: DiscretePid,
     /// Which signal friction opposes.
     pub velocity: VelocitySource,
+    /// Friction on the slowest mode ([`LureLoop::with_friction_on_slowest_mode`]); `None`:
+    /// friction subtracts at the plant input.
+    pub body: Option<Body>,
     plant_eval: FreqEvaluator,
     plant_continuous_eval: Option<FreqEvaluator>,
     controller_tf: TransferFunction,
+}
+
+/// The body friction acts on when it acts on the slowest real mode (the gap fit's
+/// `velocity_from = "output_slowest_mode"`, [`crate::gap::friction_port::FrictionPort`]):
+/// B(s) = dc_gain·(−pole)/(s − pole), the first-order body at the plant's slowest real pole with
+/// the plant's static gain, so a constant force cancels an equal constant input. The output is
+/// the body's velocity: y = G(u) − B(f).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Body {
+    /// Continuous pole s_b = ln(p_b)/T of the slowest real discrete pole p_b, rad/s (< 0).
+    pub pole_rad_s: f64,
+    /// Static gain of the plant G(1) (output units per input unit).
+    pub dc_gain: f64,
 }
 
 impl LureLoop {
@@ -216,8 +233,46 @@ impl LureLoop {
             plant_continuous: pc,
             controller: controller.clone(),
             velocity,
+            body: None,
             controller_tf,
         })
+    }
+
+    /// The loop with friction acting on the plant's slowest real mode ([`Body`]) instead of
+    /// its input. Errors unless the output is the velocity, the discrete plant has at least two
+    /// states, every real pole lies in (0, 1) and the static gain is finite and non-zero (the
+    /// conditions of the gap fit's friction port).
+    pub fn with_friction_on_slowest_mode(mut self) -> Result<Self> {
+        let bad = |why: &str| {
+            Err(Error::InvalidArgument(format!(
+                "limit-cycle loop: friction on the slowest mode needs {why}"
+            )))
+        };
+        if self.velocity != VelocitySource::Output {
+            return bad("the output to be the velocity");
+        }
+        let poles = self.plant.poles()?;
+        if poles.len() < 2 {
+            return bad("a plant with at least two states");
+        }
+        let real: Vec<f64> = poles
+            .iter()
+            .filter(|z| z.im.abs() <= 1e-12 * z.norm().max(1.0))
+            .map(|z| z.re)
+            .collect();
+        if real.is_empty() || real.iter().any(|&p| !(p > 0.0 && p < 1.0 - 1e-9)) {
+            return bad("every real pole of the discrete plant in (0, 1) and at least one");
+        }
+        let pb = real.iter().copied().fold(f64::MIN, f64::max);
+        let dc = self.plant_response(0.0)?.re;
+        if !(dc.is_finite() && dc != 0.0) {
+            return bad("a finite, non-zero static gain");
+        }
+        self.body = Some(Body {
+            pole_rad_s: pb.ln() / self.ts,
+            dc_gain: dc,
+        });
+        Ok(self)
     }
 
     /// Nyquist angular frequency π/T, rad/s.
@@ -246,6 +301,13 @@ impl LureLoop {
                 // velocity is the continuous plant when there is one; the feedback through the
                 // sampled controller is the discrete loop (sampled-data approximation, aliasing
                 // neglected).
+                let one = Complex64::new(1.0, 0.0);
+                if let Some(b) = self.body {
+                    // Friction on the body only: B(jω)/(1 + C·G).
+                    let bv = Complex64::new(-b.dc_gain * b.pole_rad_s, 0.0)
+                        / (Complex64::new(0.0, w_rad_s) - b.pole_rad_s);
+                    return Ok(bv / (one + c * g));
+                }
                 let gv = match (&self.plant_continuous_eval, self.velocity) {
                     (Some(ev), VelocitySource::Output) => ev.at_rad_s(w_rad_s)?[(0, 0)],
                     (Some(ev), VelocitySource::OutputDerivative) => {

@@ -34,7 +34,7 @@ pub mod simulate;
 
 pub use describing::DescribingFunction;
 pub use detect::{detect, DetectOptions, SimulatedLimitCycle};
-pub use lure::{LureLoop, Nonlinearity, Site};
+pub use lure::{Body, LureLoop, Nonlinearity, Site};
 pub use predict::{predict, predict_with, PredictOptions, PredictedLimitCycle};
 pub use receipt::{analyse, receipt, AnalysisOptions, LimitCycleAnalysis};
 pub use residual::Residual;

@@ -25,8 +25,8 @@ use super::detect::{detect, DetectOptions, SimulatedLimitCycle};
 use super::lure::{LureLoop, Nonlinearity, Site};
 use super::predict::{predict_with, PredictOptions, PredictedLimitCycle};
 use super::simulate::{simulate, SimSpec};
-use crate::limit_cycle::Residual;
 use crate::error::{Error, Result};
+use crate::limit_cycle::Residual;
 use crate::robust::receipts::{Comparison, Receipt, ReceiptKind};
 use ferrosid_codegen::Compensation;
 use serde::{Deserialize, Serialize};
@@ -91,7 +91,14 @@ pub struct LimitCycleAnalysis {
     pub duration_s: f64,
     /// Start-up kick used, input units.
     pub kick: f64,
+    /// The plant output over the last [`TRACE_SAMPLES`] samples of the simulation (output
+    /// units, one per controller sample; empty when it diverged), for the report's figure.
+    #[serde(skip)]
+    pub output_trace: Vec<f64>,
 }
+
+/// Samples of the simulated output kept in [`LimitCycleAnalysis::output_trace`].
+pub const TRACE_SAMPLES: usize = 2000;
 
 impl LimitCycleAnalysis {
     /// Predicted cycles that count: stable, with an output amplitude above the tolerance.
@@ -188,6 +195,7 @@ pub fn analyse(
         kick_samples: 5,
         substeps: opts.substeps,
     };
+    let mut output_trace = Vec::new();
     let (simulated, simulated_output, output_tail_half_ptp, diverged) =
         match simulate(lp, nl, comp, &spec) {
             Ok(run) => {
@@ -197,6 +205,7 @@ pub fn analyse(
                 let (lo, hi) = tail
                     .iter()
                     .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+                output_trace = run.y[run.y.len().saturating_sub(TRACE_SAMPLES)..].to_vec();
                 (
                     detect(&run.nl_input, ts, &opts.detect),
                     detect(&run.y, ts, &opts.detect),
@@ -222,6 +231,7 @@ pub fn analyse(
         diverged,
         duration_s,
         kick,
+        output_trace,
     })
 }
 

@@ -14,6 +14,9 @@
 //!    ([`StickSlip`]) deciding at every sub-step whether the friction holds the mass at rest or
 //!    slides — the same law and velocity proxy as the gap fit (the output, or its time
 //!    derivative C(A_c x + B_c w) for a position output); elsewhere one exact discrete step.
+//!    With friction on the slowest mode ([`crate::limit_cycle::Body`]) the force acts on a
+//!    separate first-order body state instead of the plant input (y = G(u) − B(F)), as in the
+//!    gap fit's friction port.
 //!
 //! The recorded signal `nl_input` is the nonlinearity's input at each sample (u for `drive` —
 //! with a compensation, the command u_c before the dead-zone/backlash inverses, the input of
@@ -71,6 +74,55 @@ pub struct SimulatedRun {
     pub u: Vec<f64>,
     /// Whether a compensation was active.
     pub compensated: bool,
+}
+
+/// A drive or sensor nonlinearity with its memory (the play's position, the hysteretic
+/// relay's output), applied once per sample.
+struct NlState {
+    df: DescribingFunction,
+    play: Option<Play>,
+    hyst_out: Option<f64>,
+}
+
+impl NlState {
+    fn new(df: DescribingFunction) -> Self {
+        let play = match df {
+            DescribingFunction::Backlash { gap } => Some(Play::new(gap)),
+            _ => None,
+        };
+        Self {
+            df,
+            play,
+            hyst_out: None,
+        }
+    }
+
+    fn apply(&mut self, x: f64) -> f64 {
+        match self.df {
+            DescribingFunction::Saturation { limit } => saturation(x, limit),
+            DescribingFunction::DeadZone { width } => deadzone(x, width),
+            DescribingFunction::Quantization { step } => quantize(x, step),
+            DescribingFunction::Backlash { .. } => self.play.as_mut().map_or(x, |p| p.apply(x)),
+            DescribingFunction::RelayHysteresis { level, half_width } => {
+                let o = self
+                    .hyst_out
+                    .get_or_insert(if x < 0.0 { -level } else { level });
+                if x >= half_width {
+                    *o = level;
+                } else if x <= -half_width {
+                    *o = -level;
+                }
+                *o
+            }
+            DescribingFunction::Relay { level } | DescribingFunction::Stiction { level, .. } => {
+                if x == 0.0 {
+                    0.0
+                } else {
+                    level * x.signum()
+                }
+            }
+        }
+    }
 }
 
 /// Simulates the loop `lp` with `nl` (see the module docs), with `comp` in the control law when
@@ -137,6 +189,18 @@ pub fn simulate(
     } else {
         dot(&c, &bd) / (ts / m as f64)
     };
+    // Friction on the slowest mode (lp.body): a separate first-order body state x_f per
+    // sub-step h, x_f ← p_h·x_f + K·(1 − p_h)·F, y = C·x + D·w − x_f (the gap fit's
+    // friction port); the velocity is the output.
+    let body = match lp.body {
+        Some(b) if friction => {
+            let ph = (b.pole_rad_s * ts / m as f64).exp();
+            Some((ph, b.dc_gain * (1.0 - ph)))
+        }
+        _ => None,
+    };
+    let g = body.map_or(g, |(_, k)| k);
+    let mut xf = 0.0;
     let mut fr = match (friction, nl.df) {
         (true, DescribingFunction::Relay { level }) => Some(StickSlip::new(level, level)),
         (true, DescribingFunction::Stiction { level, breakaway }) => {
@@ -150,35 +214,7 @@ pub fn simulate(
             nl.df.name()
         )));
     }
-    let mut play = match nl.df {
-        DescribingFunction::Backlash { gap } => Some(Play::new(gap)),
-        _ => None,
-    };
-    let mut hyst_out: Option<f64> = None;
-    let mut static_map = |x: f64| -> f64 {
-        match nl.df {
-            DescribingFunction::Saturation { limit } => saturation(x, limit),
-            DescribingFunction::DeadZone { width } => deadzone(x, width),
-            DescribingFunction::Quantization { step } => quantize(x, step),
-            DescribingFunction::Backlash { .. } => play.as_mut().map_or(x, |p| p.apply(x)),
-            DescribingFunction::RelayHysteresis { level, half_width } => {
-                let o = hyst_out.get_or_insert(if x < 0.0 { -level } else { level });
-                if x >= half_width {
-                    *o = level;
-                } else if x <= -half_width {
-                    *o = -level;
-                }
-                *o
-            }
-            DescribingFunction::Relay { level } | DescribingFunction::Stiction { level, .. } => {
-                if x == 0.0 {
-                    0.0
-                } else {
-                    level * x.signum()
-                }
-            }
-        }
-    };
+    let mut map = NlState::new(nl.df);
     let mut x = vec![0.0; n];
     let mut xn = vec![0.0; n];
     let mut w_prev = 0.0;
@@ -191,22 +227,24 @@ pub fn simulate(
     };
     let mut out_prev = 0.0;
     for k in 0..n_samples {
-        let y = dot(&c, &x) + d * w_prev;
+        let y = dot(&c, &x) + d * w_prev - xf;
         let y_m = if nl.site == Site::Sensor {
-            static_map(y)
+            map.apply(y)
         } else {
             y
         };
         let u = ctl.step(spec.reference, y_m);
         let mut w = if nl.site == Site::Drive {
-            static_map(u)
+            map.apply(u)
         } else {
             u
         };
         if k < spec.kick_samples {
             w += spec.kick;
         }
-        let v_now = if friction {
+        let v_now = if body.is_some() {
+            dot(&c, &x) - xf
+        } else if friction {
             velocity_of(&x, out_prev, w)
         } else {
             0.0
@@ -223,7 +261,11 @@ pub fn simulate(
             for i in 0..n {
                 xn[i] = dot(&ad[i * n..(i + 1) * n], &x) + bd[i] * w;
             }
-            if let Some(f) = fr.as_mut() {
+            if let (Some(f), Some((ph, k))) = (fr.as_mut(), body) {
+                let v_trial = dot(&c, &xn) - ph * xf;
+                let force = f.force(v_trial, g);
+                xf = ph * xf + k * force;
+            } else if let Some(f) = fr.as_mut() {
                 let v_trial = velocity_of(&xn, o_before, w);
                 let force = f.force(v_trial, g);
                 for i in 0..n {

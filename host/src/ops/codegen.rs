@@ -60,6 +60,54 @@ pub struct CodegenParts {
     pub compensation: Option<cg::Compensation>,
 }
 
+/// `kind` of a [`CompensationFile`].
+pub const COMPENSATION_FILE_KIND: &str = "ferrosid.compensation/1";
+
+/// `compensation.json`, written by `ferrosid run` after the compensation stage and read by
+/// `ferrosid codegen --compensation`: the stage's choice, its reason and the compensation block,
+/// enabled only when the choice was `compensate`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompensationFile {
+    /// Always [`COMPENSATION_FILE_KIND`].
+    pub kind: String,
+    /// `compensate`, `widen_wm` or `keep`.
+    pub choice: String,
+    /// Why, in words.
+    pub reason: String,
+    /// The block for the generated code.
+    pub compensation: cg::Compensation,
+}
+
+impl CompensationFile {
+    /// Checks the kind, the choice, the block's fields and that the block is enabled only for
+    /// `compensate`; the message names the field.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::InvalidArgument(m));
+        if self.kind != COMPENSATION_FILE_KIND {
+            return bad(format!(
+                "`kind` is {:?}, expected {COMPENSATION_FILE_KIND:?}",
+                self.kind
+            ));
+        }
+        if !["compensate", "widen_wm", "keep"].contains(&self.choice.as_str()) {
+            return bad(format!(
+                "`choice` is {:?}, expected compensate, widen_wm or keep",
+                self.choice
+            ));
+        }
+        if self.compensation.enabled && self.choice != "compensate" {
+            return bad(format!(
+                "`compensation.enabled` is true but the choice was {:?}",
+                self.choice
+            ));
+        }
+        self.compensation
+            .validate()
+            .map_err(|e| Error::InvalidArgument(format!("`compensation`: {e}")))
+    }
+}
+
 /// Identifier prefix and power-up self-identification settings (see `ferrosid codegen
 /// --help` for each).
 #[derive(Debug, Clone, PartialEq)]
@@ -223,7 +271,9 @@ impl ControllerSource {
     pub fn gains(&self, ts: f64) -> Result<cg::PidGains> {
         Ok(match self {
             Self::Discrete(dp) => pid_gains(dp, None),
-            Self::Continuous { pid, prewarp_hz } => pid_gains(&pid.discretize(ts, *prewarp_hz)?, Some(pid)),
+            Self::Continuous { pid, prewarp_hz } => {
+                pid_gains(&pid.discretize(ts, *prewarp_hz)?, Some(pid))
+            }
             Self::Tuned {
                 pid,
                 discrete: Some(dp),
@@ -234,7 +284,10 @@ impl ControllerSource {
                 discrete: None,
                 crossover_hz,
                 prewarp_hz,
-            } => pid_gains(&pid.discretize(ts, crossover_hz.or(*prewarp_hz))?, Some(pid)),
+            } => pid_gains(
+                &pid.discretize(ts, crossover_hz.or(*prewarp_hz))?,
+                Some(pid),
+            ),
         })
     }
 }

@@ -18,7 +18,7 @@
 //! | effects, nothing to compensate at their place, a receipt fails | `widen_wm` | |
 //! | effects, nothing to compensate, every receipt passes | `keep` | |
 //!
-//! Library only: the lead wires it into `run_pipeline` (receipts.json, report section).
+//! `run_pipeline` runs it after the gap stage and carries out the choice ([`super::remedy`]).
 use crate::compensation::{design_from, parse_verdict, DesignOptions};
 use crate::error::{Error, Result};
 use crate::gap::fit::VelocitySource;
@@ -58,6 +58,51 @@ pub struct EffectCycles {
     pub receipt_before: Receipt,
     /// The receipt with compensation (`None` when it is disabled).
     pub receipt_after: Option<Receipt>,
+    /// The loop's linear part and −1/N(A) in the complex plane, for the report's figure.
+    #[serde(skip)]
+    pub locus: Locus,
+}
+
+/// Points of the describing-function picture: L(e^{jωT}) seen from the nonlinearity and the
+/// locus −1/N(A) (without compensation).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Locus {
+    /// (frequency Hz, Re L, Im L).
+    pub linear_part: Vec<(f64, f64, f64)>,
+    /// (amplitude, Re −1/N, Im −1/N).
+    pub neg_inv_n: Vec<(f64, f64, f64)>,
+}
+
+/// [`Locus`] of `nl` in `lp`: L on 400 log-spaced frequencies from 1e-3 × Nyquist to Nyquist,
+/// −1/N on 400 log-spaced amplitudes over 1e-2..1e3 × the nonlinearity's scale above its
+/// threshold (non-finite points dropped).
+pub fn locus(lp: &LureLoop, nl: &Nonlinearity) -> Locus {
+    let nyq = lp.nyquist_rad_s();
+    let linear_part = crate::pipeline::log_grid(1e-3 * nyq, nyq, 400)
+        .into_iter()
+        .filter_map(|w| {
+            let l = lp.linear_part(nl.site, w).ok()?;
+            (l.re.is_finite() && l.im.is_finite()).then_some((
+                w / (2.0 * std::f64::consts::PI),
+                l.re,
+                l.im,
+            ))
+        })
+        .collect();
+    let (th, sc) = (nl.df.threshold(), nl.df.scale());
+    let neg_inv_n = crate::pipeline::log_grid(1e-2 * sc, 1e3 * sc, 400)
+        .into_iter()
+        .filter_map(|d| {
+            let a = th + d;
+            let n = nl.df.eval(a);
+            let v = -1.0 / n;
+            (n.norm() > 0.0 && v.re.is_finite() && v.im.is_finite()).then_some((a, v.re, v.im))
+        })
+        .collect();
+    Locus {
+        linear_part,
+        neg_inv_n,
+    }
 }
 
 /// What the stage found and chose.
@@ -99,6 +144,9 @@ pub struct CompensationStageOptions {
     pub design: DesignOptions,
     /// Limit-cycle analysis settings (`amplitude_tol`: what the sensor cannot resolve).
     pub analysis: AnalysisOptions,
+    /// Whether `compensate` may be chosen (false: the analyses run without compensation only
+    /// and the choice is `widen_wm` or `keep`; the designed compensation is still reported).
+    pub allow_compensation: bool,
 }
 
 /// Runs the stage on a gap report (module docs). `plant` is G0 (discrete at the controller's
@@ -109,10 +157,14 @@ pub fn run_compensation_stage(
     pid: &DiscretePid,
     opts: &CompensationStageOptions,
 ) -> Result<CompensationStage> {
-    let velocity = report
-        .effects
-        .iter()
-        .find_map(|e| e.velocity_from.as_deref());
+    // The velocity proxy of the verdict's own friction fit (not of another candidate's).
+    let velocity = report.verdict_effects.iter().find_map(|v| {
+        report
+            .effects
+            .iter()
+            .find(|e| e.effect == v.effect && e.place == v.place)
+            .and_then(|e| e.velocity_from.as_deref())
+    });
     compensation_stage_from(
         &report.verdict,
         &report.verdict_effects,
@@ -126,7 +178,8 @@ pub fn run_compensation_stage(
 }
 
 /// [`run_compensation_stage`] from the parts of a gap report: verdict, its effects, the
-/// friction fit's velocity source (`output` or `output_derivative`, `None`: output), and the
+/// friction fit's velocity source (`output`, `output_derivative` or `output_slowest_mode` —
+/// friction on the slowest real mode, [`crate::limit_cycle::Body`]; `None`: output), and the
 /// validation NRMSE of the linear and of the verdict model.
 #[allow(clippy::too_many_arguments)]
 pub fn compensation_stage_from(
@@ -139,13 +192,14 @@ pub fn compensation_stage_from(
     pid: &DiscretePid,
     opts: &CompensationStageOptions,
 ) -> Result<CompensationStage> {
-    let velocity = match velocity_from {
-        None | Some("output") => VelocitySource::Output,
-        Some("output_derivative") => VelocitySource::OutputDerivative,
+    let (velocity, on_body) = match velocity_from {
+        None | Some("output") => (VelocitySource::Output, false),
+        Some("output_derivative") => (VelocitySource::OutputDerivative, false),
+        Some("output_slowest_mode") => (VelocitySource::Output, true),
         Some(other) => {
             return Err(Error::InvalidArgument(format!(
-                "compensation stage: unknown velocity source {other:?} (output or \
-                 output_derivative)"
+                "compensation stage: unknown velocity source {other:?} (output, \
+                 output_derivative or output_slowest_mode)"
             )))
         }
     };
@@ -161,7 +215,10 @@ pub fn compensation_stage_from(
     }
     let compensation = design_from(verdict, verdict_effects, gap_linear, gap_after, &design)?;
     let placed = parse_verdict(verdict, verdict_effects)?;
-    let lp = LureLoop::new(plant, pid, velocity)?;
+    let mut lp = LureLoop::new(plant, pid, velocity)?;
+    if on_body {
+        lp = lp.with_friction_on_slowest_mode()?;
+    }
     let mut effects = Vec::new();
     let mut not_analysed = Vec::new();
     for pe in &placed {
@@ -174,7 +231,7 @@ pub fn compensation_stage_from(
             }
         };
         let before = analyse(&lp, &nl, None, &opts.analysis)?;
-        let after = if compensation.enabled {
+        let after = if compensation.enabled && opts.allow_compensation {
             Some(analyse(&lp, &nl, Some(&compensation), &opts.analysis)?)
         } else {
             None
@@ -182,6 +239,7 @@ pub fn compensation_stage_from(
         effects.push(EffectCycles {
             receipt_before: receipt(&before, &label),
             receipt_after: after.as_ref().map(|a| receipt(a, &label)),
+            locus: locus(&lp, &nl),
             label,
             before,
             after,
@@ -203,6 +261,20 @@ pub fn compensation_stage_from(
             "the gap is unexplained: there is no model of the effect to invert, so W_m must \
              cover it and the loop be re-tuned (lower bandwidth)"
                 .to_string(),
+        ),
+        v if !opts.allow_compensation && !before_ok => (
+            Choice::WidenWm,
+            format!(
+                "{v}: a limit cycle is predicted or simulated and compensation is switched off \
+                 ([compensation] enabled = false); widen W_m and re-tune"
+            ),
+        ),
+        v if !opts.allow_compensation => (
+            Choice::Keep,
+            format!(
+                "{v}: compensation is switched off ([compensation] enabled = false) and no limit \
+                 cycle is predicted or simulated; the loop receipts stand"
+            ),
         ),
         v if compensation.enabled && after_ok => (
             Choice::Compensate,

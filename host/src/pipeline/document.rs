@@ -238,6 +238,10 @@ pub struct ReceiptsDocument {
     /// "triggered_by", "report"}` (the `ferrosid gap --json` report) or `{"status": "failed",
     /// "triggered_by", "error"}`.
     pub gap_diagnosis: super::gap_stage::GapStage,
+    /// The compensation stage and its choice: `{"status": "skipped", "reason"}`,
+    /// `{"status": "failed", "error"}` or `{"status": "decided", "choice", "reason", ...,
+    /// "receipts_before", "receipts_after"}` (docs/receipts-schema.md).
+    pub compensation: super::remedy::CompensationOutcome,
 }
 
 impl ReceiptsDocument {
@@ -372,6 +376,7 @@ impl ReceiptsDocument {
                 settings: run.config.clone(),
             },
             gap_diagnosis: run.gap.clone(),
+            compensation: run.compensation.clone(),
         }
     }
 

@@ -30,6 +30,7 @@ pub mod compensation_stage;
 pub mod config;
 pub mod document;
 pub mod gap_stage;
+pub mod remedy;
 mod stages;
 
 use crate::data::Log;
@@ -219,6 +220,8 @@ pub struct PipelineRun {
     pub receipts: Receipts,
     /// The gap diagnosis of G0 ([`gap_stage`]): run when the audit or a model receipt flags.
     pub gap: gap_stage::GapStage,
+    /// The compensation stage after the diagnosis and its choice ([`remedy`]).
+    pub compensation: remedy::CompensationOutcome,
 }
 
 impl PipelineRun {
@@ -255,7 +258,7 @@ impl PipelineRun {
             })
             .collect();
         Ok(CodegenParts {
-            compensation: None,
+            compensation: self.compensation_block().cloned(),
             model: self.model().clone(),
             model_origin: Path::new(&self.pipeline_file.path).to_path_buf(),
             operating_point: model_file.operating_point,
@@ -269,6 +272,11 @@ impl PipelineRun {
             receipts: self.receipts.receipts.iter().map(receipt_line).collect(),
             sources,
         })
+    }
+
+    /// The compensation for the generated code, when the run chose `compensate`.
+    pub fn compensation_block(&self) -> Option<&ferrosid_codegen::Compensation> {
+        self.compensation.decision().and_then(|d| d.compensation())
     }
 
     /// The estimation run.
@@ -395,20 +403,18 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     let cross_validation =
         stages::cross_validation_of(validation_fit.as_ref(), validation.as_ref(), cv_min);
     let has_cross_validation = cross_validation.is_some();
-    let (loop_report, curves) = stages::loop_receipts(
-        c,
-        stages::LoopStageInputs {
-            model: &model,
-            tuned: tuned.as_ref(),
-            weight: weight.as_ref(),
-            nominal: &runs[nominal],
-            fs,
-            fc,
-            limits: stages::receipt_limits(c, fc),
-            cross_validation,
-        },
-        &mut receipts,
-    )?;
+    let loop_inputs = stages::LoopStageInputs {
+        model: &model,
+        tuned: tuned.as_ref(),
+        weight: weight.as_ref(),
+        nominal: &runs[nominal],
+        fs,
+        fc,
+        limits: stages::receipt_limits(c, fc),
+        cross_validation,
+    };
+    let (mut loop_report, mut curves) =
+        stages::loop_receipts(c, loop_inputs.clone(), &mut receipts)?;
     if !has_cross_validation {
         receipts.push(missing_cross_validation_receipt(cv_min));
     }
@@ -427,6 +433,31 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         validation.as_ref(),
         progress,
     );
+    let compensation = remedy::remedy(
+        remedy::RemedyInputs {
+            cfg,
+            gap: &gap,
+            model: &model,
+            tuned: tuned.as_ref(),
+            envelope: envelope.as_ref(),
+            validation: validation.as_ref(),
+            loop_inputs,
+        },
+        &mut receipts,
+        progress,
+    )?;
+    // `widen_wm`: the re-tuned design replaces the first one downstream.
+    let (mut tuned, mut weight, mut envelope, mut fc) = (tuned, weight, envelope, fc);
+    if let Some(r) = compensation.decision().and_then(|d| d.retuned.as_ref()) {
+        if let (Some(t), Some((rep, cur))) = (&r.tuned, &r.loop_report) {
+            fc = t.design.crossover_hz;
+            tuned = Some(t.clone());
+            weight = Some(r.weight.clone());
+            envelope = Some(r.envelope.clone());
+            loop_report = Some(rep.clone());
+            curves = Some(cur.clone());
+        }
+    }
     progress("done");
     Ok(PipelineRun {
         title: stages::title(cfg),
@@ -452,6 +483,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         receipts_crossover_hz: fc,
         receipts,
         gap,
+        compensation,
     })
 }
 

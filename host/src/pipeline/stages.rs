@@ -5,8 +5,8 @@
 //! error (no weight can be formed, no controller meets the limits) is returned as a value
 //! that becomes a note or a failing receipt.
 use super::config::{self, LoadedConfig, PipelineConfig};
-use super::{display_path, fmt_num, log_grid, rms, sha256_hex, EnvelopeData, InputFile, LogData};
 use super::RESIDUAL_MAX_LAG;
+use super::{display_path, fmt_num, log_grid, rms, sha256_hex, EnvelopeData, InputFile, LogData};
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::io::{read_log, LogSpec};
@@ -16,9 +16,9 @@ use crate::preprocess::preprocess;
 use crate::robust::audit::{audit_nonlinearity, AuditOptions, FrfRun, NonlinearityAudit};
 use crate::robust::pid::{implemented_loop, tune_pid, PidTuningSpec, TunedPid};
 use crate::robust::receipts::{
-    compute_receipts, cross_validation_receipt, etfe_phase_receipt, loop_curves,
-    phase_agreement, Comparison, CrossValidation, EtfeView, LoopCurves, Receipt, ReceiptInputs,
-    ReceiptKind, ReceiptLimits, Receipts, ReceiptsReport,
+    compute_receipts, cross_validation_receipt, etfe_phase_receipt, loop_curves, phase_agreement,
+    Comparison, CrossValidation, EtfeView, LoopCurves, Receipt, ReceiptInputs, ReceiptKind,
+    ReceiptLimits, Receipts, ReceiptsReport,
 };
 use crate::robust::uncertainty::{
     fit_uncertainty_weight, multiplicative_envelope, UncertaintyWeight, WeightFitOptions,
@@ -412,7 +412,10 @@ pub(super) fn receipt_limits(c: &PipelineConfig, fc: f64) -> ReceiptLimits {
     );
     set(&mut limits.overshoot_pct_max, r.overshoot_pct_max);
     set(&mut limits.settling_time_s_max, r.settling_time_s_max);
-    set(&mut limits.etfe_phase_error_deg_max, r.etfe_phase_error_deg_max);
+    set(
+        &mut limits.etfe_phase_error_deg_max,
+        r.etfe_phase_error_deg_max,
+    );
     set(&mut limits.etfe_max_freq_factor, r.etfe_max_freq_factor);
     limits
 }
@@ -436,6 +439,7 @@ pub(super) fn cross_validation_of(
 }
 
 /// What the loop receipts stage needs besides the configuration.
+#[derive(Clone)]
 pub(super) struct LoopStageInputs<'a> {
     /// G0.
     pub model: &'a StateSpace,
@@ -708,26 +712,28 @@ pub(super) fn uncertainty(
             level.push(u.beyond_band_level);
         }
     }
-    let w = fit_uncertainty_weight(
-        &freq,
-        &level,
+    let env = EnvelopeData {
+        freq_hz: freq,
+        level,
+        below: below_bins,
+        measured,
+        family: family.iter().map(|m| m.name.clone()).collect(),
+        f_top_hz: f_top,
+    };
+    let w = fit_weight(cfg, &env)?;
+    Ok((Some(env), Some(w), None))
+}
+
+/// W_m fitted to an envelope with the `[uncertainty]` order and floor.
+pub(super) fn fit_weight(cfg: &LoadedConfig, env: &EnvelopeData) -> Result<UncertaintyWeight> {
+    let u = &cfg.config.uncertainty;
+    fit_uncertainty_weight(
+        &env.freq_hz,
+        &env.level,
         &WeightFitOptions {
             order: u.order,
             min_level: u.min_level,
             ..WeightFitOptions::default()
         },
-    )?;
-    Ok((
-        Some(EnvelopeData {
-            freq_hz: freq,
-            level,
-            below: below_bins,
-            measured,
-            family: family.iter().map(|m| m.name.clone()).collect(),
-            f_top_hz: f_top,
-        }),
-        Some(w),
-        None,
-    ))
+    )
 }
-

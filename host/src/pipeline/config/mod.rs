@@ -11,6 +11,11 @@ use crate::spectral::{Welch, Window};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+mod keys;
+mod validate;
+
+use keys::{find_key_line, key_at_line};
+
 /// Signal selection shared by every log (each log may override it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -459,6 +464,9 @@ pub struct PipelineConfig {
     /// When to run the gap diagnosis of G0 (see [`super::gap_stage`]).
     #[serde(default)]
     pub gap: GapSettings,
+    /// The compensation stage after a diagnosis (see [`super::compensation_stage`]).
+    #[serde(default)]
+    pub compensation: CompensationSettings,
 }
 
 /// `[gap]`: the pipeline's gap-diagnosis stage ([`super::gap_stage`]).
@@ -468,6 +476,53 @@ pub struct GapSettings {
     /// `auto` (default: when the audit or a model receipt flags), `always` or `never`.
     #[serde(default)]
     pub run: super::gap_stage::GapRun,
+}
+
+/// `[compensation]`: the compensation stage after a gap diagnosis
+/// ([`super::compensation_stage`]; keys in docs/pipeline-schema.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompensationSettings {
+    /// Allow the choice `compensate` (false: the stage only analyses and chooses between
+    /// widening W_m and keeping the design).
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// Smoothing band of the friction feedforward, velocity units (output units for a velocity
+    /// output). Default: the sensor noise σ the diagnosis measured (NRMSE noise floor × RMS
+    /// of the validation output), else 1 % of that RMS.
+    #[serde(default)]
+    pub velocity_resolution: Option<f64>,
+    /// Oscillations with an output amplitude at or below this do not count in the
+    /// `limit_cycle` receipt, output units. Default: 3 × the sensor noise σ (as above).
+    #[serde(default)]
+    pub amplitude_tol: Option<f64>,
+    /// Smoothing of the dead-zone and backlash inverses, fraction of width or play, (0, 1].
+    #[serde(default = "default_inverse_smoothing")]
+    pub inverse_smoothing_rel: f64,
+    /// Anti-windup back-calculation time, s. Default: 1/(2π·crossover).
+    #[serde(default)]
+    pub tracking_time_s: Option<f64>,
+    /// Simulated time of each limit-cycle simulation, s (default: 60 periods of the slowest
+    /// predicted cycle, 20,000 to 400,000 samples).
+    #[serde(default)]
+    pub simulate_s: Option<f64>,
+}
+
+fn default_inverse_smoothing() -> f64 {
+    0.01
+}
+
+impl Default for CompensationSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            velocity_resolution: None,
+            amplitude_tol: None,
+            inverse_smoothing_rel: default_inverse_smoothing(),
+            tracking_time_s: None,
+            simulate_s: None,
+        }
+    }
 }
 
 /// Default minimum cross-validation fit, percent.
@@ -572,372 +627,6 @@ impl LoadedConfig {
             .map(|(i, r)| r.name.clone().unwrap_or_else(|| format!("run{}", i + 1)))
             .collect()
     }
-
-    fn validate(&self) -> Result<()> {
-        let c = &self.config;
-        let pos = |key: &str, v: f64| -> Result<()> {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(self.key_error(key, format!("must be finite and > 0, got {v}")))
-            }
-        };
-        if c.runs.is_empty() {
-            return Err(Error::Data {
-                file: self.path.clone(),
-                msg: "no `[[runs]]`: give at least one excitation log".into(),
-            });
-        }
-        let names = self.run_names();
-        for (i, n) in names.iter().enumerate() {
-            if n.is_empty() || n == "validation" {
-                return Err(self.key_error(
-                    &format!("runs[{i}].name"),
-                    format!("`{n}` is reserved or empty; choose another name"),
-                ));
-            }
-            if names[..i].contains(n) {
-                return Err(self.key_error(
-                    &format!("runs[{i}].name"),
-                    format!("duplicate run name `{n}`"),
-                ));
-            }
-        }
-        let mut entries: Vec<(String, &LogEntry)> = c
-            .runs
-            .iter()
-            .enumerate()
-            .map(|(i, r)| (format!("runs[{i}]"), r))
-            .collect();
-        if let Some(v) = &c.validation {
-            entries.push(("validation".into(), v));
-        }
-        for (k, e) in &entries {
-            if e.file.as_os_str().is_empty() {
-                return Err(self.key_error(&format!("{k}.file"), "empty path"));
-            }
-            if let Some(a) = e.amplitude {
-                pos(&format!("{k}.amplitude"), a)?;
-            }
-            if let Some(fs) = e.fs {
-                pos(&format!("{k}.fs"), fs)?;
-            }
-        }
-        if let Some(fs) = c.signals.fs {
-            pos("signals.fs", fs)?;
-        }
-        if let Some(s) = c.signals.time_scale {
-            pos("signals.time_scale", s)?;
-        }
-        if let Some(j) = c.signals.time_jitter {
-            if !(0.0..=crate::io::MAX_TIME_JITTER_REL).contains(&j) {
-                return Err(self.key_error(
-                    "signals.time_jitter",
-                    format!(
-                        "must lie in [0, {}], got {j}",
-                        crate::io::MAX_TIME_JITTER_REL
-                    ),
-                ));
-            }
-        }
-        let max_q = crate::preprocess::MAX_DECIMATION;
-        if !(1..=max_q).contains(&c.preprocess.decimate) {
-            return Err(self.key_error(
-                "preprocess.decimate",
-                format!(
-                    "must be in 1..={max_q} (1 = no decimation), got {}",
-                    c.preprocess.decimate
-                ),
-            ));
-        }
-        let e = &c.etfe;
-        let (lo, hi) = (crate::spectral::MIN_NPERSEG, crate::spectral::MAX_NPERSEG);
-        if !(lo..=hi).contains(&e.nperseg) {
-            return Err(self.key_error(
-                "etfe.nperseg",
-                format!("must be in {lo}..={hi}, got {}", e.nperseg),
-            ));
-        }
-        if let Some(o) = e.overlap {
-            if o >= e.nperseg {
-                return Err(self.key_error(
-                    "etfe.overlap",
-                    format!("must be < nperseg = {}, got {o}", e.nperseg),
-                ));
-            }
-        }
-        if !(e.coherence_gate > 0.0 && e.coherence_gate <= 1.0) {
-            return Err(self.key_error(
-                "etfe.coherence_gate",
-                format!("must lie in (0, 1], got {}", e.coherence_gate),
-            ));
-        }
-        let id = &c.identification;
-        if let Some(r) = &id.run {
-            if !names.contains(r) {
-                return Err(self.key_error(
-                    "identification.run",
-                    format!("no run named `{r}` (runs: {})", names.join(", ")),
-                ));
-            }
-        }
-        let max_i = crate::n4sid::MAX_BLOCK_ROWS;
-        if !(2..=max_i).contains(&id.block_rows) {
-            return Err(self.key_error(
-                "identification.block_rows",
-                format!("must be in 2..={max_i}, got {}", id.block_rows),
-            ));
-        }
-        if id.order == Some(0) {
-            return Err(self.key_error("identification.order", "must be >= 1"));
-        }
-        if id.order.is_some() && (id.order_min.is_some() || id.order_max.is_some()) {
-            return Err(self.key_error(
-                "identification.order",
-                "give either a fixed `order` or `order_min`/`order_max`, not both",
-            ));
-        }
-        if let (Some(lo), Some(hi)) = (id.order_min, id.order_max) {
-            if lo == 0 || hi < lo {
-                return Err(self.key_error(
-                    "identification.order_max",
-                    format!("order range {lo}..={hi} is empty or starts at 0"),
-                ));
-            }
-        }
-        if let Some(m) = id.stability_margin {
-            if !(m > 0.0 && m < 1.0) {
-                return Err(self.key_error(
-                    "identification.stability_margin",
-                    format!("must lie in (0, 1), got {m}"),
-                ));
-            }
-        }
-        let a = &c.audit;
-        if !(a.band_factor > 1.0 && a.band_factor <= MAX_BAND_FACTOR) {
-            return Err(self.key_error(
-                "audit.band_factor",
-                format!("must lie in (1, {MAX_BAND_FACTOR}], got {}", a.band_factor),
-            ));
-        }
-        pos("audit.max_gain_shift_db", a.max_gain_shift_db)?;
-        pos("audit.max_phase_shift_deg", a.max_phase_shift_deg)?;
-        if !(0.0..=1.0).contains(&a.min_coherence) {
-            return Err(self.key_error(
-                "audit.min_coherence",
-                format!("must lie in [0, 1], got {}", a.min_coherence),
-            ));
-        }
-        if !(a.coherence_band_factor >= 1.0 && a.coherence_band_factor <= MAX_BAND_FACTOR) {
-            return Err(self.key_error(
-                "audit.coherence_band_factor",
-                format!(
-                    "must lie in [1, {MAX_BAND_FACTOR}], got {}",
-                    a.coherence_band_factor
-                ),
-            ));
-        }
-        let u = &c.uncertainty;
-        if !(1..=3).contains(&u.order) {
-            return Err(self.key_error(
-                "uncertainty.order",
-                format!("must be 1, 2 or 3, got {}", u.order),
-            ));
-        }
-        pos("uncertainty.min_level", u.min_level)?;
-        if !(u.beyond_band_level.is_finite() && u.beyond_band_level >= 0.0) {
-            return Err(self.key_error(
-                "uncertainty.beyond_band_level",
-                format!("must be finite and >= 0, got {}", u.beyond_band_level),
-            ));
-        }
-        if let Some(b) = u.below_band_level {
-            if !(b.is_finite() && b > 0.0) {
-                return Err(self.key_error(
-                    "uncertainty.below_band_level",
-                    format!("must be finite and > 0, got {b}"),
-                ));
-            }
-        }
-        if let Some(fam) = &u.family {
-            if fam.is_empty() {
-                return Err(self.key_error("uncertainty.family", "is empty"));
-            }
-            for m in fam {
-                let known = names.contains(m) || (m == "validation" && c.validation.is_some());
-                if !known {
-                    return Err(self.key_error(
-                        "uncertainty.family",
-                        format!(
-                            "no log named `{m}` (runs: {}{})",
-                            names.join(", "),
-                            if c.validation.is_some() {
-                                ", validation"
-                            } else {
-                                ""
-                            }
-                        ),
-                    ));
-                }
-            }
-        }
-        let k = &c.control;
-        pos("control.crossover_hz", k.crossover_hz)?;
-        if !(k.ms_max.is_finite() && k.ms_max > 1.0) {
-            return Err(self.key_error(
-                "control.ms_max",
-                format!(
-                    "must be finite and > 1 (|S| >= 1 somewhere for every loop), got {}",
-                    k.ms_max
-                ),
-            ));
-        }
-        pos("control.actuator_limit", k.actuator_limit)?;
-        pos("control.reference_amplitude", k.reference_amplitude)?;
-        if let Some(r) = k.rolloff_ratio {
-            if !(r.is_finite() && r > 1.0) {
-                return Err(self.key_error(
-                    "control.rolloff_ratio",
-                    format!("must be > 1 (corner above the crossover), got {r}"),
-                ));
-            }
-        }
-        pos("control.rolloff_zeta", k.rolloff_zeta)?;
-        if !(k.min_crossover_scale > 0.0 && k.min_crossover_scale <= 1.0) {
-            return Err(self.key_error(
-                "control.min_crossover_scale",
-                format!("must lie in (0, 1], got {}", k.min_crossover_scale),
-            ));
-        }
-        let r = &c.receipts;
-        for (key, v) in [
-            ("receipts.gain_margin_db_min", r.gain_margin_db_min),
-            ("receipts.phase_margin_deg_min", r.phase_margin_deg_min),
-            ("receipts.mt_max", r.mt_max),
-            (
-                "receipts.disturbance_bandwidth_hz_min",
-                r.disturbance_bandwidth_hz_min,
-            ),
-            ("receipts.overshoot_pct_max", r.overshoot_pct_max),
-            ("receipts.settling_time_s_max", r.settling_time_s_max),
-            (
-                "receipts.etfe_phase_error_deg_max",
-                r.etfe_phase_error_deg_max,
-            ),
-            ("receipts.etfe_max_freq_factor", r.etfe_max_freq_factor),
-        ] {
-            if let Some(v) = v {
-                pos(key, v)?;
-            }
-        }
-        if let Some(v) = r.cross_validation_fit_min {
-            if !(v.is_finite() && v <= 100.0) {
-                return Err(self.key_error(
-                    "receipts.cross_validation_fit_min",
-                    format!("must be finite and <= 100 %, got {v}"),
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The dotted key written on 1-based `line` of a TOML text (table header + key), if any.
-fn key_at_line(text: &str, line: usize) -> Option<String> {
-    let mut table = String::new();
-    let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
-    for (i, l) in text.lines().enumerate() {
-        let t = strip_comment(l).trim();
-        if let Some(h) = header(t) {
-            table = h.0.clone();
-            if h.1 {
-                let c = counts.entry(h.0.clone()).or_insert(0);
-                table = format!("{}[{}]", h.0, *c);
-                *c += 1;
-            }
-            if i + 1 == line {
-                return Some(table);
-            }
-            continue;
-        }
-        if i + 1 == line {
-            let key = t.split('=').next()?.trim().trim_matches('"');
-            if key.is_empty() {
-                return None;
-            }
-            return Some(if table.is_empty() {
-                key.to_string()
-            } else {
-                format!("{table}.{key}")
-            });
-        }
-    }
-    None
-}
-
-/// 1-based line of a dotted key (`control.crossover_hz`, `runs[1].file`, or a table
-/// `runs[1]`), if written in the text.
-fn find_key_line(text: &str, key: &str) -> Option<usize> {
-    let mut table = String::new();
-    let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
-    let mut table_line = None;
-    for (i, l) in text.lines().enumerate() {
-        let t = strip_comment(l).trim();
-        if let Some(h) = header(t) {
-            table = h.0.clone();
-            if h.1 {
-                let c = counts.entry(h.0.clone()).or_insert(0);
-                table = format!("{}[{}]", h.0, *c);
-                *c += 1;
-            }
-            if table == key {
-                return Some(i + 1);
-            }
-            if key.starts_with(&format!("{table}.")) {
-                table_line = Some(i + 1);
-            }
-            continue;
-        }
-        if let Some(k) = t.split('=').next() {
-            if !t.contains('=') {
-                continue;
-            }
-            let k = k.trim().trim_matches('"');
-            let full = if table.is_empty() {
-                k.to_string()
-            } else {
-                format!("{table}.{k}")
-            };
-            if full == key {
-                return Some(i + 1);
-            }
-        }
-    }
-    table_line
-}
-
-/// (`name`, is_array_of_tables) of a `[name]` / `[[name]]` header line.
-fn header(t: &str) -> Option<(String, bool)> {
-    if let Some(inner) = t.strip_prefix("[[").and_then(|s| s.strip_suffix("]]")) {
-        return Some((inner.trim().to_string(), true));
-    }
-    if let Some(inner) = t.strip_prefix('[').and_then(|s| s.strip_suffix(']')) {
-        return Some((inner.trim().to_string(), false));
-    }
-    None
-}
-
-fn strip_comment(l: &str) -> &str {
-    // Good enough for locating keys: a '#' outside a quoted string starts a comment.
-    let mut in_str = false;
-    for (i, ch) in l.char_indices() {
-        match ch {
-            '"' => in_str = !in_str,
-            '#' if !in_str => return &l[..i],
-            _ => {}
-        }
-    }
-    l
 }
 
 #[cfg(test)]
@@ -970,5 +659,42 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(s.contains("p.toml:4") && s.contains("runs[0].fiel"), "{s}");
+    }
+
+    #[test]
+    fn compensation_keys_default_and_bad_values_name_line_and_key() {
+        let c = LoadedConfig::from_text(Path::new("p.toml"), MIN).unwrap();
+        assert_eq!(c.config.compensation, CompensationSettings::default());
+        assert!(c.config.compensation.enabled);
+        let with = |body: &str| format!("{MIN}\n[compensation]\n{body}\n");
+        let ok = LoadedConfig::from_text(
+            Path::new("p.toml"),
+            &with("enabled = false\namplitude_tol = 0.0\nvelocity_resolution = 0.02"),
+        )
+        .unwrap();
+        assert!(!ok.config.compensation.enabled);
+        assert_eq!(ok.config.compensation.velocity_resolution, Some(0.02));
+        // The [compensation] header is on line 9, its key on line 10.
+        for (body, key) in [
+            ("amplitude_tol = -1", "compensation.amplitude_tol"),
+            (
+                "velocity_resolution = 0",
+                "compensation.velocity_resolution",
+            ),
+            (
+                "inverse_smoothing_rel = 1.5",
+                "compensation.inverse_smoothing_rel",
+            ),
+            ("tracking_time_s = -0.1", "compensation.tracking_time_s"),
+            ("simulate_s = 0", "compensation.simulate_s"),
+            ("enabled = \"yes\"", "compensation.enabled"),
+            ("smoothing = 1", "compensation.smoothing"),
+        ] {
+            let e = LoadedConfig::from_text(Path::new("p.toml"), &with(body))
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("p.toml:10"), "{body}: {e}");
+            assert!(e.contains(key), "{body}: {e}");
+        }
     }
 }
