@@ -42,7 +42,7 @@ use super::sym;
 use crate::error::{Error, Result};
 use crate::lti::{solve_square, StateSpace};
 use crate::robust::loops::FeedbackLoop;
-use crate::robust::norms::{hinf_norm, HinfNorm};
+use crate::robust::norms::{balance, hinf_norm, HinfNorm};
 use faer::Mat;
 use std::f64::consts::PI;
 
@@ -202,8 +202,18 @@ pub fn generalized_plant(
         c1[(2, r)] = wt.c[(0, i)];
     }
     let d12 = Mat::from_fn(3, 1, |i, _| [0.0, w.wks, dt * dg][i]);
+    // Diagonal (power-of-two, exact) state scaling balancing [[A, B1 B2], [C1; C2]]: plant and
+    // weight realisations spanning many decades otherwise give Hamiltonians with norms near
+    // 1e13 whose sign iteration loses all accuracy. The controller is invariant.
+    let bb = crate::lti::dense::hstack(b1.as_ref(), b2.as_ref());
+    let cc = crate::lti::dense::vstack(c1.as_ref(), c2.as_ref());
+    let bal = balance(&StateSpace::new(a, bb, cc, Mat::zeros(4, 2), 0.0)?)?;
+    let b1 = Mat::from_fn(n, 1, |i, _| bal.b[(i, 0)]);
+    let b2 = Mat::from_fn(n, 1, |i, _| bal.b[(i, 1)]);
+    let c1 = Mat::from_fn(3, n, |i, j| bal.c[(i, j)]);
+    let c2 = Mat::from_fn(1, n, |_, j| bal.c[(3, j)]);
     Ok(GeneralizedPlant {
-        a,
+        a: bal.a,
         b1,
         b2,
         c1,
@@ -250,6 +260,8 @@ fn level(p: &GeneralizedPlant, gamma: f64) -> Result<Option<Level>> {
     );
     let px = Mat::<f64>::identity(nz, nz) - &p.d12 * &r1i * p.d12.transpose();
     let qx = sym((p.c1.transpose() * &px * &p.c1).as_ref());
+    // A Riccati equation without a (reliable) stabilising solution means γ is not achievable
+    // (or not certifiably so): the level is refused, never accepted on a doubtful X.
     let Ok(x) = care_g(ax.as_ref(), gx.as_ref(), qx.as_ref()) else {
         return Ok(None);
     };
