@@ -14,6 +14,7 @@
 //! frequencies in rad/s (`_rad_s`) or Hz (`_hz`).
 pub mod balred;
 pub mod hinf;
+pub mod loopshape;
 pub mod lyapunov;
 pub mod riccati;
 
