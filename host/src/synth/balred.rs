@@ -41,7 +41,7 @@ fn sqrt_factor(p: &Mat<f64>) -> Result<Mat<f64>> {
 }
 
 /// Hankel singular values and the balancing data of a stable model.
-fn balance_data(sys: &StateSpace) -> Result<(Vec<f64>, Mat<f64>, Mat<f64>, Mat<f64>, (f64, f64))> {
+fn balance_data(sys: &StateSpace) -> Result<(Vec<f64>, Mat<f64>, Mat<f64>, (f64, f64))> {
     if !sys.is_stable(0.0)? {
         return Err(Error::InvalidArgument(
             "balanced truncation needs a stable model (separate the unstable part first)".into(),
@@ -70,13 +70,7 @@ fn balance_data(sys: &StateSpace) -> Result<(Vec<f64>, Mat<f64>, Mat<f64>, Mat<f
     let hsv: Vec<f64> = (0..n).map(|i| svd.S()[i]).collect();
     let t = &lp * svd.V();
     let w = &lq * svd.U();
-    Ok((
-        hsv,
-        t,
-        w,
-        Mat::zeros(0, 0),
-        (p.residual_rel, q.residual_rel),
-    ))
+    Ok((hsv, t, w, (p.residual_rel, q.residual_rel)))
 }
 
 /// Hankel singular values of a stable model, decreasing.
@@ -94,7 +88,7 @@ pub fn balanced_truncation(sys: &StateSpace, order: usize) -> Result<BalancedRed
             "balanced truncation order {order} must lie in 1..={n}"
         )));
     }
-    let (hsv, t, w, _, res) = balance_data(sys)?;
+    let (hsv, t, w, res) = balance_data(sys)?;
     let s_r = hsv[order - 1];
     if !(s_r > 1e-14 * hsv[0]) {
         return Err(Error::InvalidArgument(format!(

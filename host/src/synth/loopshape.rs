@@ -18,13 +18,16 @@
 //! result is re-verified independently on the implemented loop (Hamiltonian H∞ norms of S, T,
 //! W_m·T, KS; exact crossover solves of [`crate::robust::loops::margins`]).
 //!
-//! Scope: continuous-time design (`controller_ts = None`); the sampled-loop variant (notch by
-//! prewarped Tustin) comes with the pipeline integration.
+//! Sampled loops: for a discrete plant (identified at the controller rate) each notch is
+//! discretised by Tustin prewarped at its centre and the PID as in the PID tuner (Tustin
+//! prewarped at the crossover); W_m is mapped like the tuner maps it.
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, TransferFunction};
+use crate::robust::discretize::tustin_state_space;
 use crate::robust::loops::{margins, FeedbackLoop, Margins};
+use crate::robust::norms::balance;
 use crate::robust::norms::hinf_norm;
-use crate::robust::pid::{tune_pid, PidTuningSpec, TunedPid};
+use crate::robust::pid::{implemented_loop, tune_pid, weight_in_domain, PidTuningSpec, TunedPid};
 use crate::robust::uncertainty::UncertaintyWeight;
 use std::f64::consts::PI;
 
@@ -56,6 +59,26 @@ impl Notch {
         )
     }
 
+    /// The notch as a state-space model: continuous for `ts = None`, else Tustin prewarped at
+    /// the centre (so centre and depth are exact in the sampled loop).
+    pub fn in_domain(&self, ts: Option<f64>) -> Result<StateSpace> {
+        let c = self.transfer_function()?.to_state_space()?;
+        match ts {
+            None => Ok(c),
+            Some(t) => {
+                let wc = 2.0 * PI * self.centre_hz;
+                if !(wc * t < PI) {
+                    return Err(Error::InvalidArgument(format!(
+                        "notch centre {} Hz is at or above the Nyquist frequency {} Hz",
+                        self.centre_hz,
+                        0.5 / t
+                    )));
+                }
+                tustin_state_space(&balance(&c)?, t, Some(wc))
+            }
+        }
+    }
+
     /// Depth at the centre, dB (negative).
     pub fn depth_db(&self) -> f64 {
         20.0 * (self.zeta_num / self.zeta_den).log10()
@@ -69,13 +92,14 @@ pub fn place_notches(
     max_mode_damping: f64,
     weight: Option<&UncertaintyWeight>,
 ) -> Result<Vec<Notch>> {
-    if plant.is_discrete() {
-        return Err(Error::InvalidArgument(
-            "notch placement works on a continuous model (convert with d2c_zoh)".into(),
-        ));
-    }
     let mut out = Vec::new();
-    for p in plant.poles()? {
+    for z in plant.poles()? {
+        // Discrete poles map to the s-plane by s = ln(z)/ts.
+        let p = if plant.is_discrete() {
+            z.ln() / plant.ts
+        } else {
+            z
+        };
         if p.im <= 0.0 {
             continue;
         }
@@ -100,6 +124,8 @@ pub struct LoopShapedDesign {
     pub pid: TunedPid,
     /// The notches in series with it.
     pub notches: Vec<Notch>,
+    /// The shaped plant N·G the PID was tuned on (same S, T as the implemented loop).
+    pub shaped_plant: StateSpace,
     /// The implemented controller K = PID·N (continuous).
     pub controller: StateSpace,
     /// Margins of L = G·K (exact crossover solves).
@@ -122,13 +148,14 @@ pub fn tune_pid_notch(
     spec: &PidTuningSpec,
     max_mode_damping: f64,
 ) -> Result<LoopShapedDesign> {
-    if spec.controller_ts.is_some() || plant.is_discrete() {
+    if spec.controller_ts.is_some() && !plant.is_discrete() {
         return Err(Error::InvalidArgument(
-            "PID + notch tuning is continuous-time in this version (controller_ts = None and a \
-             continuous plant)"
+            "PID + notch tuning: a sampled design needs the plant identified at the controller \
+             rate (a discrete plant); a continuous plant is tuned in continuous time"
                 .into(),
         ));
     }
+    let ts = plant.is_discrete().then_some(plant.ts);
     let notches = place_notches(
         plant,
         spec.target_crossover_hz,
@@ -136,14 +163,18 @@ pub fn tune_pid_notch(
         spec.weight.as_ref(),
     )?;
     let mut shaped = plant.clone();
-    let mut n_total = StateSpace::identity(1, 0.0)?;
+    let mut n_total = StateSpace::identity(1, ts.unwrap_or(0.0))?;
     for n in &notches {
-        let ns = n.transfer_function()?.to_state_space()?;
+        let ns = n.in_domain(ts)?;
         shaped = ns.series(&shaped)?;
         n_total = ns.series(&n_total)?;
     }
     let pid = tune_pid(&shaped, spec)?;
-    let controller = n_total.series(&pid.pid.to_state_space()?)?;
+    // The PID as the tuner's implemented loop realises it (Tustin prewarped at the crossover
+    // for a sampled loop).
+    let (pid_loop, _) =
+        implemented_loop(&shaped, &pid.pid, ts, ts.map(|_| pid.design.crossover_hz))?;
+    let controller = n_total.series(&pid_loop.controller)?;
     let lp = FeedbackLoop::new(plant, &controller)?;
     if !lp.is_stable()? {
         return Err(Error::Numerical(
@@ -154,7 +185,10 @@ pub fn tune_pid_notch(
     let mt = hinf_norm(&lp.t)?.gamma;
     let ks = hinf_norm(&lp.ks)?.gamma;
     let wm_t = match &spec.weight {
-        Some(w) => Some(hinf_norm(&lp.t.series(&w.to_state_space()?)?)?.gamma),
+        Some(w) => {
+            let wm = weight_in_domain(w, ts, Some(pid.design.crossover_hz))?;
+            Some(hinf_norm(&lp.t.series(&wm)?)?.gamma)
+        }
         None => None,
     };
     let violated = ms > spec.ms_max * (1.0 + 1e-6)
@@ -171,6 +205,7 @@ pub fn tune_pid_notch(
     Ok(LoopShapedDesign {
         pid,
         notches,
+        shaped_plant: shaped,
         controller,
         margins,
         ms,

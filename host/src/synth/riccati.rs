@@ -366,7 +366,6 @@ pub fn dare(
         (x, res, k, rel) = (x2, res2, k2, rel2);
         refinement_steps += 1;
     }
-    let _ = res;
     let ac = a - b * &k;
     let radius = eigenvalues(ac.as_ref())?
         .iter()
