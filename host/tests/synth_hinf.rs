@@ -1,7 +1,6 @@
 //! H∞ mixed sensitivity against an interpolation bound, with the closed-loop norm checked
 //! independently, and balanced truncation against its error bound.
-use faer::Mat;
-use ferrosid::lti::{StateSpace, TransferFunction};
+use ferrosid::lti::{StateSpace, StateSpaceData, TransferFunction};
 use ferrosid::robust::loops::margins;
 use ferrosid::robust::norms::hinf_norm;
 use ferrosid::synth::balred::{balanced_truncation, balanced_truncation_to_bound};
@@ -87,16 +86,7 @@ fn rhp_zero_interpolation_bound_is_approached() {
 fn two_mass_design_with_uncertainty_weight_meets_its_level() {
     // The bundled two-mass model (examples/data/two_mass_sim.json: motor speed from torque) with
     // a W_m rising through 1 near 60 Hz; bandwidth 8 Hz, M_s 1.6, actuator 0.3 N·m for 5 rad/s.
-    let a = Mat::from_fn(3, 3, |i, j| {
-        [
-            [0.0, 1.0, -1.0],
-            [-82500.0, -33.5, 23.5],
-            [28947.368421052633, 8.24561403508772, -13.508771929824562],
-        ][i][j]
-    });
-    let b = Mat::from_fn(3, 1, |i, _| [0.0, 5000.0, 0.0][i]);
-    let c = Mat::from_fn(1, 3, |_, j| [0.0, 1.0, 0.0][j]);
-    let g = StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0).unwrap();
+    let g = two_mass();
     let w0 = 2.0 * std::f64::consts::PI * 60.0;
     let wm = tf(&[1.0 / w0, 0.1], &[1.0 / (4.0 * w0), 1.0]);
     let w = MixedSensitivityWeights {
@@ -171,6 +161,15 @@ fn strictly_proper_ws_and_positive_wks_are_required() {
     };
     let e = hinf_mixed_sensitivity(&g, &w, HinfOptions::default()).unwrap_err();
     assert!(e.to_string().contains("W_KS"), "{e}");
+}
+
+/// examples/data/two_mass_sim.json: motor speed (rad/s) from torque (N·m).
+fn two_mass() -> StateSpace {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/two_mass_sim.json");
+    let data: StateSpaceData =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    StateSpace::try_from(&data).unwrap()
 }
 
 fn chain(n_modes: usize) -> StateSpace {

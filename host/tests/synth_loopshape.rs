@@ -1,6 +1,5 @@
 //! PID + notch against plain PID on the bundled two-mass model, same constraints.
-use faer::Mat;
-use ferrosid::lti::StateSpace;
+use ferrosid::lti::{StateSpace, StateSpaceData};
 use ferrosid::robust::loops::{margins, FeedbackLoop};
 use ferrosid::robust::norms::hinf_norm;
 use ferrosid::robust::pid::{tune_pid, PidTuningSpec};
@@ -8,16 +7,11 @@ use ferrosid::synth::loopshape::{place_notches, tune_pid_notch, Notch};
 
 /// examples/data/two_mass_sim.json: motor speed (rad/s) from torque (N·m).
 fn two_mass() -> StateSpace {
-    let a = Mat::from_fn(3, 3, |i, j| {
-        [
-            [0.0, 1.0, -1.0],
-            [-82500.0, -33.5, 23.5],
-            [28947.368421052633, 8.24561403508772, -13.508771929824562],
-        ][i][j]
-    });
-    let b = Mat::from_fn(3, 1, |i, _| [0.0, 5000.0, 0.0][i]);
-    let c = Mat::from_fn(1, 3, |_, j| [0.0, 1.0, 0.0][j]);
-    StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0).unwrap()
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/two_mass_sim.json");
+    let data: StateSpaceData =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    StateSpace::try_from(&data).unwrap()
 }
 
 /// The `[control]` section of examples/pipeline.toml: 8 Hz target, roll-off at 4× crossover

@@ -136,7 +136,42 @@ fn require_stable(a: MatRef<'_, f64>, discrete: bool) -> Result<()> {
 /// Solves A X + X Aᵀ + Q = 0 for a Hurwitz `a` (see the module docs for the method and the
 /// accuracy contract).
 pub fn lyap(a: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Result<LyapunovSolution> {
-    let n = check_square("Lyapunov equation", a, q)?;
+    solve_refined(&LYAPUNOV, a, q)
+}
+
+/// One of the two equations: its name, stability region, core solver and residual.
+struct Equation {
+    what: &'static str,
+    discrete: bool,
+    core: fn(MatRef<'_, f64>, MatRef<'_, f64>) -> Result<(Mat<f64>, usize)>,
+    residual: fn(MatRef<'_, f64>, MatRef<'_, f64>, MatRef<'_, f64>) -> Mat<f64>,
+    rel: fn(MatRef<'_, f64>, MatRef<'_, f64>, MatRef<'_, f64>) -> f64,
+}
+
+const LYAPUNOV: Equation = Equation {
+    what: "Lyapunov",
+    discrete: false,
+    core: lyap_sign,
+    residual: lyap_residual,
+    rel: lyap_rel,
+};
+
+const STEIN: Equation = Equation {
+    what: "Stein",
+    discrete: true,
+    core: stein_doubling,
+    residual: stein_residual,
+    rel: stein_rel,
+};
+
+/// Checks, solves, then one refinement step (the same solver applied to the residual, kept
+/// when it lowers the residual), then the accuracy contract.
+fn solve_refined(
+    eq: &Equation,
+    a: MatRef<'_, f64>,
+    q: MatRef<'_, f64>,
+) -> Result<LyapunovSolution> {
+    let n = check_square(&format!("{} equation", eq.what), a, q)?;
     if n == 0 {
         return Ok(LyapunovSolution {
             x: Mat::zeros(0, 0),
@@ -144,21 +179,20 @@ pub fn lyap(a: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Result<LyapunovSolution> 
             iterations: 0,
         });
     }
-    require_stable(a, false)?;
-    let (mut x, iterations) = lyap_sign(a, q)?;
-    let mut rel = lyap_rel(a, x.as_ref(), q);
-    // One refinement step: A Δ + Δ Aᵀ + res = 0.
+    require_stable(a, eq.discrete)?;
+    let (mut x, iterations) = (eq.core)(a, q)?;
+    let mut rel = (eq.rel)(a, x.as_ref(), q);
     if rel > 1e-15 {
-        let res = lyap_residual(a, x.as_ref(), q);
-        let (dx, _) = lyap_sign(a, res.as_ref())?;
+        let res = (eq.residual)(a, x.as_ref(), q);
+        let (dx, _) = (eq.core)(a, res.as_ref())?;
         let x2 = &x + &dx;
-        let rel2 = lyap_rel(a, x2.as_ref(), q);
+        let rel2 = (eq.rel)(a, x2.as_ref(), q);
         if rel2 < rel {
             x = x2;
             rel = rel2;
         }
     }
-    finish(x, rel, iterations, "Lyapunov")
+    finish(x, rel, iterations, eq.what)
 }
 
 fn finish(x: Mat<f64>, rel: f64, iterations: usize, what: &str) -> Result<LyapunovSolution> {
@@ -199,28 +233,7 @@ fn stein_doubling(a: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Result<(Mat<f64>, u
 
 /// Solves A X Aᵀ − X + Q = 0 for a Schur-stable `a` (see the module docs).
 pub fn stein(a: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Result<LyapunovSolution> {
-    let n = check_square("Stein equation", a, q)?;
-    if n == 0 {
-        return Ok(LyapunovSolution {
-            x: Mat::zeros(0, 0),
-            residual_rel: 0.0,
-            iterations: 0,
-        });
-    }
-    require_stable(a, true)?;
-    let (mut x, iterations) = stein_doubling(a, q)?;
-    let mut rel = stein_rel(a, x.as_ref(), q);
-    if rel > 1e-15 {
-        let res = stein_residual(a, x.as_ref(), q);
-        let (dx, _) = stein_doubling(a, res.as_ref())?;
-        let x2 = &x + &dx;
-        let rel2 = stein_rel(a, x2.as_ref(), q);
-        if rel2 < rel {
-            x = x2;
-            rel = rel2;
-        }
-    }
-    finish(x, rel, iterations, "Stein")
+    solve_refined(&STEIN, a, q)
 }
 
 #[cfg(test)]
