@@ -16,6 +16,7 @@ pub mod balred;
 pub mod hinf;
 pub mod loopshape;
 pub mod lyapunov;
+pub mod mpc;
 pub mod riccati;
 
 use faer::{Mat, MatRef};
