@@ -91,10 +91,10 @@ fn constrained_solution_satisfies_the_kkt_conditions() {
             active += 1;
         }
     }
-    let grad_scale = (0..n).map(|i| f[i].abs()).fold(0.0, f64::max);
-    for j in 0..n {
+    let grad_scale = f.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    for (j, fj) in f.iter().enumerate() {
         let r: f64 = (0..n).map(|k| d.h[(j, k)] * st.u[k]).sum::<f64>()
-            + f[j]
+            + fj
             + (0..2 * n).map(|i| d.m[(i, j)] * st.lambda[i]).sum::<f64>();
         assert!(r.abs() < 1e-6 * grad_scale, "stationarity row {j}: {r:.3e}");
     }

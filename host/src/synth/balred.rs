@@ -41,7 +41,11 @@ fn sqrt_factor(p: &Mat<f64>) -> Result<Mat<f64>> {
 }
 
 /// Hankel singular values and the balancing data of a stable model.
-fn balance_data(sys: &StateSpace) -> Result<(Vec<f64>, Mat<f64>, Mat<f64>, (f64, f64))> {
+/// Hankel singular values, the balancing factors T = L_P V and W = L_Q U, and the Gramian
+/// residuals.
+type BalanceData = (Vec<f64>, Mat<f64>, Mat<f64>, (f64, f64));
+
+fn balance_data(sys: &StateSpace) -> Result<BalanceData> {
     if !sys.is_stable(0.0)? {
         return Err(Error::InvalidArgument(
             "balanced truncation needs a stable model (separate the unstable part first)".into(),

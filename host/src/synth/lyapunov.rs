@@ -139,11 +139,14 @@ pub fn lyap(a: MatRef<'_, f64>, q: MatRef<'_, f64>) -> Result<LyapunovSolution> 
     solve_refined(&LYAPUNOV, a, q)
 }
 
+/// A core solver: (A, Q) → (X, iterations).
+type CoreSolver = fn(MatRef<'_, f64>, MatRef<'_, f64>) -> Result<(Mat<f64>, usize)>;
+
 /// One of the two equations: its name, stability region, core solver and residual.
 struct Equation {
     what: &'static str,
     discrete: bool,
-    core: fn(MatRef<'_, f64>, MatRef<'_, f64>) -> Result<(Mat<f64>, usize)>,
+    core: CoreSolver,
     residual: fn(MatRef<'_, f64>, MatRef<'_, f64>, MatRef<'_, f64>) -> Mat<f64>,
     rel: fn(MatRef<'_, f64>, MatRef<'_, f64>, MatRef<'_, f64>) -> f64,
 }
