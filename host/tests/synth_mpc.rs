@@ -125,3 +125,22 @@ fn constrained_step_respects_the_rails_and_tracks() {
         assert!((y - 5.0).abs() < 0.05, "N = {horizon}: y = {y}");
     }
 }
+
+#[test]
+fn firmware_terms_reproduce_the_linear_term() {
+    let g = two_mass_1khz();
+    let d = MpcDesign::new(&g, spec(20)).unwrap();
+    let (gx, gr) = d.firmware_terms();
+    let (x0, r, u_prev) = ([0.002, 1.5, 0.7], 5.0, 0.12);
+    let (f, _, _) = d.qp_data(&x0, r, u_prev);
+    for (i, fi) in f.iter().enumerate() {
+        let mut v = (0..3).map(|j| gx[(i, j)] * x0[j]).sum::<f64>() - gr[i] * r;
+        if i == 0 {
+            v -= 2.0 * d.spec.r_rate * u_prev;
+        }
+        assert!(
+            (v - fi).abs() <= 1e-12 * fi.abs().max(1.0),
+            "f[{i}]: {v} vs {fi}"
+        );
+    }
+}

@@ -147,6 +147,17 @@ impl MpcDesign {
         })
     }
 
+    /// The firmware form of the linear term (`ferrosid_firmware::mpc::MpcQp`):
+    /// f = G_x·x − g_r·r − 2ρ_Δ·e₁·u_prev with G_x = 2q·ΓᵀΦ (N×n) and g_r = 2q·Γᵀ·1 (N).
+    pub fn firmware_terms(&self) -> (Mat<f64>, Vec<f64>) {
+        let (nh, q) = (self.spec.horizon, self.spec.q);
+        let gx = self.gamma.transpose() * &self.phi * faer::Scale(2.0 * q);
+        let gr = (0..nh)
+            .map(|j| 2.0 * q * (0..nh).map(|k| self.gamma[(k, j)]).sum::<f64>())
+            .collect();
+        (gx, gr)
+    }
+
     /// A cold start (all zeros).
     pub fn initial_state(&self) -> MpcState {
         let nh = self.spec.horizon;
