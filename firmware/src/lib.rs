@@ -50,6 +50,7 @@ pub mod decimal;
 mod error;
 pub mod excitation;
 pub mod fft;
+pub mod mpc;
 mod gate;
 pub mod rng;
 pub mod trig;

@@ -30,6 +30,7 @@ pub mod rational_fit;
 pub mod report;
 pub mod robust;
 pub mod spectral;
+pub mod synth;
 pub mod target_frame;
 pub mod validate;
 

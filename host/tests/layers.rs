@@ -36,6 +36,7 @@ const LAYERS: &[(&str, u8)] = &[
     // 5. Sim-to-real diagnosis, limit cycles, compensation design.
     ("gap", 5),
     ("limit_cycle", 5),
+    ("synth", 5),
     ("compensation", 5),
     // 6. Each command's whole job as a library call (typed options in, typed result out).
     ("ops", 6),
