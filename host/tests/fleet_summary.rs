@@ -65,6 +65,7 @@ fn fleet_resonance_spread_matches_the_generated_fleet() {
         &FleetOptions {
             jobs: Some(2),
             out_dir: Some(out.clone()),
+            ..FleetOptions::default()
         },
         &|_| {},
     )
@@ -127,6 +128,7 @@ fn fleet_resonance_spread_matches_the_generated_fleet() {
         &FleetOptions {
             jobs: Some(1),
             out_dir: None,
+            ..FleetOptions::default()
         },
         &|_| {},
     )

@@ -532,7 +532,7 @@ pub fn render_physical(g: &GreyBoxFit) -> String {
         "\nphysical parameters ({}; {} % intervals; fit NRMSE {} vs black box {}; {} \
          iterations{}):",
         g.structure.name(),
-        general(100.0 * g.confidence, 3),
+        (100.0 * g.confidence * 1e6).round() / 1e6,
         fixed(g.nrmse, 4),
         fixed(g.black_box_nrmse, 4),
         g.iterations,
