@@ -24,7 +24,7 @@
 //!   truth than the direct model's.
 
 mod cli_support;
-use cli_support::{discrete_response, ferrosid, rows, s, scratch};
+use cli_support::{discrete_response, ferrosid, rows, s, scratch, Rng};
 use ferrosid::closed_loop::{
     feedback_test, identify_closed_loop, ClosedLoopMethod, ClosedLoopOptions,
 };
@@ -32,23 +32,6 @@ use ferrosid::n4sid::{identify, ChannelSet, N4sidOptions, OrderSelection};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 use std::path::Path;
-
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        // SplitMix64 → uniform (0, 1)
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (a, b) = (self.next(), self.next());
-        (-2.0 * a.ln()).sqrt() * (2.0 * PI * b).cos()
-    }
-}
 
 const TS: f64 = 0.005;
 const GAIN: f64 = 20.0;

@@ -154,35 +154,8 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
     let mut right = vec![false, false, true, true, true];
     right.extend(std::iter::repeat_n(true, 2 * nmodes + 5));
     out.push_str(&table(&rows, &right));
-    let mut rows = vec![[
-        "parameter",
-        "unit",
-        "n",
-        "min",
-        "median",
-        "max",
-        "mean",
-        "std",
-    ]
-    .map(String::from)
-    .to_vec()];
-    for d in &s.parameters {
-        rows.push(vec![
-            d.parameter.clone(),
-            d.unit.clone(),
-            d.count.to_string(),
-            fmt_num(d.min),
-            fmt_num(d.median),
-            fmt_num(d.max),
-            fmt_num(d.mean),
-            fmt_num(d.std),
-        ]);
-    }
     out.push('\n');
-    out.push_str(&table(
-        &rows,
-        &[false, false, true, true, true, true, true, true],
-    ));
+    out.push_str(&distribution_table(&s.parameters));
     out.push_str(&physical_text(s));
     let errs: Vec<String> = s
         .units
@@ -210,6 +183,35 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
 }
 
 /// Runs `ferrosid fleet`.
+/// One row per distribution: parameter, unit, n, min, median, max, mean, std.
+fn distribution_table(dists: &[crate::fleet::Distribution]) -> String {
+    let mut rows = vec![[
+        "parameter",
+        "unit",
+        "n",
+        "min",
+        "median",
+        "max",
+        "mean",
+        "std",
+    ]
+    .map(String::from)
+    .to_vec()];
+    for d in dists {
+        rows.push(vec![
+            d.parameter.clone(),
+            d.unit.clone(),
+            d.count.to_string(),
+            fmt_num(d.min),
+            fmt_num(d.median),
+            fmt_num(d.max),
+            fmt_num(d.mean),
+            fmt_num(d.std),
+        ]);
+    }
+    table(&rows, &[false, false, true, true, true, true, true, true])
+}
+
 /// The physical parameters per unit, their distributions and the units outside the spread.
 fn physical_text(s: &FleetSummary) -> String {
     if s.physical.is_empty() && s.units.iter().all(|u| u.physical_error.is_none()) {
@@ -255,35 +257,8 @@ fn physical_text(s: &FleetSummary) -> String {
         }
     }
     out.push_str(&table(&rows, &[false, false, true, true, false, false]));
-    let mut rows = vec![[
-        "parameter",
-        "unit",
-        "n",
-        "min",
-        "median",
-        "max",
-        "mean",
-        "std",
-    ]
-    .map(String::from)
-    .to_vec()];
-    for d in &s.physical {
-        rows.push(vec![
-            d.parameter.clone(),
-            d.unit.clone(),
-            d.count.to_string(),
-            fmt_num(d.min),
-            fmt_num(d.median),
-            fmt_num(d.max),
-            fmt_num(d.mean),
-            fmt_num(d.std),
-        ]);
-    }
     out.push_str("\nphysical parameter distributions (estimated values):\n");
-    out.push_str(&table(
-        &rows,
-        &[false, false, true, true, true, true, true, true],
-    ));
+    out.push_str(&distribution_table(&s.physical));
     if s.outliers.is_empty() {
         out.push_str(&format!(
             "no unit outside the fleet's spread (modified z-score on log values > {OUTLIER_Z})\n"
