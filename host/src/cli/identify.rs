@@ -57,12 +57,20 @@ Examples:
   ferrosid identify MultisineTypeA.mat --input iq_refx --output omega_max \\
       --validate MultisineTypeB.mat --period 2500 --order 4
   ferrosid identify robot_arm.dat --fs 1 --input 1 --output 2 --order 4
+  ferrosid identify loop.csv --reference r --order 2      (closed loop: u, y and the reference r)
+  ferrosid identify MultisineTypeA.mat --input iq_refx --output omega_max --decimate 4 \\
+      --order 4 --structure two-mass-lag --known Kt=1 --params-out params.json
 
 Several estimation logs are preprocessed separately and concatenated. The validation log gets the
 same preprocessing; its ETFE uses the --nperseg/--window/--period/--gate settings (as `frf`).
 The model file (--out) holds {\"a\",\"b\",\"c\",\"d\",\"ts\"} (matrix rows, ts in seconds) and the
 operating point (the means removed: the model maps y - y0 = G (u - u0)); it is accepted by
 `ferrosid gap --sim` and `ferrosid codegen --model`. --out may not name an input log.
+
+Without --reference, a feedback test warns when the input depends on past output noise (the log
+was recorded in closed loop: direct N4SID is then biased; give the reference with --reference).
+--structure fits a physical model (grey box) and prints its parameters with 95 % intervals; a
+parameter the signals cannot separate must be given with --known NAME=VALUE (SI units).
 
 Exit codes: 0 success, 1 the phase checklist failed (a gated bin up to 2x --crossover-hz is
 outside +-phase-tol degrees), 2 usage error, 3 input data error (file and line named),
