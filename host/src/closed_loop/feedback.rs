@@ -14,8 +14,11 @@
 //! Wilson–Hilferty approximation, relative error < 1 % for m·M ≥ 3), with
 //! α = [`FEEDBACK_SIGNIFICANCE`].
 //!
-//! Assumption: no direct feedthrough from u(t) to y(t) at the sample (true of a ZOH-sampled
-//! physical plant); a plant with feedthrough driven by a coloured input can be flagged wrongly.
+//! Assumptions: no direct feedthrough from u(t) to y(t) at the sample (true of a ZOH-sampled
+//! physical plant; a plant with feedthrough driven by a coloured input can be flagged wrongly),
+//! and a linear plant: an unmodelled nonlinearity under a periodic input leaves a periodic
+//! function of the input in the ARX residual, which correlates with future inputs as feedback
+//! does (the motor bench's two logs are flagged; README).
 use crate::error::{Error, Result};
 use faer::Mat;
 use serde::Serialize;
