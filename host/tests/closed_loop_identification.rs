@@ -329,3 +329,78 @@ fn cli_warns_of_feedback_and_identifies_with_reference() {
     assert_eq!(bad.code, 3, "{}", bad.stderr);
     assert!(bad.stderr.contains("nope"), "{}", bad.stderr);
 }
+
+/// An unstable plant G(s) = 20/(s − 2) (sampled exactly: p = e^{2·ts}, g = 20 (p − 1)/2),
+/// stabilised by u = 1.0·(r − y_m) (closed-loop pole 0.910), same noise and reference: the
+/// joint input-output method at the closed loop's order 1 keeps the unstable pole and at least
+/// halves the direct method's FRF error. (Only halves: measured 0.24 against 0.63 on seed 21,
+/// the N4SID of r → [u; y] is itself biased by the coloured noise at so low an order, and
+/// higher orders lose the pole; the 5× of the integrating case is not reached for unstable
+/// plants — README.)
+#[test]
+fn joint_method_identifies_an_unstable_plant() {
+    let (un, yn) = (names("u"), names("y"));
+    let p = (2.0 * TS).exp();
+    let g = 20.0 * (p - 1.0) / 2.0;
+    let truth = |f: f64| g / (Complex64::from_polar(1.0, 2.0 * PI * f * TS) - p);
+    for seed in [21u64, 22, 23] {
+        let mut rng = Rng(seed);
+        let (mut x, mut v) = (0.0f64, 0.0f64);
+        let (mut r, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..N {
+            v = 0.9 * v + NOISE * rng.normal();
+            let rk = rng.normal();
+            let ym = x + v;
+            let uk = rk - ym;
+            r.push(rk);
+            u.push(uk);
+            y.push(ym);
+            x = p * x + g * uk;
+        }
+        let (us, ys, rs) = ([u.as_slice()], [y.as_slice()], [r.as_slice()]);
+        let d = data(&us, &ys, &un, &yn);
+        let err = |m: &ferrosid::lti::StateSpace| {
+            let gr = grid();
+            let h = m.freq_responses_siso_hz(&gr).unwrap();
+            let s: f64 = gr
+                .iter()
+                .zip(&h)
+                .map(|(f, h)| ((h - truth(*f)).norm() / truth(*f).norm()).powi(2))
+                .sum();
+            (s / gr.len() as f64).sqrt()
+        };
+        let plain = identify(&d, &direct(Some(1))).map(|m| err(&m.model));
+        let joint = identify_closed_loop(
+            &d,
+            &rs,
+            &ClosedLoopOptions {
+                method: ClosedLoopMethod::JointInputOutput,
+                n4sid: N4sidOptions {
+                    order: OrderSelection::Fixed(1),
+                    ..N4sidOptions::default()
+                },
+                stage1_order: None,
+            },
+        )
+        .unwrap();
+        let e_joint = err(&joint.plant.model);
+        let unstable = joint
+            .plant
+            .model
+            .poles()
+            .unwrap()
+            .iter()
+            .any(|z| z.norm() > 1.0);
+        println!(
+            "unstable plant, seed {seed}: direct {plain:?}, joint {e_joint:.4} (order {}, \
+             unstable pole found: {unstable})",
+            joint.plant.model.n_states()
+        );
+        assert!(unstable, "the joint model lost the unstable pole");
+        let e_direct = plain.expect("direct N4SID");
+        assert!(
+            e_joint < 0.5 * e_direct,
+            "joint {e_joint} vs direct {e_direct}"
+        );
+    }
+}
