@@ -404,3 +404,58 @@ fn joint_method_identifies_an_unstable_plant() {
         );
     }
 }
+
+/// A controller that acts one sample late (u(t) = 3·(r(t−1) − y_m(t−1))) has no feedthrough
+/// from r to u: the joint method cannot invert G_ur and says so; the two-stage method does not
+/// need the inverse and identifies the plant.
+#[test]
+fn joint_method_refuses_a_controller_without_feedthrough() {
+    let (un, yn) = (names("u"), names("y"));
+    let mut rng = Rng(31);
+    let (a, b) = plant();
+    let (mut x, mut v, mut e_prev) = ([0.0f64; 2], 0.0f64, 0.0f64);
+    let (mut r, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..N {
+        v = 0.9 * v + NOISE * rng.normal();
+        let rk = rng.normal();
+        let ym = x[0] + v;
+        let uk = 3.0 * e_prev;
+        e_prev = rk - ym;
+        r.push(rk);
+        u.push(uk);
+        y.push(ym);
+        x = [
+            a[0][0] * x[0] + a[0][1] * x[1] + b[0] * uk,
+            a[1][0] * x[0] + a[1][1] * x[1] + b[1] * uk,
+        ];
+    }
+    let (us, ys, rs) = ([u.as_slice()], [y.as_slice()], [r.as_slice()]);
+    let d = data(&us, &ys, &un, &yn);
+    let e = identify_closed_loop(
+        &d,
+        &rs,
+        &ClosedLoopOptions {
+            method: ClosedLoopMethod::JointInputOutput,
+            n4sid: N4sidOptions {
+                order: OrderSelection::Fixed(3),
+                ..N4sidOptions::default()
+            },
+            stage1_order: None,
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("no usable direct feedthrough"), "{e}");
+    let two = identify_closed_loop(
+        &d,
+        &rs,
+        &ClosedLoopOptions {
+            n4sid: direct(Some(2)),
+            ..ClosedLoopOptions::default()
+        },
+    )
+    .unwrap();
+    let err = frf_error(&two.plant.model);
+    println!("delayed controller: two-stage FRF error {err:.4}");
+    assert!(err < 0.15, "{err}");
+}

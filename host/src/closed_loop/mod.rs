@@ -414,7 +414,9 @@ fn invert_checked(t: &StateSpace, du: &Mat<f64>, data: &ChannelSet<'_>) -> Resul
         .sqrt();
     let refuse = |detail: String| {
         Error::Numerical(format!(
-            "{}: joint input-output method: {detail}; the reference -> input model has no usable              direct feedthrough, so G_ur cannot be inverted (the controller acts with a delay              of a sample or more): use the two-stage method",
+            "{}: joint input-output method: {detail}; the reference -> input model has no usable \
+             direct feedthrough, so G_ur cannot be inverted (the controller acts with a delay \
+             of a sample or more): use the two-stage method",
             data.source.display()
         ))
     };
