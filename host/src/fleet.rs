@@ -431,7 +431,7 @@ fn physical_spread(units: &[UnitResult]) -> (Vec<Distribution>, Vec<Outlier>) {
         let logs: Vec<f64> = v.iter().map(|x| x.ln()).collect();
         let med = median(&logs);
         let mad = median(&logs.iter().map(|x| (x - med).abs()).collect::<Vec<_>>());
-        if !(mad > 0.0) {
+        if mad.is_nan() || mad <= 0.0 {
             continue;
         }
         for ((serial, value), l) in vals.iter().zip(&logs) {
