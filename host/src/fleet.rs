@@ -21,14 +21,26 @@
 //! fit. Across units, for each parameter: count, min, median, max, mean and sample standard
 //! deviation. Oscillatory modes are matched across units by rank (1st, 2nd, ... lightly
 //! damped pair in increasing frequency).
-use crate::pipeline::config::LoadedConfig;
-use crate::pipeline::document::{weight_high_gain, weight_low_gain};
+//!
+//! # Physical parameters
+//! With [`FleetOptions::physical`] (`ferrosid fleet --structure two-mass --known Kt=1`) each
+//! unit also gets a grey-box fit ([`crate::greybox::fit_log`]) on its identification run after
+//! the pipeline's preprocessing: parameters in physical units with 95 % intervals. The summary
+//! then carries each parameter's distribution across units and flags, per parameter, the units
+//! outside the fleet's spread: modified z-score |0.6745·(x − median)/MAD| > [`OUTLIER_Z`]
+//! (Iglewicz & Hoaglin 1993; median and MAD resist the outlier they look for, a mean and a
+//! standard deviation would be pulled towards it), computed on log values (every physical
+//! parameter is positive and spreads multiplicatively). At least [`MIN_UNITS_FOR_SPREAD`] units
+//! are needed.
+use crate::error::{Error, Result};
+use crate::greybox::{GreyBoxOptions, ParameterStatus};
+use crate::io::file_safety::OutputDir;
 use crate::output::prepare_output_dir;
 use crate::output::write_outputs_to;
+use crate::pipeline::config::LoadedConfig;
+use crate::pipeline::document::{weight_high_gain, weight_low_gain};
 use crate::pipeline::{json_pretty, run_pipeline, Mode, PipelineRun};
 use crate::robust::receipts::ReceiptKind;
-use crate::error::{Error, Result};
-use crate::io::file_safety::OutputDir;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -181,7 +193,46 @@ pub struct UnitResult {
     pub validation_fit_percent: Option<f64>,
     /// Output directory of the unit (when outputs were written).
     pub out_dir: Option<String>,
+    /// Physical parameters (with [`FleetOptions::physical`]).
+    pub physical: Vec<UnitParameter>,
+    /// Why the physical fit failed, when it did (the unit's pipeline result stands).
+    pub physical_error: Option<String>,
 }
+
+/// One physical parameter of one unit.
+#[derive(Debug, Clone, Serialize)]
+pub struct UnitParameter {
+    /// Name (`Jm`, `k`, ...).
+    pub name: String,
+    /// SI unit.
+    pub unit: String,
+    /// Value.
+    pub value: f64,
+    /// 95 % interval (estimated parameters only).
+    pub interval: Option<[f64; 2]>,
+    /// Estimated, known or undetermined.
+    pub status: ParameterStatus,
+}
+
+/// A unit outside the fleet's spread of one physical parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct Outlier {
+    /// Serial number.
+    pub serial: String,
+    /// Parameter name.
+    pub parameter: String,
+    /// The unit's value.
+    pub value: f64,
+    /// Fleet median.
+    pub median: f64,
+    /// Modified z-score on log values.
+    pub robust_z: f64,
+}
+
+/// Modified z-score beyond which a unit is outside the fleet's spread (Iglewicz & Hoaglin).
+pub const OUTLIER_Z: f64 = 3.5;
+/// Fewest units with an estimate of a parameter for its spread to be judged.
+pub const MIN_UNITS_FOR_SPREAD: usize = 4;
 
 impl UnitResult {
     fn from_run(serial: &str, run: &PipelineRun, out_dir: Option<String>) -> Self {
@@ -206,6 +257,36 @@ impl UnitResult {
             ms: rs.of_kind(ReceiptKind::SensitivityPeak).map(|r| r.value),
             validation_fit_percent: run.validation_fit.as_ref().map(|f| f.fit_percent[0]),
             out_dir,
+            physical: Vec::new(),
+            physical_error: None,
+        }
+    }
+
+    /// Adds the grey-box fit of `opts` on the run's identification log.
+    fn add_physical(&mut self, run: &PipelineRun, opts: &GreyBoxOptions) {
+        let log = &run.runs[run.nominal].log;
+        match crate::greybox::fit_log(log, opts) {
+            Ok(fit) => {
+                self.physical = fit
+                    .parameters
+                    .into_iter()
+                    .map(|p| UnitParameter {
+                        name: p.name,
+                        unit: p.unit,
+                        value: p.value,
+                        interval: p.interval,
+                        status: p.status,
+                    })
+                    .collect();
+                if !fit.converged {
+                    self.physical_error = Some(format!(
+                        "grey-box fit did not converge in {} iterations (values where it \
+                         stopped)",
+                        fit.iterations
+                    ));
+                }
+            }
+            Err(e) => self.physical_error = Some(e.to_string()),
         }
     }
 
@@ -226,6 +307,8 @@ impl UnitResult {
             ms: None,
             validation_fit_percent: None,
             out_dir: None,
+            physical: Vec::new(),
+            physical_error: None,
         }
     }
 
@@ -310,6 +393,74 @@ pub struct FleetSummary {
     pub units: Vec<UnitResult>,
     /// Distributions across units.
     pub parameters: Vec<Distribution>,
+    /// Distributions of the estimated physical parameters across units (SI units).
+    pub physical: Vec<Distribution>,
+    /// Units outside the fleet's spread, per physical parameter.
+    pub outliers: Vec<Outlier>,
+}
+
+/// Distributions of the physical parameters (estimated values only) and the units outside
+/// each one's spread.
+fn physical_spread(units: &[UnitResult]) -> (Vec<Distribution>, Vec<Outlier>) {
+    let mut names: Vec<(String, String)> = Vec::new();
+    for u in units {
+        for p in &u.physical {
+            if !names.iter().any(|(n, _)| n == &p.name) {
+                names.push((p.name.clone(), p.unit.clone()));
+            }
+        }
+    }
+    let mut dists = Vec::new();
+    let mut outliers = Vec::new();
+    for (name, unit) in names {
+        let vals: Vec<(&str, f64)> = units
+            .iter()
+            .filter_map(|u| {
+                u.physical
+                    .iter()
+                    .find(|p| p.name == name && p.status == ParameterStatus::Estimated)
+                    .filter(|p| p.value > 0.0 && p.value.is_finite())
+                    .map(|p| (u.serial.as_str(), p.value))
+            })
+            .collect();
+        let v: Vec<f64> = vals.iter().map(|x| x.1).collect();
+        dists.extend(Distribution::of(&name, &unit, &v));
+        if vals.len() < MIN_UNITS_FOR_SPREAD {
+            continue;
+        }
+        let logs: Vec<f64> = v.iter().map(|x| x.ln()).collect();
+        let med = median(&logs);
+        let mad = median(&logs.iter().map(|x| (x - med).abs()).collect::<Vec<_>>());
+        if mad.is_nan() || mad <= 0.0 {
+            continue;
+        }
+        for ((serial, value), l) in vals.iter().zip(&logs) {
+            let z = 0.6745 * (l - med) / mad;
+            if z.abs() > OUTLIER_Z {
+                outliers.push(Outlier {
+                    serial: serial.to_string(),
+                    parameter: name.clone(),
+                    value: *value,
+                    median: med.exp(),
+                    robust_z: z,
+                });
+            }
+        }
+    }
+    (dists, outliers)
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    let n = s.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
 }
 
 impl FleetSummary {
@@ -368,9 +519,12 @@ impl FleetSummary {
             "count",
             &col(&|u| Some(u.passed as f64)),
         ));
+        let (physical, outliers) = physical_spread(&units);
         Self {
             schema: FLEET_SCHEMA,
             layout,
+            physical,
+            outliers,
             units_pass: units.iter().filter(|u| u.status == "pass").count(),
             units_fail: units.iter().filter(|u| u.status == "fail").count(),
             units_error: units.iter().filter(|u| u.status == "error").count(),
@@ -392,6 +546,8 @@ pub struct FleetOptions {
     pub jobs: Option<usize>,
     /// Write each unit's outputs to `<out>/<serial>/` and the summary to `<out>/fleet.json`.
     pub out_dir: Option<PathBuf>,
+    /// Fit this physical structure on each unit's identification run (see the module docs).
+    pub physical: Option<GreyBoxOptions>,
 }
 
 /// The fleet summary written at the top of the output directory.
@@ -430,6 +586,9 @@ pub fn run_fleet(
     opts: &FleetOptions,
     on_unit_done: &(dyn Fn(&str) + Sync),
 ) -> Result<FleetSummary> {
+    if let Some(g) = &opts.physical {
+        g.check()?;
+    }
     let (layout, serials) = discover_units(dir)?;
     // Every output directory is taken (locked, and checked for files ferrosid did not write)
     // before any unit is computed: a foreign file in the last unit's directory stops the fleet
@@ -468,7 +627,11 @@ pub fn run_fleet(
                         }
                         None => None,
                     };
-                    Ok(UnitResult::from_run(serial, &run, out))
+                    let mut u = UnitResult::from_run(serial, &run, out);
+                    if let Some(g) = &opts.physical {
+                        u.add_physical(&run, g);
+                    }
+                    Ok(u)
                 });
                 on_unit_done(serial);
                 match r {
@@ -482,10 +645,7 @@ pub fn run_fleet(
     let s = &template.config.signals;
     let summary = FleetSummary::new(layout, units, &s.output_unit, &s.input_unit);
     if let Some(top) = &mut top {
-        top.write(
-            Path::new(FLEET_SUMMARY_FILE),
-            &json_pretty(&summary)?,
-        )?;
+        top.write(Path::new(FLEET_SUMMARY_FILE), &json_pretty(&summary)?)?;
     }
     Ok(summary)
 }

@@ -10,6 +10,7 @@
 
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod closed_loop;
 pub mod compensation;
 pub mod data;
 pub mod error;

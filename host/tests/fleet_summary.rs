@@ -65,6 +65,7 @@ fn fleet_resonance_spread_matches_the_generated_fleet() {
         &FleetOptions {
             jobs: Some(2),
             out_dir: Some(out.clone()),
+            ..FleetOptions::default()
         },
         &|_| {},
     )
@@ -127,6 +128,7 @@ fn fleet_resonance_spread_matches_the_generated_fleet() {
         &FleetOptions {
             jobs: Some(1),
             out_dir: None,
+            ..FleetOptions::default()
         },
         &|_| {},
     )
@@ -245,4 +247,68 @@ fn fleet_output_dirs_are_checked_before_any_unit_is_computed() {
         std::fs::read_to_string(out.join("fleet.json")).unwrap(),
         "{\"mine\": true}"
     );
+}
+
+/// `--structure two-mass --known Kt=1` on the example fleet (torque in mN·m and speed in
+/// mrad/s: the same 1e-3 scale on both sides, so with K_t = 1 every parameter is in SI units):
+/// J_m, J_l, k within 3 % of units.json for every unit and b within 3 % of b_m + b_l (the
+/// structure has one viscous friction; the motor-side sensor sees the sum on the rigid-body
+/// pole). The shaft damping c is not compared: the load-side friction the structure leaves out
+/// moves into it. The faulty unit SN0004 (Coulomb friction on the motor) is outside the fleet's
+/// spread of b, and no other unit is flagged.
+#[test]
+fn physical_parameters_match_the_fleet_and_flag_the_faulty_unit() {
+    use ferrosid::greybox::{GreyBoxOptions, Structure};
+    let dir = fleet_dir();
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("units.json")).expect("units"))
+            .expect("units.json");
+    let template = LoadedConfig::load(&dir.join("pipeline.toml")).expect("template");
+    let s = run_fleet(
+        &dir,
+        &template,
+        &FleetOptions {
+            physical: Some(
+                GreyBoxOptions::new(Structure::parse("two-mass").unwrap()).with_known("Kt", 1.0),
+            ),
+            ..FleetOptions::default()
+        },
+        &|_| {},
+    )
+    .expect("fleet");
+    for (u, t) in s.units.iter().zip(truth["units"].as_array().unwrap()) {
+        assert_eq!(u.serial, t["serial"].as_str().unwrap());
+        assert!(
+            u.physical_error.is_none(),
+            "{}: {:?}",
+            u.serial,
+            u.physical_error
+        );
+        let est = |n: &str| u.physical.iter().find(|p| p.name == n).unwrap().value;
+        let tv = |n: &str| t[n].as_f64().unwrap();
+        if u.serial == "SN0004" {
+            continue;
+        }
+        for (name, want) in [
+            ("Jm", tv("jm")),
+            ("Jl", tv("jl")),
+            ("k", tv("k")),
+            ("b", tv("bm") + tv("bl")),
+        ] {
+            let got = est(name);
+            assert!(
+                (got / want - 1.0).abs() < 0.03,
+                "{} {name}: {got} vs {want}",
+                u.serial
+            );
+        }
+    }
+    let flagged: Vec<(&str, &str)> = s
+        .outliers
+        .iter()
+        .map(|o| (o.serial.as_str(), o.parameter.as_str()))
+        .collect();
+    assert!(flagged.contains(&("SN0004", "b")), "{flagged:?}");
+    assert!(flagged.iter().all(|(u, _)| *u == "SN0004"), "{flagged:?}");
+    assert_eq!(s.physical.len(), 5, "Jm, Jl, k, c, b distributions");
 }

@@ -151,6 +151,29 @@ fn simulate(case: &Case, u: &[f64], sensor_pole_hz: Option<f64>) -> Vec<f64> {
                 },
             )
         }
+        Structure::TwoMassLag => {
+            let (jm, jl, k, c, b, kt, tau) =
+                (t("Jm"), t("Jl"), t("k"), t("c"), t("b"), t("Kt"), t("tau"));
+            // States: motor angle, load angle, motor speed, load speed, lagged command.
+            rk4(
+                vec![0.0; 5],
+                u,
+                case.ts,
+                8,
+                |x, u| {
+                    let tw = x[0] - x[1];
+                    let dw = x[2] - x[3];
+                    vec![
+                        x[2],
+                        x[3],
+                        (kt * x[4] - b * x[2] - k * tw - c * dw) / jm,
+                        (k * tw + c * dw) / jl,
+                        (u - x[4]) / tau,
+                    ]
+                },
+                |x| x[2],
+            )
+        }
     };
     if let Some(fc) = sensor_pole_hz {
         let a = (-2.0 * std::f64::consts::PI * fc * case.ts).exp();
@@ -388,4 +411,42 @@ fn refuses_what_the_data_cannot_determine() {
         o = o.with_known(n, v);
     }
     assert!(err(o).contains("nothing to estimate"));
+}
+
+/// The lagged two-mass axis (the motor bench's structure): the two-mass case above behind a
+/// 2 ms torque lag (80 Hz corner, between the anti-resonance and the resonance), one
+/// realisation at 40 dB, 4000 samples: every free parameter within 2 % of the truth and within
+/// 4 of its standard deviations (its coverage is not Monte-Carlo tested here: the two-mass
+/// structure it extends is).
+#[test]
+fn two_mass_lag_point_estimates() {
+    let mut case = cases().pop().expect("two-mass case");
+    case.structure = Structure::TwoMassLag;
+    case.truth.push(("tau", 2e-3));
+    let f = run(&case, 11, 4000, 40.0, None);
+    assert!(f.converged);
+    for p in &f.parameters {
+        let t = truth(&case, &p.name);
+        eprintln!(
+            "two-mass-lag {}: {} (truth {t}) sd {:?}",
+            p.name, p.value, p.std_dev
+        );
+        assert!(
+            (p.value / t - 1.0).abs() < 0.02,
+            "{}: {} vs {t}",
+            p.name,
+            p.value
+        );
+        if p.status == ParameterStatus::Estimated {
+            let sd = p.std_dev.expect("sd");
+            assert!(
+                (p.value - t).abs() < 4.0 * sd,
+                "{}: {} ± {sd} vs {t}",
+                p.name,
+                p.value
+            );
+        } else {
+            assert_eq!(p.status, ParameterStatus::Known, "{}", p.name);
+        }
+    }
 }

@@ -28,6 +28,7 @@ const LAYERS: &[(&str, u8)] = &[
     ("operating_point", 2),
     // 3. Models from data and their validation.
     ("n4sid", 3),
+    ("closed_loop", 3),
     ("greybox", 3),
     ("rational_fit", 3),
     ("validate", 3),

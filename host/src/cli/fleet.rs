@@ -10,7 +10,8 @@
 //! unusable.
 use super::ExitCode;
 use crate::error::{Error, Result};
-use crate::fleet::{run_fleet, FleetOptions, FleetSummary};
+use crate::fleet::{run_fleet, FleetOptions, FleetSummary, OUTLIER_Z};
+use crate::greybox::{GreyBoxOptions, Structure};
 use crate::pipeline::{fmt_num, LoadedConfig};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
@@ -38,6 +39,14 @@ pub struct Args {
     /// Print the summary as JSON instead of tables.
     #[arg(long)]
     pub json: bool,
+    /// Fit this physical structure (grey box: stage, stage-velocity, dc-motor, two-mass,
+    /// two-mass-position, two-mass-lag) on each unit's identification run and report the parameters'
+    /// distributions in physical units, flagging units outside the fleet's spread.
+    #[arg(long, value_name = "NAME")]
+    pub structure: Option<String>,
+    /// A parameter of --structure known from elsewhere, held fixed (SI units), e.g. Kt=1.
+    #[arg(long, value_name = "NAME=VALUE", requires = "structure")]
+    pub known: Vec<String>,
 }
 
 fn print(text: &str) -> Result<()> {
@@ -145,35 +154,9 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
     let mut right = vec![false, false, true, true, true];
     right.extend(std::iter::repeat_n(true, 2 * nmodes + 5));
     out.push_str(&table(&rows, &right));
-    let mut rows = vec![[
-        "parameter",
-        "unit",
-        "n",
-        "min",
-        "median",
-        "max",
-        "mean",
-        "std",
-    ]
-    .map(String::from)
-    .to_vec()];
-    for d in &s.parameters {
-        rows.push(vec![
-            d.parameter.clone(),
-            d.unit.clone(),
-            d.count.to_string(),
-            fmt_num(d.min),
-            fmt_num(d.median),
-            fmt_num(d.max),
-            fmt_num(d.mean),
-            fmt_num(d.std),
-        ]);
-    }
     out.push('\n');
-    out.push_str(&table(
-        &rows,
-        &[false, false, true, true, true, true, true, true],
-    ));
+    out.push_str(&distribution_table(&s.parameters));
+    out.push_str(&physical_text(s));
     let errs: Vec<String> = s
         .units
         .iter()
@@ -200,6 +183,100 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
 }
 
 /// Runs `ferrosid fleet`.
+/// One row per distribution: parameter, unit, n, min, median, max, mean, std.
+fn distribution_table(dists: &[crate::fleet::Distribution]) -> String {
+    let mut rows = vec![[
+        "parameter",
+        "unit",
+        "n",
+        "min",
+        "median",
+        "max",
+        "mean",
+        "std",
+    ]
+    .map(String::from)
+    .to_vec()];
+    for d in dists {
+        rows.push(vec![
+            d.parameter.clone(),
+            d.unit.clone(),
+            d.count.to_string(),
+            fmt_num(d.min),
+            fmt_num(d.median),
+            fmt_num(d.max),
+            fmt_num(d.mean),
+            fmt_num(d.std),
+        ]);
+    }
+    table(&rows, &[false, false, true, true, true, true, true, true])
+}
+
+/// The physical parameters per unit, their distributions and the units outside the spread.
+fn physical_text(s: &FleetSummary) -> String {
+    if s.physical.is_empty() && s.units.iter().all(|u| u.physical_error.is_none()) {
+        return String::new();
+    }
+    let mut out = String::from(
+        "\nphysical parameters per unit (95 % intervals; * = outside the fleet's spread):\n",
+    );
+    let mut rows = vec![vec![
+        "serial".to_string(),
+        "parameter".into(),
+        "value".into(),
+        "interval".into(),
+        "unit".into(),
+        "status".into(),
+    ]];
+    for u in &s.units {
+        for p in &u.physical {
+            let flagged = s
+                .outliers
+                .iter()
+                .any(|o| o.serial == u.serial && o.parameter == p.name);
+            rows.push(vec![
+                u.serial.clone(),
+                p.name.clone(),
+                format!("{}{}", fmt_num(p.value), if flagged { " *" } else { "" }),
+                p.interval.map_or("-".into(), |[lo, hi]| {
+                    format!("[{}, {}]", fmt_num(lo), fmt_num(hi))
+                }),
+                p.unit.clone(),
+                format!("{:?}", p.status).to_lowercase(),
+            ]);
+        }
+        if let Some(e) = &u.physical_error {
+            rows.push(vec![
+                u.serial.clone(),
+                "-".into(),
+                "-".into(),
+                "-".into(),
+                "-".into(),
+                format!("fit: {e}"),
+            ]);
+        }
+    }
+    out.push_str(&table(&rows, &[false, false, true, true, false, false]));
+    out.push_str("\nphysical parameter distributions (estimated values):\n");
+    out.push_str(&distribution_table(&s.physical));
+    if s.outliers.is_empty() {
+        out.push_str(&format!(
+            "no unit outside the fleet's spread (modified z-score on log values > {OUTLIER_Z})\n"
+        ));
+    }
+    for o in &s.outliers {
+        out.push_str(&format!(
+            "  {}: {} = {} outside the fleet's spread (median {}, modified z-score {:.1} > {OUTLIER_Z})\n",
+            o.serial,
+            o.parameter,
+            fmt_num(o.value),
+            fmt_num(o.median),
+            o.robust_z
+        ));
+    }
+    out
+}
+
 pub fn run(args: &Args) -> Result<ExitCode> {
     if !args.dir.is_dir() {
         return Err(Error::Io {
@@ -239,7 +316,20 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     {
         pb.set_style(style.progress_chars("=> "));
     }
+    let physical = match &args.structure {
+        None => None,
+        Some(name) => {
+            let mut g = GreyBoxOptions::new(Structure::parse(name)?);
+            for k in &args.known {
+                let (n, v) = super::identify::parse_known(k)?;
+                g = g.with_known(&n, v);
+            }
+            g.check()?;
+            Some(g)
+        }
+    };
     let opts = FleetOptions {
+        physical,
         jobs: args.jobs,
         out_dir: Some(
             args.out

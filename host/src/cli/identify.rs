@@ -25,23 +25,26 @@
 use super::frf::{EtfeArgs, LogArgs};
 use super::output::{self, fixed, general, Align, Table, TerminalProgress};
 use super::ExitCode;
+use crate::closed_loop::ClosedLoopMethod;
+use crate::data::Log;
 use crate::error::{Error, Result};
+use crate::greybox::{GreyBoxFit, GreyBoxOptions, ParameterStatus, Structure};
 use crate::io::file_safety::{check_writable, refuse_input_overwrite, write_atomic};
 use crate::n4sid::{N4sidOptions, OrderSelection, Weighting};
+use crate::ops::identify::ClosedLoopSettings;
 pub use crate::ops::identify::{
-    identify as identify_with, Continuous, IdentifyOptions, IdentifyReport, PairComparison,
-    Root, Validation, NORMALISATION_NOTE,
+    identify as identify_with, Continuous, IdentifyOptions, IdentifyReport, PairComparison, Root,
+    Validation, NORMALISATION_NOTE,
 };
-use crate::data::Log;
 use crate::preprocess::Removal;
 use crate::validate::PHASE_BOUND_DEG;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// The `--remove` values (the library's [`crate::preprocess::Removal`]).
-pub use crate::preprocess::Removal as DetrendMode;
 /// The `--weighting` values (the library's [`crate::n4sid::Weighting`]).
 pub use crate::n4sid::Weighting as WeightingArg;
+/// The `--remove` values (the library's [`crate::preprocess::Removal`]).
+pub use crate::preprocess::Removal as DetrendMode;
 
 /// Arguments of `ferrosid identify`.
 #[derive(Debug, Clone, clap::Args)]
@@ -54,12 +57,20 @@ Examples:
   ferrosid identify MultisineTypeA.mat --input iq_refx --output omega_max \\
       --validate MultisineTypeB.mat --period 2500 --order 4
   ferrosid identify robot_arm.dat --fs 1 --input 1 --output 2 --order 4
+  ferrosid identify loop.csv --reference r --order 2      (closed loop: u, y and the reference r)
+  ferrosid identify MultisineTypeA.mat --input iq_refx --output omega_max --decimate 4 \\
+      --order 4 --structure two-mass-lag --known Kt=1 --params-out params.json
 
 Several estimation logs are preprocessed separately and concatenated. The validation log gets the
 same preprocessing; its ETFE uses the --nperseg/--window/--period/--gate settings (as `frf`).
 The model file (--out) holds {\"a\",\"b\",\"c\",\"d\",\"ts\"} (matrix rows, ts in seconds) and the
 operating point (the means removed: the model maps y - y0 = G (u - u0)); it is accepted by
 `ferrosid gap --sim` and `ferrosid codegen --model`. --out may not name an input log.
+
+Without --reference, a feedback test warns when the input depends on past output noise (the log
+was recorded in closed loop: direct N4SID is then biased; give the reference with --reference).
+--structure fits a physical model (grey box) and prints its parameters with 95 % intervals; a
+parameter the signals cannot separate must be given with --known NAME=VALUE (SI units).
 
 Exit codes: 0 success, 1 the phase checklist failed (a gated bin up to 2x --crossover-hz is
 outside +-phase-tol degrees), 2 usage error, 3 input data error (file and line named),
@@ -120,6 +131,41 @@ pub struct Args {
     /// Write the discrete model to this JSON file.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Closed-loop log: the reference channel (same conventions as --input; one per input).
+    /// Selects an unbiased closed-loop method (--closed-loop-method) instead of direct N4SID.
+    #[arg(long, value_name = "NAME")]
+    pub reference: Vec<String>,
+    /// Closed-loop method (with --reference): two-stage (plant order) or joint-input-output
+    /// (closed-loop order; unstable plants; needs a controller with direct feedthrough).
+    #[arg(long, value_enum, default_value_t = ClosedLoopMethod::TwoStage, requires = "reference")]
+    pub closed_loop_method: ClosedLoopMethod,
+    /// Order of the two-stage method's stage-1 model reference -> input (default: automatic).
+    #[arg(long, value_name = "N", requires = "reference")]
+    pub stage1_order: Option<usize>,
+    /// Physical structure to fit (grey box): stage, stage-velocity, dc-motor, two-mass,
+    /// two-mass-position, two-mass-lag. Prints the physical parameters with units, 95 % intervals and status.
+    #[arg(long, value_name = "NAME")]
+    pub structure: Option<String>,
+    /// A parameter of --structure known from elsewhere, held fixed (SI units), e.g. Kt=0.12.
+    /// Repeat for several. Required where one input/output pair cannot separate parameters.
+    #[arg(long, value_name = "NAME=VALUE", requires = "structure")]
+    pub known: Vec<String>,
+    /// Write the physical parameters (--structure) to this JSON file.
+    #[arg(long, value_name = "FILE", requires = "structure")]
+    pub params_out: Option<PathBuf>,
+}
+
+/// `--known NAME=VALUE` → (name, value).
+pub(crate) fn parse_known(s: &str) -> Result<(String, f64)> {
+    let bad = || {
+        Error::InvalidArgument(format!(
+            "--known must look like NAME=VALUE (e.g. Kt=0.12), got `{}`",
+            crate::error::excerpt(s)
+        ))
+    };
+    let (name, value) = s.split_once('=').ok_or_else(bad)?;
+    let value: f64 = value.trim().parse().map_err(|_| bad())?;
+    Ok((name.trim().to_string(), value))
 }
 
 fn parse_range(s: &str) -> Result<(usize, usize)> {
@@ -183,6 +229,29 @@ impl Args {
             phase_tol_deg: self.phase_tol,
             max_lag: self.max_lag,
             etfe: self.etfe.options()?,
+            closed_loop: if self.reference.is_empty() {
+                None
+            } else {
+                if self.stage1_order == Some(0) {
+                    return Err(Error::InvalidArgument("--stage1-order must be >= 1".into()));
+                }
+                Some(ClosedLoopSettings {
+                    method: self.closed_loop_method,
+                    reference: self.reference.clone(),
+                    stage1_order: self.stage1_order,
+                })
+            },
+            physical: match &self.structure {
+                None => None,
+                Some(name) => {
+                    let mut g = GreyBoxOptions::new(Structure::parse(name)?);
+                    for k in &self.known {
+                        let (n, v) = parse_known(k)?;
+                        g = g.with_known(&n, v);
+                    }
+                    Some(g)
+                }
+            },
         };
         opts.validate()?;
         Ok(opts)
@@ -267,6 +336,20 @@ pub fn render_text(r: &IdentifyReport) -> String {
             None => String::new(),
         }
     );
+    if let Some(cl) = &r.closed_loop {
+        let _ = writeln!(
+            s,
+            "closed-loop method: {} (closed-loop model order {}; the reference explains {} of \
+             the input energy)",
+            cl.description,
+            cl.closed_loop_order,
+            cl.input_explained
+                .iter()
+                .map(|e| format!("{} %", fixed(100.0 * e, 1)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let mut t = Table::new(&[
         ("n", Align::Right),
         ("singular value", Align::Right),
@@ -404,6 +487,28 @@ pub fn render_text(r: &IdentifyReport) -> String {
         if rt.independence_ok { "pass" } else { "fail" },
         fixed(100.0 * rt.frac_cross_outside, 1)
     );
+    if let Some(f) = &r.feedback {
+        for (o, st) in f.outputs.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "  feedback test (output {o}, innovations vs future inputs at lags 1..{}): \
+                 N*R^2 = {} vs chi^2({}) threshold {} at {} %: {}",
+                f.max_lag,
+                fixed(st.statistic, 1),
+                st.dof,
+                fixed(st.threshold, 1),
+                100.0 * f.significance,
+                if st.detected {
+                    "FEEDBACK DETECTED (see warnings)"
+                } else {
+                    "no feedback detected"
+                }
+            );
+        }
+    }
+    if let Some(g) = &r.physical {
+        s.push_str(&render_physical(g));
+    }
     if !r.warnings.is_empty() {
         let _ = writeln!(s, "\nwarnings:");
         for w in &r.warnings {
@@ -424,6 +529,50 @@ pub fn render_text(r: &IdentifyReport) -> String {
     if let Some(f) = &r.model_file {
         let _ = writeln!(s, "\nmodel written to {f}");
     }
+    s
+}
+
+/// The physical parameters of a grey-box fit as a table with units, intervals and status.
+pub fn render_physical(g: &GreyBoxFit) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\nphysical parameters ({}; {} % intervals; fit NRMSE {} vs black box {}; {} \
+         iterations{}):",
+        g.structure.name(),
+        (100.0 * g.confidence * 1e6).round() / 1e6,
+        fixed(g.nrmse, 4),
+        fixed(g.black_box_nrmse, 4),
+        g.iterations,
+        if g.converged { "" } else { ", NOT converged" }
+    );
+    let mut t = Table::new(&[
+        ("name", Align::Left),
+        ("value", Align::Right),
+        ("interval", Align::Right),
+        ("unit", Align::Left),
+        ("status", Align::Left),
+        ("meaning", Align::Left),
+    ]);
+    for p in &g.parameters {
+        t.row(vec![
+            p.name.clone(),
+            general(p.value, 5),
+            p.interval.map_or("-".into(), |[lo, hi]| {
+                format!("[{}, {}]", general(lo, 4), general(hi, 4))
+            }),
+            p.unit.clone(),
+            match p.status {
+                ParameterStatus::Estimated => "estimated",
+                ParameterStatus::Known => "known",
+                ParameterStatus::Undetermined => "undetermined (value means nothing)",
+            }
+            .into(),
+            p.description.clone(),
+        ]);
+    }
+    s.push_str(&t.render(2));
+    let _ = writeln!(s, "  intervals: {}", g.interval_method);
     s
 }
 
@@ -471,24 +620,37 @@ fn describe_step(step: &crate::preprocess::StepRecord) -> String {
 /// Runs `ferrosid identify`.
 pub fn run(args: &Args) -> Result<ExitCode> {
     args.options()?;
-    if let Some(out) = &args.out {
-        let inputs: Vec<&std::path::Path> = args
-            .logs
-            .iter()
-            .chain(&args.validate)
-            .map(PathBuf::as_path)
-            .collect();
-        refuse_input_overwrite(out, "--out", &inputs)?;
-        check_writable(out)?;
+    let inputs: Vec<&std::path::Path> = args
+        .logs
+        .iter()
+        .chain(&args.validate)
+        .map(PathBuf::as_path)
+        .collect();
+    for (flag, out) in [("--out", &args.out), ("--params-out", &args.params_out)] {
+        if let Some(out) = out {
+            refuse_input_overwrite(out, flag, &inputs)?;
+            check_writable(out)?;
+        }
     }
-    let logs = args.select.read_all(&args.logs)?;
+    let mut select = args.select.clone();
+    if !args.reference.is_empty() {
+        // The reference channels are read as extra inputs and split off again by the library.
+        if select.inputs.is_empty() {
+            select.inputs.push("u".into());
+        }
+        select.inputs.extend(args.reference.iter().cloned());
+    }
+    let logs = select.read_all(&args.logs)?;
     let vlog = match &args.validate {
-        Some(p) => args.select.read_all(std::slice::from_ref(p))?.pop(),
+        Some(p) => select.read_all(std::slice::from_ref(p))?.pop(),
         None => None,
     };
     let report = identify(&logs, vlog.as_ref(), args)?;
     if let Some(path) = &args.out {
         write_atomic(path, output::json_string(&report.n4sid.model)?.as_bytes())?;
+    }
+    if let (Some(path), Some(g)) = (&args.params_out, &report.physical) {
+        write_atomic(path, output::json_string(g)?.as_bytes())?;
     }
     if args.json {
         output::emit(&output::json_string(&report)?)?;

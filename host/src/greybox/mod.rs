@@ -37,7 +37,7 @@ use serde::Serialize;
 pub const MAX_CONDITION: f64 = 1e12;
 
 /// What to fit.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GreyBoxOptions {
     /// The physical structure.
     pub structure: Structure,
@@ -64,6 +64,16 @@ impl GreyBoxOptions {
     pub fn with_known(mut self, name: &str, value: f64) -> Self {
         self.known.push((name.to_string(), value));
         self
+    }
+
+    /// Checks the known parameters' names and values, the identifiability rule, the confidence
+    /// level and the iteration limit, before any data are read.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] saying what is wrong (an unknown name lists the structure's
+    /// parameters; a non-identifiable request names the parameters to give with `--known`).
+    pub fn check(&self) -> Result<()> {
+        self.known_vector().map(|_| ())
     }
 
     /// Known values per parameter of the structure, after checking names, values and the
@@ -392,6 +402,40 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             }
         ),
     })
+}
+
+/// [`fit`] on a SISO [`crate::data::Log`] (the pipeline's physical stage, the fleet, `identify
+/// --structure`).
+///
+/// # Errors
+/// As [`fit`]; [`Error::Data`] for a log that is not SISO.
+pub fn fit_log(log: &crate::data::Log, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
+    if log.inputs.len() != 1 || log.outputs.len() != 1 {
+        return Err(Error::Data {
+            file: log.path.clone(),
+            msg: format!(
+                "physical structure {} needs one input and one output, the log has {} and {}",
+                opts.structure.name(),
+                log.inputs.len(),
+                log.outputs.len()
+            ),
+        });
+    }
+    let u = [log.inputs[0].data.as_slice()];
+    let y = [log.outputs[0].data.as_slice()];
+    let un = [log.inputs[0].name.clone()];
+    let yn = [log.outputs[0].name.clone()];
+    fit(
+        &ChannelSet {
+            source: &log.path,
+            ts: log.ts,
+            u: &u,
+            y: &y,
+            u_names: &un,
+            y_names: &yn,
+        },
+        opts,
+    )
 }
 
 #[cfg(test)]

@@ -95,7 +95,17 @@ pub(super) fn start_values(
             })?;
             dc_motor(&roots, bb, grid_hz, r, l)?
         }
-        Structure::TwoMass(out) => two_mass(out, &roots, bb, grid_hz, k("Jm"), k("Jl"), k("Kt"))?,
+        Structure::TwoMass(out) => {
+            two_mass(out, &roots, bb, grid_hz, [k("Jm"), k("Jl"), k("Kt")], false)?
+        }
+        Structure::TwoMassLag => two_mass(
+            Measured::Velocity,
+            &roots,
+            bb,
+            grid_hz,
+            [k("Jm"), k("Jl"), k("Kt")],
+            true,
+        )?,
     };
     for (v, kv) in p.iter_mut().zip(known) {
         if let Some(kv) = kv {
@@ -193,14 +203,14 @@ fn dc_motor(roots: &Roots, bb: &StateSpace, grid: &[f64], r: f64, l: f64) -> Res
 /// Two-mass axis, motor-side sensor: with ω_a (anti-resonance) and ω_r (resonance),
 /// ω_r²/ω_a² = (J_m + J_l)/J_m and ω_a² = k/J_l; the rigid-body gain g = K_t/(J_m + J_l) comes
 /// from the response over the band, the real pole p₀ ≈ −b/(J_m + J_l), and c = 2ζ_a ω_a J_l.
+/// With `lag` (velocity output), the fastest real pole is −1/τ and τ is appended.
 fn two_mass(
     out: Measured,
     roots: &Roots,
     bb: &StateSpace,
     grid: &[f64],
-    jm: Option<f64>,
-    jl: Option<f64>,
-    kt: Option<f64>,
+    [jm, jl, kt]: [Option<f64>; 3],
+    lag: bool,
 ) -> Result<Vec<f64>> {
     let res = complex_pair(&roots.poles).ok_or_else(|| {
         Error::Numerical(
@@ -238,10 +248,31 @@ fn two_mass(
     }
     .unwrap_or(0.0)
     .min(0.0);
+    let tau = if lag {
+        let fastest = real.last().copied().filter(|_| real.len() >= 2);
+        let p = fastest.ok_or_else(|| {
+            Error::Numerical(
+                "grey-box start: two-mass-lag needs two real poles in the black-box model (the \
+                 rigid body and the lag); the model has another complex pair instead"
+                    .into(),
+            )
+        })?;
+        if !(p < 0.0) {
+            return Err(Error::Numerical(format!(
+                "grey-box start: the fastest real pole {p:.3e} rad/s is not a stable lag"
+            )));
+        }
+        Some(-1.0 / p)
+    } else {
+        None
+    };
     let pos = out == Measured::Position;
     let g = gain(bb, grid, |s| {
-        let h = (wr * wr / (wa * wa)) * (s * s + 2.0 * za * wa * s + wa * wa)
+        let mut h = (wr * wr / (wa * wa)) * (s * s + 2.0 * za * wa * s + wa * wa)
             / ((s - p0) * (s * s + 2.0 * zr * wr * s + wr * wr));
+        if let Some(t) = tau {
+            h /= t * s + 1.0;
+        }
         if pos {
             h / s
         } else {
@@ -258,12 +289,14 @@ fn two_mass(
         })?;
     let j_m = j_total * split;
     let j_l = j_total - j_m;
-    Ok(vec![
+    let mut p = vec![
         j_m,
         j_l,
         j_l * wa * wa,
         2.0 * za * wa * j_l,
         -p0 * j_total,
         g * j_total,
-    ])
+    ];
+    p.extend(tau);
+    Ok(p)
 }

@@ -15,6 +15,11 @@
 //!   `J_l ω̇_l = k θ + c (ω_m − ω_l)`, `θ̇ = ω_m − ω_l` (θ the shaft twist, rad). The sensor is on
 //!   the motor: speed ω_m (rad/s) or angle φ_m (rad). Gearing: a gearbox of ratio `n` is folded
 //!   into the load side (J_l, k, c are as seen from the motor shaft: J_l,motor = J_l,load/n²).
+//! - [`Structure::TwoMassLag`]: the two-mass axis driven through a first-order lag of time
+//!   constant `τ` between the logged command and the torque (the current loop's bandwidth, or a
+//!   speed filter in the drive): `τ i̇ = u − i`, torque `K_t i`; motor speed output; 4 states.
+//!   For a drive whose logged current reference is not the current (a real current loop has a
+//!   bandwidth of a few hundred Hz to a few kHz, which a 2.5 kHz log sees as phase lag).
 use crate::error::{Error, Result};
 use crate::lti::StateSpace;
 use faer::Mat;
@@ -40,6 +45,9 @@ pub enum Structure {
     DcMotor,
     /// Two-mass axis with a motor-side sensor: parameters J_m, J_l, k, c, b, K_t.
     TwoMass(Measured),
+    /// Two-mass axis driven through a first-order torque lag, motor speed output: parameters
+    /// J_m, J_l, k, c, b, K_t, τ.
+    TwoMassLag,
 }
 
 /// One parameter of a structure.
@@ -90,6 +98,19 @@ const TWO_MASS: [ParameterSpec; 6] = [
     spec("b", "N·m·s/rad", "viscous friction at the motor"),
     spec("Kt", "N·m/A", "torque constant"),
 ];
+const TWO_MASS_LAG: [ParameterSpec; 7] = [
+    TWO_MASS[0],
+    TWO_MASS[1],
+    TWO_MASS[2],
+    TWO_MASS[3],
+    TWO_MASS[4],
+    TWO_MASS[5],
+    spec(
+        "tau",
+        "s",
+        "time constant of the lag from the logged command to the torque",
+    ),
+];
 
 impl Structure {
     /// Parses a command-line name: `stage`, `stage-velocity`, `dc-motor`, `two-mass`,
@@ -101,10 +122,11 @@ impl Structure {
             "dc-motor" => Structure::DcMotor,
             "two-mass" | "two-mass-velocity" => Structure::TwoMass(Measured::Velocity),
             "two-mass-position" => Structure::TwoMass(Measured::Position),
+            "two-mass-lag" => Structure::TwoMassLag,
             other => {
                 return Err(Error::InvalidArgument(format!(
-                    "unknown structure {:?}: expected stage, stage-velocity, dc-motor, two-mass or \
-                     two-mass-position",
+                    "unknown structure {:?}: expected stage, stage-velocity, dc-motor, two-mass, \
+                     two-mass-position or two-mass-lag",
                     crate::error::excerpt(other)
                 )))
             }
@@ -119,6 +141,7 @@ impl Structure {
             Structure::DcMotor => "dc-motor",
             Structure::TwoMass(Measured::Velocity) => "two-mass",
             Structure::TwoMass(Measured::Position) => "two-mass-position",
+            Structure::TwoMassLag => "two-mass-lag",
         }
     }
 
@@ -128,6 +151,7 @@ impl Structure {
             Structure::Stage(_) => &STAGE,
             Structure::DcMotor => &DC_MOTOR,
             Structure::TwoMass(_) => &TWO_MASS,
+            Structure::TwoMassLag => &TWO_MASS_LAG,
         }
     }
 
@@ -141,7 +165,7 @@ impl Structure {
         match self {
             Structure::Stage(_) | Structure::DcMotor => 2,
             Structure::TwoMass(Measured::Velocity) => 3,
-            Structure::TwoMass(Measured::Position) => 4,
+            Structure::TwoMass(Measured::Position) | Structure::TwoMassLag => 4,
         }
     }
 
@@ -173,7 +197,7 @@ impl Structure {
                 "voltage -> speed alone determines three combinations of R, L, K, J, b: \
                  J and K are not separable without R and L (measure them at standstill)",
             ),
-            Structure::TwoMass(_) => (
+            Structure::TwoMass(_) | Structure::TwoMassLag => (
                 is_known("Kt") || is_known("Jm") || is_known("Jl"),
                 "one of Kt, Jm, Jl",
                 "current -> motor speed/angle alone fixes the parameters only up to a common \
@@ -268,6 +292,20 @@ impl Structure {
                 };
                 (a, b, c)
             }
+            Structure::TwoMassLag => {
+                let (jm, jl, k, cd, bv, kt, tau) = (p[0], p[1], p[2], p[3], p[4], p[5], p[6]);
+                // States: ω_m, ω_l, θ (twist), i (the lagged command).
+                (
+                    vec![
+                        vec![-(bv + cd) / jm, cd / jm, -k / jm, kt / jm],
+                        vec![cd / jl, -cd / jl, k / jl, 0.0],
+                        vec![1.0, -1.0, 0.0, 0.0],
+                        vec![0.0, 0.0, 0.0, -1.0 / tau],
+                    ],
+                    vec![0.0, 0.0, 0.0, 1.0 / tau],
+                    vec![1.0, 0.0, 0.0, 0.0],
+                )
+            }
         };
         let n = a.len();
         StateSpace::new(
@@ -293,6 +331,7 @@ mod tests {
             Structure::DcMotor,
             Structure::TwoMass(Measured::Velocity),
             Structure::TwoMass(Measured::Position),
+            Structure::TwoMassLag,
         ] {
             assert_eq!(Structure::parse(s.name()).unwrap(), s);
             assert_eq!(
@@ -326,6 +365,25 @@ mod tests {
                 (got - want).norm() <= 1e-10 * want.norm(),
                 "{f} Hz: {got} vs {want}"
             );
+        }
+    }
+
+    /// The lagged two-mass axis is the two-mass transfer function times 1/(τ s + 1).
+    #[test]
+    fn two_mass_lag_is_two_mass_times_lag() {
+        let p = [2e-4, 6e-4, 30.0, 4e-3, 1e-3, 0.05];
+        let tau = 3e-4;
+        let plain = Structure::TwoMass(Measured::Velocity)
+            .state_space(&p)
+            .unwrap();
+        let mut q = p.to_vec();
+        q.push(tau);
+        let lag = Structure::TwoMassLag.state_space(&q).unwrap();
+        for f in [1.0, 20.0, 55.0, 300.0, 2000.0] {
+            let s = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f);
+            let want = plain.freq_response_siso(f).unwrap() / (tau * s + 1.0);
+            let got = lag.freq_response_siso(f).unwrap();
+            assert!((got - want).norm() <= 1e-10 * want.norm(), "{f} Hz");
         }
     }
 

@@ -13,15 +13,25 @@
 //!    data, labelled as such): free-run simulation fit (NRMSE, fit %), model versus ETFE at
 //!    every coherence-gated bin up to twice the crossover with the phase checklist, residual
 //!    auto/cross-correlation tests at 99 % confidence, and the fit through the model's
-//!    operating point on the raw validation log ([`crate::operating_point`]).
+//!    operating point on the raw validation log ([`crate::operating_point`]);
+//! 6. the feedback test ([`crate::closed_loop::feedback_test`]) on the estimation data: a
+//!    warning when the input depends on past output noise (closed-loop data, where direct
+//!    N4SID is biased). With [`IdentifyOptions::closed_loop`] the reference channels are split
+//!    off the logs and the plant is identified by an unbiased closed-loop method
+//!    ([`crate::closed_loop`]) instead.
 use super::frf::{check_compatible, LogSummary, MethodSummary};
 use super::Progress;
+use crate::closed_loop::{
+    feedback_test, identify_closed_loop, ClosedLoopMethod, ClosedLoopOptions, ClosedLoopSummary,
+    FeedbackTest,
+};
 use crate::data::{Channel, Log, OperatingPoint};
 use crate::error::{Error, Result};
+use crate::greybox::{GreyBoxFit, GreyBoxOptions};
 use crate::lti::{StateSpace, StateSpaceData};
-use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, N4sidSummary, MAX_BLOCK_ROWS};
+use crate::n4sid::{n4sid, ChannelSet, N4sidOptions, N4sidResult, N4sidSummary, MAX_BLOCK_ROWS};
 use crate::operating_point::operating_point_of;
-use crate::preprocess::{preprocess, Preprocessing, Removal, Step, MAX_DECIMATION};
+use crate::preprocess::{preprocess, Preprocessing, Removal, Step, StepRecord, MAX_DECIMATION};
 use crate::validate::{
     compare_with_etfe, residual_test, simulation_fit_log, simulation_fit_operating_point,
     EtfeComparison, InitialState, ResidualTest, SimulationFit, PHASE_BOUND_DEG,
@@ -47,6 +57,23 @@ pub struct IdentifyOptions {
     pub max_lag: usize,
     /// Validation ETFE settings.
     pub etfe: super::frf::FrfOptions,
+    /// Closed-loop identification: `None` identifies u → y directly.
+    pub closed_loop: Option<ClosedLoopSettings>,
+    /// Physical parameters: a grey-box fit of this structure ([`crate::greybox`]) on the
+    /// (single, SISO) estimation log after preprocessing.
+    pub physical: Option<GreyBoxOptions>,
+}
+
+/// How to identify from a closed-loop log.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ClosedLoopSettings {
+    /// The method.
+    pub method: ClosedLoopMethod,
+    /// Names of the reference channels: input channels of every log (estimation and
+    /// validation) that are split off and used as the reference, one per remaining input.
+    pub reference: Vec<String>,
+    /// Stage-1 (reference → input) order of the two-stage method; `None`: automatic.
+    pub stage1_order: Option<usize>,
 }
 
 impl Default for IdentifyOptions {
@@ -59,6 +86,8 @@ impl Default for IdentifyOptions {
             phase_tol_deg: PHASE_BOUND_DEG,
             max_lag: 25,
             etfe: super::frf::FrfOptions::default(),
+            closed_loop: None,
+            physical: None,
         }
     }
 }
@@ -82,6 +111,16 @@ impl IdentifyOptions {
                 "--phase-tol must be > 0 degrees, got {}",
                 self.phase_tol_deg
             )));
+        }
+        if let Some(g) = &self.physical {
+            g.check()?;
+            if self.closed_loop.is_some() {
+                return Err(Error::InvalidArgument(
+                    "--structure with --reference: the grey-box output-error fit is biased under \
+                     feedback like direct N4SID; fit the physical structure on an open-loop log"
+                        .into(),
+                ));
+            }
         }
         if self.max_lag == 0 {
             return Err(Error::InvalidArgument("--max-lag must be >= 1".into()));
@@ -243,6 +282,13 @@ pub struct IdentifyReport {
     pub operating_point: OperatingPoint,
     /// How the numerics treat signal scale.
     pub normalisation: &'static str,
+    /// Feedback test on the estimation data (direct identification only; `None` with a
+    /// closed-loop method, which handles feedback, or when the log is too short).
+    pub feedback: Option<FeedbackTest>,
+    /// The closed-loop method used, if any.
+    pub closed_loop: Option<ClosedLoopSummary>,
+    /// Physical parameters with intervals (with [`IdentifyOptions::physical`]).
+    pub physical: Option<GreyBoxFit>,
 }
 
 /// What `identify` says about signal scale (also in its JSON report).
@@ -350,13 +396,27 @@ pub fn identify(
             warnings.push(format!("{}: {w}", l.path.display()));
         }
     }
+    let reference = opts.closed_loop.as_ref().map(|c| c.reference.as_slice());
     let mut pre_logs = Vec::with_capacity(logs.len());
     let mut records = Vec::with_capacity(logs.len());
+    let mut refs: Vec<Vec<Vec<f64>>> = Vec::new();
     for l in logs {
-        let (p, r) = preprocess(l, &steps)?;
+        let (mut p, mut r) = preprocess(l, &steps)?;
+        if let Some(names) = reference {
+            refs.push(split_reference(&mut p, Some(&mut r), names)?);
+        }
         pre_logs.push(p);
         records.push(r);
     }
+    let stripped_vlog = match (vlog, reference) {
+        (Some(v), Some(names)) => {
+            let mut v = v.clone();
+            split_reference(&mut v, None, names)?;
+            Some(v)
+        }
+        _ => None,
+    };
+    let vlog = stripped_vlog.as_ref().or(vlog);
     let est = if pre_logs.len() == 1 {
         pre_logs.swap_remove(0)
     } else {
@@ -371,9 +431,13 @@ pub fn identify(
     };
     let operating_point = operating_point_of(&records, est.inputs.len(), est.outputs.len())?;
     progress.begin("N4SID", None);
-    let res = n4sid(&est, &opts.n4sid);
+    let res = estimate(&est, &refs, opts, &mut warnings);
     progress.end();
-    let res = res?;
+    let (res, closed_loop) = res?;
+    let feedback = match closed_loop {
+        Some(_) => None,
+        None => run_feedback_test(&est, opts.max_lag, &mut warnings),
+    };
     warnings.extend(res.warnings.iter().map(|w| format!("n4sid: {w}")));
     let model = &res.model;
     let mut poles: Vec<Root> = model
@@ -387,6 +451,15 @@ pub fn identify(
     let validation = validate_model(&res, &est, vlog, &operating_point, opts, progress);
     progress.end();
     let validation = validation?;
+    let physical = match &opts.physical {
+        Some(g) => {
+            progress.begin("grey-box fit", None);
+            let fit = physical_fit(&est, g, logs.len(), &mut warnings);
+            progress.end();
+            Some(fit?)
+        }
+        None => None,
+    };
     let phase_checklist_passed = opts
         .crossover_hz
         .map(|_| validation.phase.iter().all(|p| p.comparison.within_bound));
@@ -410,7 +483,175 @@ pub fn identify(
             s
         },
         operating_point,
+        feedback,
+        closed_loop,
+        physical,
     })
+}
+
+/// The grey-box fit on the preprocessed estimation data `est` (SISO; with several logs
+/// concatenated, the junctions are transients the output-error fit does not model: warned).
+fn physical_fit(
+    est: &Log,
+    g: &GreyBoxOptions,
+    n_logs: usize,
+    warnings: &mut Vec<String>,
+) -> Result<GreyBoxFit> {
+    if n_logs > 1 {
+        warnings.push(format!(
+            "grey-box fit on {n_logs} concatenated logs: each junction is a jump the \
+             output-error fit treats as data (fit one log for clean intervals)"
+        ));
+    }
+    let fit = crate::greybox::fit_log(est, g)?;
+    if !fit.converged {
+        warnings.push(format!(
+            "grey-box fit of {} did not converge in {} iterations: the parameters and \
+             intervals are where it stopped",
+            g.structure.name(),
+            fit.iterations
+        ));
+    }
+    Ok(fit)
+}
+
+/// Splits the reference channels `names` (input channels) off `log` and, when given, their
+/// entries off the preprocessing `record`; returns them in the order of `names`.
+fn split_reference(
+    log: &mut Log,
+    record: Option<&mut Preprocessing>,
+    names: &[String],
+) -> Result<Vec<Vec<f64>>> {
+    let mut idx = Vec::with_capacity(names.len());
+    for name in names {
+        let j = log
+            .inputs
+            .iter()
+            .position(|c| &c.name == name)
+            .ok_or_else(|| Error::Data {
+                file: log.path.clone(),
+                msg: format!(
+                    "--reference {}: no input channel of that name (inputs: {})",
+                    crate::error::excerpt(name),
+                    log.inputs
+                        .iter()
+                        .map(|c| c.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            })?;
+        if idx.contains(&j) {
+            return Err(Error::InvalidArgument(format!(
+                "--reference {name} given twice"
+            )));
+        }
+        idx.push(j);
+    }
+    if idx.len() >= log.inputs.len() {
+        return Err(Error::Data {
+            file: log.path.clone(),
+            msg: "every input channel is a reference: the plant input (--input) is missing".into(),
+        });
+    }
+    let out = idx.iter().map(|&j| log.inputs[j].data.clone()).collect();
+    let mut desc = idx.clone();
+    desc.sort_unstable_by(|a, b| b.cmp(a));
+    for &j in &desc {
+        log.inputs.remove(j);
+    }
+    if let Some(rec) = record {
+        for step in &mut rec.steps {
+            match step {
+                StepRecord::RemoveMean { channels } => desc.iter().for_each(|&j| {
+                    channels.remove(j);
+                }),
+                StepRecord::RemoveTrend { channels } => desc.iter().for_each(|&j| {
+                    channels.remove(j);
+                }),
+                StepRecord::Decimate { .. } => {}
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The model: direct N4SID, or the closed-loop method with the reference channels `refs` (one
+/// entry per estimation log, concatenated here).
+fn estimate(
+    est: &Log,
+    refs: &[Vec<Vec<f64>>],
+    opts: &IdentifyOptions,
+    warnings: &mut Vec<String>,
+) -> Result<(N4sidResult, Option<ClosedLoopSummary>)> {
+    let Some(cl) = &opts.closed_loop else {
+        return Ok((n4sid(est, &opts.n4sid)?, None));
+    };
+    let r: Vec<Vec<f64>> = (0..cl.reference.len())
+        .map(|j| refs.iter().flat_map(|l| l[j].iter().copied()).collect())
+        .collect();
+    let rs: Vec<&[f64]> = r.iter().map(Vec::as_slice).collect();
+    let u: Vec<&[f64]> = est.inputs.iter().map(|c| c.data.as_slice()).collect();
+    let y: Vec<&[f64]> = est.outputs.iter().map(|c| c.data.as_slice()).collect();
+    let un: Vec<String> = est.inputs.iter().map(|c| c.name.clone()).collect();
+    let yn: Vec<String> = est.outputs.iter().map(|c| c.name.clone()).collect();
+    let data = ChannelSet {
+        source: &est.path,
+        ts: est.ts,
+        u: &u,
+        y: &y,
+        u_names: &un,
+        y_names: &yn,
+    };
+    let out = identify_closed_loop(
+        &data,
+        &rs,
+        &ClosedLoopOptions {
+            method: cl.method,
+            n4sid: opts.n4sid.clone(),
+            stage1_order: cl.stage1_order,
+        },
+    )?;
+    warnings.extend(out.warnings.iter().map(|w| format!("closed loop: {w}")));
+    let summary = out.summary();
+    Ok((out.plant, Some(summary)))
+}
+
+/// The feedback test of the direct model on the estimation data, with a warning when it
+/// detects feedback; `None` (and a warning saying why) when it cannot run.
+fn run_feedback_test(
+    est: &Log,
+    max_lag: usize,
+    warnings: &mut Vec<String>,
+) -> Option<FeedbackTest> {
+    let u: Vec<&[f64]> = est.inputs.iter().map(|c| c.data.as_slice()).collect();
+    let y: Vec<&[f64]> = est.outputs.iter().map(|c| c.data.as_slice()).collect();
+    let lag = max_lag.min(est.len() / 10).max(1);
+    match feedback_test(&u, &y, lag) {
+        Ok(t) => {
+            if t.detected {
+                let worst = t.outputs.iter().max_by(|a, b| {
+                    (a.statistic / a.threshold).total_cmp(&(b.statistic / b.threshold))
+                });
+                if let Some(w) = worst {
+                    warnings.push(format!(
+                        "feedback detected: the innovations (ARX predictor residual) are \
+                         correlated with future inputs (N*R^2 = {:.1} > {:.1}, the chi^2({}) quantile at {} % \
+                         significance): the log looks closed-loop, and direct N4SID is biased \
+                         under feedback; log the reference and identify with --reference COL",
+                        w.statistic,
+                        w.threshold,
+                        w.dof,
+                        100.0 * t.significance
+                    ));
+                }
+            }
+            Some(t)
+        }
+        Err(e) => {
+            warnings.push(format!("feedback test not run: {e}"));
+            None
+        }
+    }
 }
 
 /// Sorts roots by natural frequency, then imaginary part.
