@@ -111,6 +111,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             }
         ));
         s.push_str(&crate::pipeline::remedy::summary_lines(&run));
+        s.push_str(&run.physical.summary_line());
         s.push('\n');
         s.push_str(&doc.summary_text());
         s.push('\n');

@@ -242,6 +242,9 @@ pub struct ReceiptsDocument {
     /// `{"status": "failed", "error"}` or `{"status": "decided", "choice", "reason", ...,
     /// "receipts_before", "receipts_after"}` (docs/receipts-schema.md).
     pub compensation: super::remedy::CompensationOutcome,
+    /// Physical parameters: `{"status": "skipped"}`, `{"status": "fitted", "run", "fit"}`
+    /// (parameters with unit, value, interval and status) or `{"status": "failed", "error"}`.
+    pub physical: super::physical_stage::PhysicalOutcome,
 }
 
 impl ReceiptsDocument {
@@ -377,6 +380,7 @@ impl ReceiptsDocument {
             },
             gap_diagnosis: run.gap.clone(),
             compensation: run.compensation.clone(),
+            physical: run.physical.clone(),
         }
     }
 

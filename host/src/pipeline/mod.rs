@@ -30,6 +30,7 @@ pub mod compensation_stage;
 pub mod config;
 pub mod document;
 pub mod gap_stage;
+pub mod physical_stage;
 pub mod remedy;
 mod stages;
 
@@ -222,6 +223,8 @@ pub struct PipelineRun {
     pub gap: gap_stage::GapStage,
     /// The compensation stage after the diagnosis and its choice ([`remedy`]).
     pub compensation: remedy::CompensationOutcome,
+    /// Physical parameters of the `[physical]` structure ([`physical_stage`]).
+    pub physical: physical_stage::PhysicalOutcome,
 }
 
 impl PipelineRun {
@@ -367,6 +370,8 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     progress("n4sid");
     let nominal = stages::nominal_index(cfg, &names, &runs);
     let ident = stages::identify_nominal(cfg, &runs[nominal])?;
+    progress("physical");
+    let physical = physical_stage::PhysicalOutcome::of(c.physical.as_ref(), &runs, nominal);
     let model = ident.model.clone();
     let modes = modes_of(&model)?;
     let dc_gain = dc_gain_of(&model);
@@ -484,6 +489,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         receipts,
         gap,
         compensation,
+        physical,
     })
 }
 

@@ -144,3 +144,84 @@ mod tests {
         assert!(parse("structure = \"stage\"\ntypo = 1").is_err());
     }
 }
+
+/// What the physical stage did in a run (`physical` in receipts.json).
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "status", rename_all = "snake_case")]
+pub enum PhysicalOutcome {
+    /// The pipeline file has no `[physical]` section.
+    Skipped,
+    /// The structure was fitted: `run`, `fit` (parameters with unit, interval and status).
+    Fitted(PhysicalStage),
+    /// The fit failed; the rest of the run is unaffected.
+    Failed {
+        /// Why.
+        error: String,
+    },
+}
+
+impl PhysicalOutcome {
+    /// Runs the stage when `cfg` is given; a failure is recorded, not propagated (the
+    /// identified model and the receipts do not depend on it).
+    pub fn of(cfg: Option<&PhysicalConfig>, runs: &[LogData], nominal: usize) -> Self {
+        match cfg.map(|c| run_physical_stage(c, runs, nominal)) {
+            None => PhysicalOutcome::Skipped,
+            Some(Ok(stage)) => PhysicalOutcome::Fitted(stage),
+            Some(Err(e)) => PhysicalOutcome::Failed {
+                error: e.to_string(),
+            },
+        }
+    }
+
+    /// The line `ferrosid run` prints (empty when skipped): each parameter with its unit and
+    /// interval, or `(known)` / `(undetermined)`.
+    pub fn summary_line(&self) -> String {
+        match self {
+            PhysicalOutcome::Skipped => String::new(),
+            PhysicalOutcome::Failed { error } => {
+                format!("  physical parameters: failed ({error})\n")
+            }
+            PhysicalOutcome::Fitted(st) => {
+                let params: Vec<String> = st
+                    .fit
+                    .parameters
+                    .iter()
+                    .map(|p| {
+                        let v = super::fmt_num(p.value);
+                        match (p.status, p.interval) {
+                            (crate::greybox::ParameterStatus::Estimated, Some([lo, hi])) => {
+                                format!(
+                                    "{} {v} {} [{}, {}]",
+                                    p.name,
+                                    p.unit,
+                                    super::fmt_num(lo),
+                                    super::fmt_num(hi)
+                                )
+                            }
+                            (crate::greybox::ParameterStatus::Known, _) => {
+                                format!("{} {v} {} (known)", p.name, p.unit)
+                            }
+                            _ => format!("{} (undetermined)", p.name),
+                        }
+                    })
+                    .collect();
+                format!(
+                    "  physical ({} on `{}`, {} % intervals, NRMSE {}): {}\n",
+                    st.fit.structure.name(),
+                    st.run,
+                    super::fmt_num(100.0 * st.fit.confidence),
+                    super::fmt_num(st.fit.nrmse),
+                    params.join(", ")
+                )
+            }
+        }
+    }
+
+    /// The fitted stage, if any.
+    pub fn fitted(&self) -> Option<&PhysicalStage> {
+        match self {
+            PhysicalOutcome::Fitted(s) => Some(s),
+            _ => None,
+        }
+    }
+}

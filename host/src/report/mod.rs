@@ -25,6 +25,7 @@
 //! `provenance`.
 mod charts;
 mod compensation_section;
+mod physical_section;
 mod gap_section;
 
 pub use charts::figures;
@@ -499,6 +500,7 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
 
     gap_section::render(&mut h, &run.gap);
     compensation_section::render(&mut h, run, figs);
+    physical_section::render(&mut h, &run.physical);
 
     // Validation.
     h.push_str("<section id=\"validation\">\n<h2>Validation on fresh data</h2>\n");

@@ -467,6 +467,10 @@ pub struct PipelineConfig {
     /// The compensation stage after a diagnosis (see [`super::compensation_stage`]).
     #[serde(default)]
     pub compensation: CompensationSettings,
+    /// Physical parameters by a grey-box fit (see [`super::physical_stage`]); none when
+    /// absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physical: Option<super::physical_stage::PhysicalConfig>,
 }
 
 /// `[gap]`: the pipeline's gap-diagnosis stage ([`super::gap_stage`]).

@@ -14,7 +14,27 @@ impl LoadedConfig {
         self.validate_uncertainty(&names)?;
         self.validate_control()?;
         self.validate_receipts()?;
-        self.validate_compensation()
+        self.validate_compensation()?;
+        self.validate_physical(&names)
+    }
+
+    /// `[physical]`: a known structure, known parameter names and a confidence level in
+    /// (0, 1) (checked by the grey-box options), and a `run` that names a `[[runs]]` entry.
+    fn validate_physical(&self, names: &[String]) -> Result<()> {
+        let Some(p) = &self.config.physical else {
+            return Ok(());
+        };
+        p.options()
+            .map_err(|e| self.key_error("physical.structure", e))?;
+        if let Some(r) = &p.run {
+            if !names.iter().any(|n| n == r) {
+                return Err(self.key_error(
+                    "physical.run",
+                    format!("`{r}` is not a [[runs]] name ({})", names.join(", ")),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// `key` must be finite and > 0.
