@@ -288,6 +288,16 @@ fn roots_table(roots: &[Root], s_plane: bool) -> String {
 /// Human-readable report.
 pub fn render_text(r: &IdentifyReport) -> String {
     let mut s = String::new();
+    text_header(&mut s, r);
+    text_order(&mut s, r);
+    text_poles(&mut s, r);
+    text_validation(&mut s, r);
+    text_footer(&mut s, r);
+    s
+}
+
+/// Title, logs, preprocessing and the identification settings.
+fn text_header(s: &mut String, r: &IdentifyReport) {
     let _ = writeln!(s, "ferrosid identify");
     for l in &r.logs {
         let _ = writeln!(
@@ -336,6 +346,10 @@ pub fn render_text(r: &IdentifyReport) -> String {
             None => String::new(),
         }
     );
+}
+
+/// Closed-loop method, singular values and the order choice.
+fn text_order(s: &mut String, r: &IdentifyReport) {
     if let Some(cl) = &r.closed_loop {
         let _ = writeln!(
             s,
@@ -376,6 +390,10 @@ pub fn render_text(r: &IdentifyReport) -> String {
     if r.n4sid.stability_enforced {
         let _ = writeln!(s, "stability was enforced (see warnings)");
     }
+}
+
+/// Discrete poles and the continuous equivalent.
+fn text_poles(s: &mut String, r: &IdentifyReport) {
     let _ = writeln!(s, "\ndiscrete poles (ts = {} s):", r.ts);
     s.push_str(&roots_table(&r.poles, false));
     match &r.continuous {
@@ -391,7 +409,10 @@ pub fn render_text(r: &IdentifyReport) -> String {
             let _ = writeln!(s, "no continuous-time equivalent (see warnings)");
         }
     }
+}
 
+/// Validation: fit, operating point, ETFE phase agreement, residual tests.
+fn text_validation(s: &mut String, r: &IdentifyReport) {
     let v = &r.validation;
     let _ = writeln!(s, "\nvalidation on {}:", v.data);
     for (i, (nrmse, fit)) in v.fit.nrmse.iter().zip(&v.fit.fit_percent).enumerate() {
@@ -487,6 +508,10 @@ pub fn render_text(r: &IdentifyReport) -> String {
         if rt.independence_ok { "pass" } else { "fail" },
         fixed(100.0 * rt.frac_cross_outside, 1)
     );
+}
+
+/// Feedback test, physical parameters, warnings, operating point, output file.
+fn text_footer(s: &mut String, r: &IdentifyReport) {
     if let Some(f) = &r.feedback {
         for (o, st) in f.outputs.iter().enumerate() {
             let _ = writeln!(
@@ -529,7 +554,6 @@ pub fn render_text(r: &IdentifyReport) -> String {
     if let Some(f) = &r.model_file {
         let _ = writeln!(s, "\nmodel written to {f}");
     }
-    s
 }
 
 /// The physical parameters of a grey-box fit as a table with units, intervals and status.
