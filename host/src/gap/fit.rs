@@ -233,13 +233,16 @@ impl AugmentedModel {
         }
         for pe in self.effects() {
             if let Effect::StateLimit { limit } = pe.effect {
-                let Some(b) = limited_mode(&self.linear).filter(|_| self.two_mass.is_none()) else {
+                if self.two_mass.is_some() {
                     return Err(Error::InvalidArgument(format!(
-                        "{}: the linear part has no stable real mode to limit",
+                        "{}: a state limit is not realised on a two-mass plant",
                         pe.effect
                     )));
-                };
-                w = state_clamp(&w, self.linear.real[b], limit);
+                }
+                // Without a limitable mode (e.g. a stand-in pole next to the integrator) the
+                // level holds the drive itself (p = 0: an input saturation).
+                let p = limited_mode(&self.linear).map_or(0.0, |b| self.linear.real[b]);
+                w = state_clamp(&w, p, limit);
             }
         }
         Ok(w)
@@ -796,6 +799,13 @@ pub fn fit_placed(
     };
     let fitted = if kind == EffectKind::Resonance && base0.effect.is_none() {
         relabel_resonance(td, fitted, sim_poles)
+    } else if kind == EffectKind::StateLimit {
+        // Scored by its free run (the guard below compares like with like).
+        let train_cost = fitted.model.cost(&td.base, &td.u);
+        Fitted {
+            model: fitted.model,
+            train_cost,
+        }
     } else {
         fitted
     };
@@ -1465,6 +1475,9 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gap::benchmark::filtered_noise;
+    use crate::gap::plant::{simulate, Plant, SimSettings};
+    use crate::gap::rng::Rng;
 
     /// The exact ZOH model of a plant's linear part as a modal model with fitted residues.
     fn exact_modal(plant: &Plant, ts: f64, u: &[f64], y_lin: &[f64]) -> ModalModel {

@@ -39,11 +39,11 @@ mod tests {
     /// with p = 0 the clamp is an input saturation.
     #[test]
     fn state_clamp_is_a_velocity_limit_and_saturation_at_p_zero() {
-        let (m, c, ts, vmax) = (2.5, 15.0, 1e-3, 0.004);
+        let (m, c, ts, vmax): (f64, f64, f64, f64) = (2.5, 15.0, 1e-3, 0.001);
         let a = (-c / m * ts).exp();
         let mut rng = crate::gap::rng::Rng::new(3);
         let u: Vec<f64> = (0..4000).map(|_| 0.2 * rng.normal()).collect();
-        let mut v = 0.0;
+        let mut v: f64 = 0.0;
         let mut direct = Vec::new();
         for &uk in &u {
             v = (a * v + (1.0 - a) * uk / c).clamp(-vmax, vmax);
@@ -69,7 +69,4 @@ mod tests {
             assert_eq!(*s, uk.clamp(-0.1, 0.1));
         }
     }
-    use crate::gap::benchmark::filtered_noise;
-    use crate::gap::plant::{simulate, Plant, SimSettings};
-    use crate::gap::rng::Rng;
 }
