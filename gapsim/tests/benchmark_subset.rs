@@ -108,13 +108,15 @@ fn benchmark_subset_holds_the_measured_aggregates() {
     );
 }
 
-// Measured on the diagnosis of h/gap9 (issue 9, session 5: friction on the slowest mode, the
-// stick-band rules of gap/select/nested.rs), 46 cases: same 8/8, indep 30/38 (79 %),
-// cross-family 10/15 (67 %), 0 `none` verdicts above twice the noise floor, 0 linear re-fits
-// worse than the nominal, place right 32/32, median (worst) parameter error 0.3 % (100 %).
-// (Session 4, h/gapacc: indep 28/38, cross-family 9/15.) NOT MET (issue 9 targets): >= 95 %
-// overall (here 38/46 = 83 %), >= 90 % cross-family (67 %), worst parameter error <= 25 %
-// (100 %).
+// Measured on the diagnosis of h/gap9 (issue 9, session 6: drift of integrating models left
+// out of every error, the `state_limit` candidate, tentative forward steps and the play partner
+// of friction), 46 cases, each run through the release `gap_benchmark` example with the same
+// options and length: same 8/8, indep 31/38 (82 %), cross-family 10/15 (67 %), 0 `none`
+// verdicts above twice the noise floor, 0 linear re-fits worse than the nominal, place right
+// 34/34, median (worst) parameter error 0.1 % (114 %). (Session 5: indep 30/38, cross-family
+// 10/15; session 4, h/gapacc: indep 28/38, cross-family 9/15.) NOT MET (issue 9 targets):
+// >= 95 % overall (here 39/46 = 85 %), >= 90 % cross-family (67 %), worst parameter error
+// <= 25 % (114 %).
 const SAME_RIGHT: usize = 8;
-const INDEP_RIGHT: usize = 30;
+const INDEP_RIGHT: usize = 31;
 const CROSS_RIGHT: usize = 10;

@@ -1,5 +1,5 @@
 //! The labelled gap benchmark on a fixed subset of its cases (see `ferrosid::gap::benchmark`;
-//! all 54 cases run with `cargo run --release -p ferrosid --example gap_benchmark`).
+//! all 54 cases run with `cargo run --release -p ferrosid --example gap_benchmark_same`).
 //!
 //! Each case's logs come from the plant simulator with a withheld effect; the diagnosis sees
 //! only the logs and the mismatched nominal model. The label is the independent reference.

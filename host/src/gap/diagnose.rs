@@ -1,4 +1,5 @@
 //! The diagnosis itself: linear re-fit, candidate effects, ranking, verdict, shrink.
+use super::drift::validation_nrmse;
 use super::effect::{Effect, EffectKind};
 use super::evidence::{self, Evidence};
 use super::fit::{AugmentedModel, TrainData};
@@ -534,13 +535,22 @@ pub fn diagnose(
             }
         }
     }
-    let td = TrainData::new(ts, fu.clone(), fy, warmup)?;
+    // With an integrator, every fit and validation score leaves the free run's drift out
+    // (modal::nrmse_drift_free over the warm-up).
+    let drift_window = sim_poles
+        .iter()
+        .any(|p| is_integrator_pole(*p))
+        .then_some(warmup);
+    let mut td = TrainData::new(ts, fu.clone(), fy, warmup)?;
+    td.base.drift_window = drift_window;
     let profile = std::env::var_os("GAP_PROFILE").is_some();
     let t_start = std::time::Instant::now();
 
-    // HOW FAR (before): the nominal sim on the validation log.
+    // HOW FAR (before): the nominal sim on the validation log (with an integrator, the
+    // free run's drift left out).
+    let vnrmse = |y: &[f64], yh: &[f64]| validation_nrmse(y, yh, warmup, drift_window);
     let y_nom = sim.simulate_siso(&vu, None)?;
-    let gap_before = nrmse(&vy, &y_nom, warmup);
+    let gap_before = vnrmse(&vy, &y_nom);
 
     // The nominal sim in modal form (residues fitted to its own noise-free response on the
     // training inputs): a start of the re-fit and of every candidate, and the fallback linear
@@ -569,7 +579,7 @@ pub fn diagnose(
             t_start.elapsed().as_secs_f64()
         );
     }
-    let gap_refit = nrmse(&vy, &refit.simulate(&vu), warmup);
+    let gap_refit = vnrmse(&vy, &refit.simulate(&vu));
     let (lin, lin_cost, linear_source) = match &nominal_modal {
         Some(nom) if gap_refit.is_nan() || gap_refit > gap_before => {
             // The nominal with its offset set on the training logs (its residues fixed), or
@@ -579,7 +589,7 @@ pub fn diagnose(
             with_offset.offset = mean_offset(&td, nom);
             let (c0, c1) = (nom.cost(&td.base), with_offset.cost(&td.base));
             let mut pick = if c1 < c0 { with_offset } else { nom.clone() };
-            let g = nrmse(&vy, &pick.simulate(&vu), warmup);
+            let g = vnrmse(&vy, &pick.simulate(&vu));
             if g.is_nan() || g > gap_before {
                 pick = nom.clone();
             }
@@ -594,7 +604,7 @@ pub fn diagnose(
         _ => (refit.clone(), refit_cost, "refit"),
     };
     let linear = AugmentedModel::linear(lin.clone());
-    let gap_linear = nrmse(&vy, &linear.simulate(&vu)?, warmup);
+    let gap_linear = vnrmse(&vy, &linear.simulate(&vu)?);
 
     // WHICH: forward selection (host/src/gap/select/) from the linear model first, then the
     // other of {re-fit, nominal sim in modal form}.
@@ -666,6 +676,7 @@ pub fn diagnose(
             // The validation NRMSE noise alone leaves: within twice it, the validation log
             // cannot separate nested effects nor credit a second one.
             noise_floor: noise_floor.available().then_some(noise_floor.nrmse),
+            drift_window,
             ..SelectOptions::default()
         },
     )?;
@@ -859,6 +870,12 @@ pub fn diagnose(
     )?;
 
     let lin_ss = lin.to_state_space()?;
+    // In the candidates' metric (drift left out with an integrator).
+    let lin_cost = if drift_window.is_some() {
+        linear.cost(&td.base, &td.u)
+    } else {
+        lin_cost
+    };
     let train_linear = (lin_cost / td.u.len() as f64).sqrt();
     let mut effects = effects;
     for e in &mut effects {

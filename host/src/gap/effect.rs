@@ -14,7 +14,7 @@
 //! | `resonance` | `freq_hz` (Hz), `damping` (ratio) | extra mode in series with the input, ω²/(s² + 2ζωs + ω²), unit DC gain |
 //! | `quantization` | `step` (output units) | sensor rounding y = step·round(y/step) |
 //! | `slew_rate` | `rate` (input units per second) | rate limit on the command: w changes by at most `rate`·ts per sample |
-//! | `state_limit` | `limit` (output units) | a level that saturates inside the plant (see [`crate::gap::fit`]) |
+//! | `state_limit` | `limit` (input units) | a level that saturates inside the plant: the state of the linear part's slowest stable real mode (the body's velocity behind an integrator, a body's speed) is held within the level a constant input `limit` settles it at; while it is held, every mode sees the input that holds it there (see [`crate::gap::state_limit::state_clamp`]) |
 //!
 //! The same kind may act at several places ([`crate::gap::place`]): `saturation` at the sensor
 //! clips the output (`limit` then in output units), `backlash` in the drivetrain of a two-mass
@@ -55,7 +55,7 @@ pub enum EffectKind {
 
 impl EffectKind {
     /// Every kind, in report order.
-    pub const ALL: [EffectKind; 9] = [
+    pub const ALL: [EffectKind; 10] = [
         EffectKind::CoulombFriction,
         EffectKind::Stiction,
         EffectKind::Backlash,
@@ -65,6 +65,7 @@ impl EffectKind {
         EffectKind::Resonance,
         EffectKind::Quantization,
         EffectKind::SlewRate,
+        EffectKind::StateLimit,
     ];
 
     /// The name used in reports and JSON (`coulomb_friction`, ...).
@@ -85,11 +86,7 @@ impl EffectKind {
 
     /// Parses a report name back into a kind.
     pub fn from_name(s: &str) -> Option<Self> {
-        Self::ALL
-            .iter()
-            .copied()
-            .chain([EffectKind::StateLimit])
-            .find(|k| k.name() == s)
+        Self::ALL.iter().copied().find(|k| k.name() == s)
     }
 
     /// Whether the kind is friction (Coulomb or stiction).
@@ -166,7 +163,7 @@ pub enum Effect {
     },
     /// Saturating level inside the plant.
     StateLimit {
-        /// Level, output units.
+        /// Level, input units: the constant input that settles the limited state at it.
         limit: f64,
     },
 }

@@ -17,6 +17,7 @@
 //! output as the velocity, the friction force enters either at the input or at the slowest real
 //! mode only (the driven body behind faster drive dynamics, e.g. a motor's electrical lag:
 //! [`FrictionPort`]). Quantization is estimated from the lattice of the measured outputs.
+use super::drift::{detrended, scored_sse};
 use super::effect::{
     deadzone, delay_signal, quantize, resonance_filter, saturation, Effect, EffectKind, Play,
     RateLimiter, StickSlip, NULL_RESONANCE_CYCLES_PER_SAMPLE,
@@ -27,6 +28,7 @@ use super::modal::{FitSet, ModalModel};
 use super::optim::levenberg_marquardt_steps;
 use super::place::{default_place, Candidate, Place, PlacedEffect};
 use super::select::lattice_evidence;
+use super::state_limit::{limited_mode, state_clamp};
 use super::structure::TwoMassModel;
 use crate::error::{Error, Result};
 use num_complex::Complex64;
@@ -218,7 +220,8 @@ impl AugmentedModel {
         Ok(self.simulate_with_input(u)?.0)
     }
 
-    /// The input after every drive-side effect.
+    /// The input after every drive-side effect and a state limit ([`state_clamp`] on the
+    /// mode of [`limited_mode`]).
     pub fn drive_input(&self, u: &[f64]) -> Result<Vec<f64>> {
         let mut w = u.to_vec();
         for pe in self.effects() {
@@ -226,6 +229,20 @@ impl AugmentedModel {
                 if let Some(t) = input_transform(&pe.effect, &w, self.linear.ts)? {
                     w = t;
                 }
+            }
+        }
+        for pe in self.effects() {
+            if let Effect::StateLimit { limit } = pe.effect {
+                if self.two_mass.is_some() {
+                    return Err(Error::InvalidArgument(format!(
+                        "{}: a state limit is not realised on a two-mass plant",
+                        pe.effect
+                    )));
+                }
+                // Without a limitable mode (e.g. a stand-in pole next to the integrator) the
+                // level holds the drive itself (p = 0: an input saturation).
+                let p = limited_mode(&self.linear).map_or(0.0, |b| self.linear.real[b]);
+                w = state_clamp(&w, p, limit);
             }
         }
         Ok(w)
@@ -242,15 +259,6 @@ impl AugmentedModel {
     /// Free-run output and the signal that entered the linear part.
     pub fn simulate_with_input(&self, u: &[f64]) -> Result<(Vec<f64>, Vec<f64>)> {
         let effects = self.effects();
-        if let Some(pe) = effects
-            .iter()
-            .find(|p| p.effect.kind() == EffectKind::StateLimit)
-        {
-            return Err(Error::InvalidArgument(format!(
-                "{}: a state limit is not realised by the modal model",
-                pe.effect
-            )));
-        }
         let w = self.drive_input(u)?;
         let (mut y, w) = if let Some(tm) = &self.two_mass {
             (tm.simulate(&w, &effects)?, w)
@@ -375,12 +383,7 @@ impl AugmentedModel {
             let Ok(yh) = self.simulate(ul) else {
                 return f64::INFINITY;
             };
-            c += wt
-                * y.iter()
-                    .zip(&yh)
-                    .skip(set.warmup)
-                    .map(|(a, b)| (a - b).powi(2))
-                    .sum::<f64>();
+            c += wt * scored_sse(y, &yh, set.warmup, set.drift_window);
         }
         if c.is_finite() {
             c
@@ -453,7 +456,10 @@ impl TrainData {
         let u = cut(&self.u);
         let y = cut(&self.base.y);
         match TrainData::new(self.ts, u, y, self.base.warmup) {
-            Ok(t) => t,
+            Ok(mut t) => {
+                t.base.drift_window = self.base.drift_window;
+                t
+            }
             Err(_) => self.clone(),
         }
     }
@@ -500,7 +506,9 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
         (Place::Sensor, Effect::Saturation { limit }) => Some(limit),
         _ => None,
     });
-    let only_drive = effects.iter().all(|p| p.place == Place::Drive);
+    let only_drive = effects
+        .iter()
+        .all(|p| p.place == Place::Drive || p.effect.kind() == EffectKind::StateLimit);
     let mask: Option<Vec<Vec<bool>>> = clip.map(|limit| {
         td.base
             .y
@@ -559,12 +567,7 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
             }
             _ => model.simulate(u).ok()?,
         };
-        c += wt
-            * y.iter()
-                .zip(&yh)
-                .skip(td.base.warmup)
-                .map(|(a, b)| (a - b).powi(2))
-                .sum::<f64>();
+        c += wt * scored_sse(y, &yh, td.base.warmup, td.base.drift_window);
     }
     c.is_finite().then_some(Fitted {
         model,
@@ -728,7 +731,6 @@ pub fn fit_placed(
                 FRICTION_SUBSTEPS,
             );
         }
-        EffectKind::StateLimit => return None,
         EffectKind::Backlash if cand.place == Place::Drivetrain => {
             let f = super::structure::fit_drivetrain_backlash(
                 td,
@@ -797,6 +799,13 @@ pub fn fit_placed(
     };
     let fitted = if kind == EffectKind::Resonance && base0.effect.is_none() {
         relabel_resonance(td, fitted, sim_poles)
+    } else if kind == EffectKind::StateLimit {
+        // Scored by its free run (the guard below compares like with like).
+        let train_cost = fitted.model.cost(&td.base, &td.u);
+        Fitted {
+            model: fitted.model,
+            train_cost,
+        }
     } else {
         fitted
     };
@@ -838,7 +847,7 @@ pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Eff
             step: 1e-12 * y_peak,
         },
         EffectKind::StateLimit => Effect::StateLimit {
-            limit: 1e12 * y_peak,
+            limit: 1e12 * td.u_peak.max(s),
         },
         EffectKind::Resonance => Effect::Resonance {
             freq_hz: NULL_RESONANCE_CYCLES_PER_SAMPLE / td.ts,
@@ -1117,6 +1126,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
     let projectable = list0.iter().all(|p| {
         p.place == Place::Drive
             || (p.place == Place::Sensor && p.effect.kind() == EffectKind::Quantization)
+            || p.effect.kind() == EffectKind::StateLimit
     });
     let mut theta0 = lin0.pole_params();
     let mut steps: Vec<f64> = theta0.iter().map(|t| 1e-6 * t.abs().max(1.0)).collect();
@@ -1199,12 +1209,11 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
             let yh = model.simulate(u).ok()?;
             let sw = wt.sqrt();
-            r.extend(
-                y.iter()
-                    .zip(&yh)
-                    .skip(td.base.warmup)
-                    .map(|(a, b)| sw * (a - b)),
-            );
+            let e = y.iter().zip(&yh).skip(td.base.warmup).map(|(a, b)| a - b);
+            match td.base.drift_window {
+                Some(w) => r.extend(detrended(&e.collect::<Vec<_>>(), w).iter().map(|v| sw * v)),
+                None => r.extend(e.map(|v| sw * v)),
+            }
         }
         r.iter().all(|v| v.is_finite()).then_some(r)
     };
@@ -1429,7 +1438,37 @@ fn initial_search(cand: Candidate, td: &TrainData, base: &AugmentedModel) -> Vec
             }
             all
         }
-        EffectKind::Stiction | EffectKind::Quantization | EffectKind::StateLimit => Vec::new(),
+        EffectKind::StateLimit => {
+            // The grid spans the levels the limited mode's state reaches on the training
+            // inputs (in input units: state·(1 − p)), from a tenth of its RMS to its peak: a
+            // slow mode low-passes the input, so its level can sit far below the input's.
+            let Some(b) = limited_mode(&base.linear) else {
+                return Vec::new();
+            };
+            let p = base.linear.real[b];
+            let (mut sum2, mut count, mut peak) = (0.0, 0usize, 0.0f64);
+            for u in &td.u {
+                let Ok(w) = base.drive_input(u) else {
+                    return Vec::new();
+                };
+                let mut x = 0.0;
+                for wk in w {
+                    x = p * x + wk;
+                    let v = x * (1.0 - p);
+                    sum2 += v * v;
+                    count += 1;
+                    peak = peak.max(v.abs());
+                }
+            }
+            let rms = (sum2 / count.max(1) as f64).sqrt();
+            if !(rms > 0.0 && peak.is_finite()) {
+                return Vec::new();
+            }
+            on_grid(&log_grid(0.1 * rms, peak, 16), &|p| Effect::StateLimit {
+                limit: p,
+            })
+        }
+        EffectKind::Stiction | EffectKind::Quantization => Vec::new(),
     }
 }
 

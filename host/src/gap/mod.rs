@@ -4,6 +4,7 @@
 //! Entry point: [`diagnose`] (command line: `ferrosid gap`, [`crate::cli::gap`]).
 pub mod benchmark;
 pub mod diagnose;
+pub mod drift;
 pub mod effect;
 pub mod evidence;
 pub mod figures;
@@ -19,6 +20,7 @@ pub mod report;
 pub mod rng;
 pub mod select;
 pub mod simfile;
+pub mod state_limit;
 pub mod structure;
 
 pub use diagnose::{diagnose, Diagnosis, GapOptions};

@@ -59,6 +59,9 @@ pub struct FitSet {
     pub weight: Vec<f64>,
     /// Samples at the start of each log excluded from the error (initial transient).
     pub warmup: usize,
+    /// Drift window of the costs of augmented models ([`crate::gap::drift::scored_sse`]; a
+    /// linear part with an integrator), `None`: plain squared errors.
+    pub drift_window: Option<usize>,
 }
 
 impl FitSet {
@@ -71,6 +74,7 @@ impl FitSet {
             y,
             weight,
             warmup,
+            drift_window: None,
         })
     }
 
@@ -81,6 +85,7 @@ impl FitSet {
             y: self.y.clone(),
             weight: self.weight.clone(),
             warmup: self.warmup,
+            drift_window: self.drift_window,
         }
     }
 }

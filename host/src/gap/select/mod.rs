@@ -8,10 +8,13 @@
 //!    training logs ([`fit_placed`]) and scored by its free-run NRMSE on the validation log;
 //! 2. the best single is selected if it improves on the linear re-fit by `margin`
 //!    ((gap_linear − gap)/gap_linear); stiction and Coulomb friction (nested) are told apart by
-//!    the dwell evidence and the nested margin;
+//!    the dwell evidence and the nested margin. A best single that reaches half the margin is a
+//!    tentative forward step: kept only when a pair on top of it reaches the margin (two
+//!    effects that each explain a part of the gap, e.g. friction behind a saturated drive);
 //! 3. each of the next best singles is fitted again on top of the selected one (a model with
 //!    two effects, in place order), and Coulomb friction at the motor always (its single fit is
-//!    masked by a stronger first effect); the best pair is kept if it improves the validation
+//!    masked by a stronger first effect), and play in the drive when the first is friction
+//!    (likewise masked); the best pair is kept if it improves the validation
 //!    NRMSE of the single by `pair_margin` (relative), a pair with Coulomb friction at the motor
 //!    weighed against its stiction variant as the singles are; no pair is sought once the
 //!    single is within [`PAIR_FLOOR_FACTOR`] of the noise floor;
@@ -20,12 +23,13 @@
 //!
 //! Each selected effect reports its own share of the shrink (gap_linear − gap_after): the
 //! forward-selection deltas, clipped at zero and normalised to sum to 1.
+use super::drift::validation_nrmse;
 use super::effect::{Effect, EffectKind};
 use super::fit::{
     fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
     JOINT_MAX_ITER,
 };
-use super::modal::{nrmse, ModalModel};
+use super::modal::ModalModel;
 use super::place::{Candidate, Place, PlacedEffect};
 use super::structure::TwoMassStructure;
 use crate::error::{Error, Result};
@@ -68,6 +72,9 @@ pub struct SelectOptions {
     /// Validation NRMSE a perfect model would still leave (the noise floor), when known: no
     /// pair is tried once the selected single is within [`PAIR_FLOOR_FACTOR`] of it.
     pub noise_floor: Option<f64>,
+    /// Drift window of the validation NRMSE ([`crate::gap::modal::validation_nrmse`]), for a
+    /// linear part with an integrator; `None`: the plain NRMSE.
+    pub drift_window: Option<usize>,
 }
 
 /// A second effect is not sought once the best single's validation NRMSE is within this
@@ -84,6 +91,7 @@ impl Default for SelectOptions {
             candidates: Vec::new(),
             raw_outputs: Vec::new(),
             noise_floor: None,
+            drift_window: None,
         }
     }
 }
@@ -107,6 +115,7 @@ pub fn default_candidates(two_mass: bool) -> Vec<Candidate> {
         Candidate::new(K::Resonance, Place::Drive),
         Candidate::new(K::Quantization, Place::Sensor),
         Candidate::new(K::SlewRate, Place::Drive),
+        Candidate::new(K::StateLimit, Place::State),
     ];
     if two_mass {
         v.push(Candidate::new(K::Backlash, Place::Drivetrain));
@@ -182,10 +191,14 @@ fn profile_seconds() -> f64 {
         .unwrap_or(0.0)
 }
 
-fn score(f: Fitted, val_u: &[f64], val_y: &[f64], warmup: usize, gap_linear: f64) -> Scored {
+/// Validation data of the selection: input, output, warm-up, drift window.
+type Val<'a> = (&'a [f64], &'a [f64], usize, Option<usize>);
+
+fn score(f: Fitted, val: Val, gap_linear: f64) -> Scored {
+    let (val_u, val_y, warmup, drift) = val;
     let gap = match f.model.simulate(val_u) {
         Ok(yh) => {
-            let g = nrmse(val_y, &yh, warmup);
+            let g = validation_nrmse(val_y, &yh, warmup, drift);
             if g.is_finite() {
                 g
             } else {
@@ -237,7 +250,8 @@ pub fn select_effects(
     }
     let mut notes = Vec::new();
     let linear = AugmentedModel::linear(lin.clone());
-    let gap_linear = nrmse(val_y, &linear.simulate(val_u)?, warmup);
+    let val: Val = (val_u, val_y, warmup, opts.drift_window);
+    let gap_linear = validation_nrmse(val_y, &linear.simulate(val_u)?, warmup, opts.drift_window);
     let lattice = if opts.raw_outputs.is_empty() {
         lattice_evidence(&td.base.y)
     } else {
@@ -308,7 +322,7 @@ pub fn select_effects(
                 if c.kind == EffectKind::CoulombFriction && c.place == Place::Motor {
                     coulomb = Some(f.clone());
                 }
-                singles.push(score(f, val_u, val_y, warmup, gap_linear));
+                singles.push(score(f, val, gap_linear));
             }
             None => notes.push(format!("{c}: no fit")),
         }
@@ -333,7 +347,7 @@ pub fn select_effects(
             sim_poles,
             &hints,
         ) {
-            singles.push(score(f, val_u, val_y, warmup, gap_linear));
+            singles.push(score(f, val, gap_linear));
             singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
         }
     }
@@ -346,12 +360,18 @@ pub fn select_effects(
         opts.noise_floor,
         &mut notes,
     );
-    // 2. Best single.
+    // 2. Best single (a forward step below the margin when it reaches half of it: kept only
+    // if a pair on top of it reaches the margin, see below).
     let mut selected_models: Vec<Scored> = Vec::new();
+    let mut tentative = false;
     if let Some(best) = singles.first() {
         if best.improvement >= opts.margin {
             selected_models.push(best.clone());
         } else {
+            if best.improvement >= 0.5 * opts.margin {
+                selected_models.push(best.clone());
+                tentative = true;
+            }
             notes.push(format!(
                 "best single {} improves the validation NRMSE by {:.3} < margin {}",
                 best.effects
@@ -402,6 +422,14 @@ pub fn select_effects(
             // level to zero, so its single score says nothing about it as a second effect.
             partners.push(Candidate::new(EffectKind::CoulombFriction, Place::Motor));
         }
+        if k1.is_some_and(|k| k.is_friction())
+            && !partners.iter().any(|c| c.kind == EffectKind::Backlash)
+        {
+            // Likewise play in the drive behind friction: both act at velocity reversals, and
+            // alone the play is fitted against the friction's gap, so its single score says
+            // nothing about it as a second effect.
+            partners.push(Candidate::new(EffectKind::Backlash, Place::Drive));
+        }
         // Polish the single first, so a pair is credited only with what its second effect
         // adds (not with further iterations on the first).
         let first = match joint_fit(
@@ -413,7 +441,7 @@ pub fn select_effects(
             JOINT_MAX_ITER,
         ) {
             Some(j) if j.train_cost < first.train_cost => {
-                let s = score(j, val_u, val_y, warmup, gap_linear);
+                let s = score(j, val, gap_linear);
                 if s.gap <= first.gap {
                     selected_models[0] = s.clone();
                     s
@@ -437,20 +465,20 @@ pub fn select_effects(
                 eprintln!("profile: pair + {c} {:.3} s (cpu)", profile_seconds() - t0);
             }
             if let Some(f) = fc {
-                pairs.push(score(f, val_u, val_y, warmup, gap_linear));
+                pairs.push(score(f, val, gap_linear));
             }
         }
         pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
         if let Some(p) = pairs.first().cloned() {
             let rel = (first.gap - p.gap) / first.gap;
-            if rel >= opts.pair_margin {
+            if rel >= opts.pair_margin && (!tentative || p.improvement >= opts.margin) {
                 let p = pair_stiction_variant(
                     p,
                     td,
                     &base,
                     sim_poles,
                     &hints,
-                    (val_u, val_y, warmup, gap_linear),
+                    (val, gap_linear),
                     dwell.as_ref(),
                     opts,
                     &mut notes,
@@ -463,6 +491,10 @@ pub fn select_effects(
                 ));
             }
         }
+    }
+    if tentative && selected_models.len() < 2 {
+        // The forward step below the margin found no pair that reaches it: nothing selected.
+        selected_models.clear();
     }
     // 4. Lattice evidence decides quantization.
     let mut model = selected_models
@@ -482,7 +514,7 @@ pub fn select_effects(
                 train_cost: m.cost(&td.base, &td.u),
                 model: m,
             };
-            let s = score(f, val_u, val_y, warmup, gap_linear);
+            let s = score(f, val, gap_linear);
             model = s.model.clone();
             selected_models.push(s);
         }
@@ -518,7 +550,7 @@ fn pair_stiction_variant(
     base: &AugmentedModel,
     sim_poles: &[Complex64],
     hints: &FitHints,
-    (val_u, val_y, warmup, gap_linear): (&[f64], &[f64], usize, f64),
+    (val, gap_linear): (Val, f64),
     dwell: Option<&DwellEvidence>,
     opts: &SelectOptions,
     notes: &mut Vec<String>,
@@ -545,7 +577,7 @@ fn pair_stiction_variant(
     ) else {
         return pair;
     };
-    let s = score(f, val_u, val_y, warmup, gap_linear);
+    let s = score(f, val, gap_linear);
     if !s
         .effects
         .iter()

@@ -1,6 +1,7 @@
-//! Runs the labelled sim-to-real gap benchmark and prints the markdown summary for README.md.
+//! Runs the labelled sim-to-real gap benchmark (the same-law family only; both families: the
+//! `gap_benchmark` example of ferrosid-gapsim) and prints the markdown summary for README.md.
 //!
-//! `cargo run --release -p ferrosid --example gap_benchmark [-- --n SAMPLES] [--filter TEXT]
+//! `cargo run --release -p ferrosid --example gap_benchmark_same [-- --n SAMPLES] [--filter TEXT]
 //! [--seed-offset K] [--verbose]`
 //! (default 16384 samples per log; `--filter` keeps cases whose id contains TEXT;
 //! `--seed-offset` adds K to every case's seed — a fresh draw of nominal mismatch, excitation and
@@ -38,7 +39,7 @@ fn main() {
             }
             "--verbose" => verbose = true,
             other => {
-                eprintln!("unknown argument {other}; usage: gap_benchmark [--n N] [--filter TEXT] [--seed-offset K] [--verbose]");
+                eprintln!("unknown argument {other}; usage: gap_benchmark_same [--n N] [--filter TEXT] [--seed-offset K] [--verbose]");
                 std::process::exit(2);
             }
         }
