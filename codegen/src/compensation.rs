@@ -52,9 +52,11 @@ use crate::input::check_f32;
 /// Where the compensation came from (documentation in the headers; no effect on the law).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CompensationProvenance {
-    /// The diagnosed effect (`ferrosid gap` EffectKind name, e.g. `coulomb_friction`), or `""`.
+    /// The diagnosed effects (`ferrosid gap` EffectKind names joined by `+`, e.g.
+    /// `coulomb_friction+backlash`), or `""`.
     pub effect: String,
-    /// Where it acts: `drive`, `drivetrain`, `sensor`, or `""` when unknown.
+    /// Where each acts, in the same order (`drive`, `motor`, `drivetrain`, `sensor`, ... joined
+    /// by `+`, e.g. `motor+drive`), or `""` when unknown.
     pub place: String,
     /// The gap verdict (e.g. `explained`, `none`, `unexplained`).
     pub verdict: String,
@@ -184,7 +186,7 @@ pub struct Compensation {
     /// Dead-zone inverse, if any.
     #[serde(default)]
     pub dead_zone_inverse: Option<DeadZoneInverse>,
-    /// Backlash inverse, if any (only for `provenance.place == "drive"`).
+    /// Backlash inverse, if any (only when `provenance.place` names `drive`).
     #[serde(default)]
     pub backlash_inverse: Option<BacklashInverse>,
     /// Actuator limits with anti-windup, if any.
@@ -237,7 +239,7 @@ fn check_band(name: &str, v: f64) -> Result<()> {
 impl Compensation {
     /// Checks every number: finite, within ±[`MAX_COMPENSATION_VALUE`] (so it fits the headers'
     /// `float`), levels >= 0, widths, smoothing bands and times > 0, `u_min < u_max`,
-    /// NRMSEs >= 0; a backlash inverse only where `provenance.place` is `drive`; an enabled block has
+    /// NRMSEs >= 0; a backlash inverse only where `provenance.place` names `drive`; an enabled block has
     /// at least one part. The error names the field (`compensation.dead_zone_inverse.width`).
     ///
     /// The velocity filter's corner is checked against the control rate by
@@ -270,7 +272,7 @@ impl Compensation {
         if let Some(bl) = &self.backlash_inverse {
             check_band("backlash_inverse.gap", bl.gap)?;
             check_band("backlash_inverse.smoothing", bl.smoothing)?;
-            if pv.place != "drive" {
+            if !pv.place.split('+').any(|p| p == "drive") {
                 return Err(Error::input(
                     field("backlash_inverse"),
                     format!(

@@ -34,7 +34,8 @@ fn each_effect_gets_its_part() {
     assert_eq!(dz.width, 0.4);
     assert!((dz.smoothing - 0.004).abs() < 1e-15);
     assert_eq!(c.provenance.effect, "stiction+deadzone");
-    assert_eq!(c.provenance.place, "motor");
+    // One place per effect, in the order of `effect`.
+    assert_eq!(c.provenance.place, "motor+drive");
     assert_eq!(c.provenance.nrmse_before, Some(0.3));
     assert_eq!(c.provenance.nrmse_after, Some(0.04));
     assert_eq!(c.provenance.source, "ferrosid gap on a.csv,b.csv");

@@ -199,9 +199,12 @@ pub fn design_from(
                 .map(|e| e.effect.kind().name())
                 .collect::<Vec<_>>()
                 .join("+"),
+            // One place per effect, in the order of `effect` ("motor+drive").
             place: effects
-                .first()
-                .map_or(String::new(), |e| e.place.name().to_string()),
+                .iter()
+                .map(|e| e.place.name())
+                .collect::<Vec<_>>()
+                .join("+"),
             verdict: verdict.trim().to_string(),
             source: opts.source.clone(),
             nrmse_before: finite(gap_linear),
