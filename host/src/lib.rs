@@ -23,6 +23,7 @@ pub mod lti;
 pub mod n4sid;
 pub mod operating_point;
 pub mod ops;
+pub mod optim;
 pub mod output;
 pub mod pipeline;
 pub mod plot;

@@ -13,7 +13,7 @@ pub mod friction_port;
 pub mod locate;
 pub mod modal;
 pub mod noise;
-pub mod optim;
+pub use crate::optim;
 pub mod place;
 pub mod plant;
 pub mod report;

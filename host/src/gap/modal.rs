@@ -772,7 +772,7 @@ impl ModalModel {
     pub fn fit_output_error(&mut self, set: &FitSet, max_iter: usize) -> Option<f64> {
         let theta0 = self.pole_params();
         let mut work = self.clone();
-        let (theta, _) = crate::gap::optim::levenberg_marquardt(
+        let (theta, _) = crate::optim::levenberg_marquardt(
             |th| {
                 work.set_pole_params(th);
                 work.projected_residuals(set)

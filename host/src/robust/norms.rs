@@ -413,7 +413,7 @@ fn finish(
         if b > a {
             // Maximise σ̄ on the last bracketing interval (golden section on −σ̄; a failed
             // evaluation counts as the worst value).
-            let (w, neg) = crate::gap::optim::golden_section(
+            let (w, neg) = crate::optim::golden_section(
                 |w| {
                     ev.at_rad_s(w)
                         .ok()

@@ -7,7 +7,7 @@
 //! poles and zeros the smallest feasible gain is exact,
 //! ln k* = max_i [ln l_m(ω_i) − ln|N/D(jω_i)|], so the constraint is eliminated and the reduced
 //! (non-smooth) objective over the section parameters (log ω, log ζ, log a) is minimised by
-//! Nelder–Mead ([`crate::gap::optim::nelder_mead`], restarted on a shrinking simplex) from many
+//! Nelder–Mead ([`crate::optim::nelder_mead`], restarted on a shrinking simplex) from many
 //! starts. Order n + 1 is started from the order-n optimum extended by an exactly cancelling
 //! pole/zero pair.
 //!
@@ -15,7 +15,7 @@
 //! [`super::WeightFitMethod::NelderMead`] so the tests can compare the rational fit with it.
 use super::{build_weight, Band, UncertaintyWeight, WeightFitOptions};
 use crate::error::{Error, Result};
-use crate::gap::optim::nelder_mead;
+use crate::optim::nelder_mead;
 use crate::lti::poly_mul;
 
 const OBJECTIVE: &str = "minimise Σ_i w_i·ln(|W_m(jω_i)|/l_m(ω_i)) / Σ_i w_i (w_i: trapezoidal \

@@ -1,4 +1,5 @@
-//! Small derivative-free and least-squares optimisers used by the effect fits.
+//! Small derivative-free and least-squares optimisers (the gap diagnosis's effect fits, the
+//! W_m Nelder–Mead reference, the H∞-norm peak search).
 //!
 //! * [`golden_section`] — 1-D minimisation of a unimodal function on a bracket (Kiefer 1953);
 //!   `iters` evaluations shrink the bracket by 0.618^iters.
