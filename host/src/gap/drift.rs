@@ -98,17 +98,7 @@ pub fn validation_nrmse(
 mod tests {
     use super::*;
 
-    fn lcg_noise(n: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-            })
-            .collect()
-    }
+    use crate::gap::rng::lcg_noise;
 
     /// A position output y = sin at 5 Hz (1 kHz) against a model that adds drift (a ramp, a
     /// 0.02 Hz sine, a random walk) plus an in-band error of amplitude 0.01 at 20 Hz: the

@@ -828,17 +828,7 @@ pub(crate) fn solve_scaled(g: &Mat<f64>, h: &Mat<f64>) -> Option<Vec<f64>> {
 mod tests {
     use super::*;
 
-    fn lcg_noise(n: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-            })
-            .collect()
-    }
+    use crate::gap::rng::lcg_noise;
 
     /// Direct-form recursion of the same transfer function, independent of the modal code.
     fn second_order_direct(u: &[f64], a1: f64, a2: f64, b1: f64, b2: f64) -> Vec<f64> {

@@ -66,3 +66,18 @@ mod tests {
         assert!(m.abs() < 0.01 && (var - 1.0).abs() < 0.015, "{m} {var}");
     }
 }
+
+/// Uniform noise in [-0.5, 0.5) from a 64-bit LCG (Knuth's MMIX constants): a fixed test
+/// signal for the gap unit tests, independent of [`Rng`].
+#[cfg(test)]
+pub(crate) fn lcg_noise(n: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed;
+    (0..n)
+        .map(|_| {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        })
+        .collect()
+}
