@@ -20,7 +20,7 @@
 //! function of the input in the ARX residual, which correlates with future inputs as feedback
 //! does (the motor bench's two logs are flagged; README).
 use crate::error::{Error, Result};
-use faer::Mat;
+use faer::{ColRef, Mat};
 use serde::Serialize;
 
 /// Significance level α of the feedback test (probability of flagging an open-loop log).
@@ -68,36 +68,33 @@ pub fn chi_square_quantile(q: f64, k: usize) -> f64 {
     k * (1.0 - h + z * h.sqrt()).powi(3)
 }
 
-/// Least squares of `target` on the columns `col(c, t)`, c < q, t < rows (columns scaled to unit
-/// norm): the coefficients' explained sum of squares and the residual. `None` when a column is
-/// zero.
-fn regress(
-    q: usize,
-    rows: usize,
-    col: &dyn Fn(usize, usize) -> f64,
-    target: &dyn Fn(usize) -> f64,
-) -> Result<Option<(f64, Vec<f64>)>> {
-    let norms: Vec<f64> = (0..q)
-        .map(|c| (0..rows).map(|t| col(c, t).powi(2)).sum::<f64>().sqrt())
-        .collect();
-    if norms.iter().any(|v| !(*v > 0.0)) {
-        return Ok(None);
+/// Least squares of `target` on the columns of `x` (`rows × q`, scaled here to unit norm, so the
+/// normal equations are well scaled): the coefficients' explained sum of squares and the
+/// residual. `None` when a column is zero. The normal equations are formed by one matrix
+/// product (faer's blocked GEMM): `O(rows·q²)` flops, 0.16 G for the 100k-sample, 40-regressor
+/// ARX predictor.
+fn regress(mut x: Mat<f64>, target: &[f64]) -> Result<Option<(f64, Vec<f64>)>> {
+    let q = x.ncols();
+    let mut norms = Vec::with_capacity(q);
+    for c in 0..q {
+        let norm = x.col(c).norm_l2();
+        if !(norm > 0.0) {
+            return Ok(None);
+        }
+        x.col_mut(c).iter_mut().for_each(|v| *v /= norm);
+        norms.push(norm);
     }
-    let gram = Mat::from_fn(q, q, |a, b| {
-        (0..rows).map(|t| col(a, t) * col(b, t)).sum::<f64>() / (norms[a] * norms[b])
-    });
-    let rhs = Mat::from_fn(q, 1, |c, _| {
-        (0..rows).map(|t| col(c, t) * target(t)).sum::<f64>() / norms[c]
-    });
+    let t = ColRef::from_slice(target);
+    let gram = x.transpose() * &x;
+    let rhs = x.transpose() * t;
+    let rhs = Mat::from_fn(q, 1, |c, _| rhs[c]);
     let beta = crate::lti::dense::solve_square(gram.as_ref(), rhs.as_ref(), "feedback test")?;
     let explained: f64 = (0..q).map(|c| beta[(c, 0)] * rhs[(c, 0)]).sum();
-    let resid = (0..rows)
-        .map(|t| {
-            target(t)
-                - (0..q)
-                    .map(|c| beta[(c, 0)] * col(c, t) / norms[c])
-                    .sum::<f64>()
-        })
+    let fitted = &x * beta.col(0);
+    let resid = target
+        .iter()
+        .zip(fitted.iter())
+        .map(|(t, f)| t - f)
         .collect();
     Ok(Some((explained, resid)))
 }
@@ -148,30 +145,32 @@ pub fn feedback_test<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
     }
     // Rows t = na..len−max_lag: the ARX needs na past samples, the test max_lag future ones.
     let rows = len - na - max_lag;
-    let arx_col = |c: usize, t: usize| {
-        let (ch, lag) = (c / na, c % na + 1);
-        let k = t + na - lag;
-        if ch < p {
-            yc[ch][k]
-        } else {
-            uc[ch - p][k]
-        }
+    let arx_cols = || {
+        Mat::from_fn(rows, q_arx, |t, c| {
+            let (ch, lag) = (c / na, c % na + 1);
+            let k = t + na - lag;
+            if ch < p {
+                yc[ch][k]
+            } else {
+                uc[ch - p][k]
+            }
+        })
     };
     let q = m * max_lag;
-    let fut_col = |c: usize, t: usize| uc[c / max_lag][t + na + 1 + c % max_lag];
+    let fut_cols = || Mat::from_fn(rows, q, |t, c| uc[c / max_lag][t + na + 1 + c % max_lag]);
     let alpha = FEEDBACK_SIGNIFICANCE;
     let threshold = chi_square_quantile(1.0 - alpha / p as f64, q);
     let constant = || Error::Numerical("feedback test: a channel is constant".into());
     let mut outputs = Vec::with_capacity(p);
     for yi in &yc {
-        let (_, e) = regress(q_arx, rows, &arx_col, &|t| yi[t + na])?.ok_or_else(constant)?;
+        let (_, e) = regress(arx_cols(), &yi[na..na + rows])?.ok_or_else(constant)?;
         let total: f64 = e.iter().map(|v| v * v).sum();
         if !(total > 0.0) {
             return Err(Error::Numerical(
                 "feedback test: the ARX residual is identically zero".into(),
             ));
         }
-        let (explained, _) = regress(q, rows, &fut_col, &|t| e[t])?.ok_or_else(constant)?;
+        let (explained, _) = regress(fut_cols(), &e)?.ok_or_else(constant)?;
         let statistic = rows as f64 * explained / total;
         outputs.push(FeedbackStatistic {
             statistic,
