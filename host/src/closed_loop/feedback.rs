@@ -99,6 +99,16 @@ fn regress(mut x: Mat<f64>, target: &[f64]) -> Result<Option<(f64, Vec<f64>)>> {
     Ok(Some((explained, resid)))
 }
 
+/// The `rows × q` matrix whose column `c` is the first `rows` samples of `run(c)`.
+fn lagged<'a>(rows: usize, q: usize, run: impl Fn(usize) -> &'a [f64]) -> Mat<f64> {
+    let mut x = Mat::zeros(rows, q);
+    for c in 0..q {
+        let src = &run(c)[..rows];
+        x.col_mut(c).iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+    }
+    x
+}
+
 /// Tests whether the inputs `u` depend on past output noise in the data `u`, `y` (equal-length
 /// channels), with future lags 1..=`max_lag` (1..=N/10).
 ///
@@ -145,19 +155,16 @@ pub fn feedback_test<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
     }
     // Rows t = na..len−max_lag: the ARX needs na past samples, the test max_lag future ones.
     let rows = len - na - max_lag;
+    // Column c of either regressor is a contiguous run of one channel: (channel, first sample).
     let arx_cols = || {
-        Mat::from_fn(rows, q_arx, |t, c| {
+        lagged(rows, q_arx, |c| {
             let (ch, lag) = (c / na, c % na + 1);
-            let k = t + na - lag;
-            if ch < p {
-                yc[ch][k]
-            } else {
-                uc[ch - p][k]
-            }
+            let series = if ch < p { &yc[ch] } else { &uc[ch - p] };
+            &series[na - lag..]
         })
     };
     let q = m * max_lag;
-    let fut_cols = || Mat::from_fn(rows, q, |t, c| uc[c / max_lag][t + na + 1 + c % max_lag]);
+    let fut_cols = || lagged(rows, q, |c| &uc[c / max_lag][na + 1 + c % max_lag..]);
     let alpha = FEEDBACK_SIGNIFICANCE;
     let threshold = chi_square_quantile(1.0 - alpha / p as f64, q);
     let constant = || Error::Numerical("feedback test: a channel is constant".into());
