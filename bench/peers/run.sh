@@ -65,6 +65,9 @@ target_dir="${CARGO_TARGET_DIR:-$root/target}"
 # --- runs ----------------------------------------------------------------------------------------
 say "ferrosid"
 "$target_dir/release/examples/peer_bench" "$log" "$work/ferrosid.json" "$repeats"
+say "ferrosid identify, whole process"
+(cd "$root" && cargo build --release -q -p ferrosid)
+"$PY" "$here/process_time.py" "$target_dir/release/ferrosid" "$log" "$work/process.json" "$repeats"
 say "python (scipy, SIPPY)"
 (cd "$here" && "$PY" python_peers.py "$log" "$work/python.json" "$repeats")
 say "octave (SLICOT)"

@@ -6,7 +6,7 @@ use faer::linalg::solvers::SolveLstsq;
 use faer::{Mat, MatRef};
 
 /// 8-lane dot product (vectorisable without reassociation by the compiler).
-pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
     let mut acc = [0.0f64; 8];
