@@ -330,79 +330,135 @@ fn cli_warns_of_feedback_and_identifies_with_reference() {
     assert!(bad.stderr.contains("nope"), "{}", bad.stderr);
 }
 
-/// An unstable plant G(s) = 20/(s − 2) (sampled exactly: p = e^{2·ts}, g = 20 (p − 1)/2),
-/// stabilised by u = 1.0·(r − y_m) (closed-loop pole 0.910), same noise and reference: the
-/// joint input-output method at the closed loop's order 1 keeps the unstable pole and at least
-/// halves the direct method's FRF error. (Only halves: measured 0.24 against 0.63 on seed 21,
-/// the N4SID of r → [u; y] is itself biased by the coloured noise at so low an order, and
-/// higher orders lose the pole; the 5× of the integrating case is not reached for unstable
-/// plants — README.)
+/// One closed-loop record of the unstable plant G(s) = 20/(s − 2) (sampled exactly:
+/// p = e^{2·ts}, g = 20 (p − 1)/2) stabilised by u = 1.0·(r − y_m) (closed-loop pole 0.910),
+/// same noise and reference as the integrating loop, `n` samples.
+fn simulate_unstable(seed: u64, n: usize) -> Loop {
+    let p = (2.0 * TS).exp();
+    let g = 20.0 * (p - 1.0) / 2.0;
+    let mut rng = Rng(seed);
+    let (mut x, mut v) = (0.0f64, 0.0f64);
+    let mut out = Loop {
+        r: Vec::with_capacity(n),
+        u: Vec::with_capacity(n),
+        y: Vec::with_capacity(n),
+    };
+    for _ in 0..n {
+        v = 0.9 * v + NOISE * rng.normal();
+        let rk = rng.normal();
+        let ym = x + v;
+        let uk = rk - ym;
+        out.r.push(rk);
+        out.u.push(uk);
+        out.y.push(ym);
+        x = p * x + g * uk;
+    }
+    out
+}
+
+/// The unstable plant's true response on [`grid`].
+fn unstable_truth() -> Vec<Complex64> {
+    let p = (2.0 * TS).exp();
+    let g = 20.0 * (p - 1.0) / 2.0;
+    grid()
+        .iter()
+        .map(|f| g / (Complex64::from_polar(1.0, 2.0 * PI * f * TS) - p))
+        .collect()
+}
+
+/// RMS over the grid of |h − truth|/|truth|.
+fn rel_rms(h: &[Complex64], truth: &[Complex64]) -> f64 {
+    let s: f64 = h
+        .iter()
+        .zip(truth)
+        .map(|(h, t)| ((h - t).norm() / t.norm()).powi(2))
+        .sum();
+    (s / h.len() as f64).sqrt()
+}
+
+/// The joint method at the closed loop's order 1 on `l`: the model and its response on the grid.
+fn joint_unstable(l: &Loop) -> (ferrosid::lti::StateSpace, Vec<Complex64>) {
+    let (un, yn) = (names("u"), names("y"));
+    let (us, ys, rs) = ([l.u.as_slice()], [l.y.as_slice()], [l.r.as_slice()]);
+    let d = data(&us, &ys, &un, &yn);
+    let joint = identify_closed_loop(
+        &d,
+        &rs,
+        &ClosedLoopOptions {
+            method: ClosedLoopMethod::JointInputOutput,
+            n4sid: N4sidOptions {
+                order: OrderSelection::Fixed(1),
+                ..N4sidOptions::default()
+            },
+            stage1_order: None,
+        },
+    )
+    .unwrap();
+    let h = joint.plant.model.freq_responses_siso_hz(&grid()).unwrap();
+    (joint.plant.model, h)
+}
+
+/// The unstable plant under the P controller: the joint input-output method (N4SID of
+/// r → [u; y] at the closed loop's order 1, refined by output-error fits of both channels) keeps
+/// the unstable pole and is at least 5× better than direct N4SID on every seed (measured:
+/// 0.02 against 0.6). Before the output-error refinement it was 0.21–0.24, and the Monte Carlo
+/// study (host/examples/closed_loop_unstable_study.rs, README) showed that error was bias.
 #[test]
 fn joint_method_identifies_an_unstable_plant() {
     let (un, yn) = (names("u"), names("y"));
-    let p = (2.0 * TS).exp();
-    let g = 20.0 * (p - 1.0) / 2.0;
-    let truth = |f: f64| g / (Complex64::from_polar(1.0, 2.0 * PI * f * TS) - p);
+    let truth = unstable_truth();
     for seed in [21u64, 22, 23] {
-        let mut rng = Rng(seed);
-        let (mut x, mut v) = (0.0f64, 0.0f64);
-        let (mut r, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
-        for _ in 0..N {
-            v = 0.9 * v + NOISE * rng.normal();
-            let rk = rng.normal();
-            let ym = x + v;
-            let uk = rk - ym;
-            r.push(rk);
-            u.push(uk);
-            y.push(ym);
-            x = p * x + g * uk;
-        }
-        let (us, ys, rs) = ([u.as_slice()], [y.as_slice()], [r.as_slice()]);
+        let l = simulate_unstable(seed, N);
+        let (us, ys) = ([l.u.as_slice()], [l.y.as_slice()]);
         let d = data(&us, &ys, &un, &yn);
-        let err = |m: &ferrosid::lti::StateSpace| {
-            let gr = grid();
-            let h = m.freq_responses_siso_hz(&gr).unwrap();
-            let s: f64 = gr
-                .iter()
-                .zip(&h)
-                .map(|(f, h)| ((h - truth(*f)).norm() / truth(*f).norm()).powi(2))
-                .sum();
-            (s / gr.len() as f64).sqrt()
-        };
-        let plain = identify(&d, &direct(Some(1))).map(|m| err(&m.model));
-        let joint = identify_closed_loop(
-            &d,
-            &rs,
-            &ClosedLoopOptions {
-                method: ClosedLoopMethod::JointInputOutput,
-                n4sid: N4sidOptions {
-                    order: OrderSelection::Fixed(1),
-                    ..N4sidOptions::default()
-                },
-                stage1_order: None,
-            },
-        )
-        .unwrap();
-        let e_joint = err(&joint.plant.model);
-        let unstable = joint
-            .plant
-            .model
-            .poles()
-            .unwrap()
-            .iter()
-            .any(|z| z.norm() > 1.0);
+        let plain = identify(&d, &direct(Some(1)))
+            .map(|m| rel_rms(&m.model.freq_responses_siso_hz(&grid()).unwrap(), &truth));
+        let (model, h) = joint_unstable(&l);
+        let e_joint = rel_rms(&h, &truth);
+        let unstable = model.poles().unwrap().iter().any(|z| z.norm() > 1.0);
         println!(
             "unstable plant, seed {seed}: direct {plain:?}, joint {e_joint:.4} (order {}, \
              unstable pole found: {unstable})",
-            joint.plant.model.n_states()
+            model.n_states()
         );
         assert!(unstable, "the joint model lost the unstable pole");
         let e_direct = plain.expect("direct N4SID");
         assert!(
-            e_joint < 0.5 * e_direct,
+            e_joint * 5.0 < e_direct,
             "joint {e_joint} vs direct {e_direct}"
         );
     }
+}
+
+/// Bias against variance on the unstable plant, over 4 seeds at 20,000 samples and 4 at 5,000:
+/// the mean estimate's RMS relative error (the bias plus what is left of the spread after
+/// averaging 4, about spread/2) is below 0.03 (the N4SID model alone: 0.22), and the mean
+/// per-seed error falls with N at the variance rate, 1/√N: the ratio between 5,000 and 20,000
+/// samples is 2 within [1.4, 2.9] (a bias-dominated error would give ≈ 1).
+#[test]
+fn joint_method_error_on_an_unstable_plant_is_variance() {
+    let truth = unstable_truth();
+    let mut mean_err = Vec::new();
+    for (n, seeds) in [(20_000usize, 40u64..44), (5_000, 50..54)] {
+        let hs: Vec<Vec<Complex64>> = seeds
+            .map(|seed| joint_unstable(&simulate_unstable(seed, n)).1)
+            .collect();
+        let k = hs.len() as f64;
+        let mean: Vec<Complex64> = (0..truth.len())
+            .map(|i| hs.iter().map(|h| h[i]).sum::<Complex64>() / k)
+            .collect();
+        let bias = rel_rms(&mean, &truth);
+        let errs: Vec<f64> = hs.iter().map(|h| rel_rms(h, &truth)).collect();
+        let me = errs.iter().sum::<f64>() / k;
+        println!("N {n}: error of the mean {bias:.4}, mean error {me:.4}, per seed {errs:.4?}");
+        if n == 20_000 {
+            assert!(bias < 0.03, "bias {bias}");
+        }
+        mean_err.push(me);
+    }
+    let ratio = mean_err[1] / mean_err[0];
+    println!("error ratio 5,000 / 20,000 samples: {ratio:.3} (variance: 2, bias: 1)");
+    assert!((1.4..=2.9).contains(&ratio), "ratio {ratio}");
 }
 
 /// A controller that acts one sample late (u(t) = 3·(r(t−1) − y_m(t−1))) has no feedthrough

@@ -70,10 +70,50 @@ fn rows(m: &Mat<f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Torque lag of the Coulomb-friction loop, s (a motor's current loop).
+pub const LAG: f64 = 3e-3;
+
+/// The PID of the Coulomb-friction loop behind the torque lag: integral time K_p/K_i = 1.2 ms,
+/// shorter than [`LAG`], the condition for a Coulomb cycle (host/tests/limit_cycle_coulomb_lag.rs
+/// explains it); derivative time 24 ms keeps the frictionless loop stable.
+pub fn lag_pid() -> Pid {
+    Pid {
+        kp: 3.0,
+        ki: 2500.0,
+        kd: 0.072,
+        tau_f: 5e-4,
+        rolloff: None,
+    }
+}
+
+/// The motor with the torque lag: states (θ rad, ω rad/s, T N·m), θ' = ω, J ω' = T,
+/// τ T' = K u − T, θ measured.
+pub fn lag_plant_continuous() -> StateSpace {
+    let a = Mat::from_fn(3, 3, |i, j| match (i, j) {
+        (0, 1) => 1.0,
+        (1, 2) => 1.0 / INERTIA,
+        (2, 2) => -1.0 / LAG,
+        _ => 0.0,
+    });
+    let b = Mat::from_fn(3, 1, |i, _| if i == 2 { GAIN / LAG } else { 0.0 });
+    let c = Mat::from_fn(1, 3, |_, j| if j == 0 { 1.0 } else { 0.0 });
+    StateSpace::new(a, b, c, Mat::zeros(1, 1), 0.0).expect("lag plant")
+}
+
 /// The generator input: the ZOH plant, the discrete PID and `compensation`.
 pub fn codegen_input(prefix: &str, compensation: Option<cg::Compensation>) -> cg::CodegenInput {
-    let zoh = plant_continuous().c2d_zoh(TS).expect("ZOH plant");
-    let dp = discrete_pid();
+    codegen_input_for(prefix, &plant_continuous(), &pid(), compensation)
+}
+
+/// [`codegen_input`] for another plant and PID.
+pub fn codegen_input_for(
+    prefix: &str,
+    plant: &StateSpace,
+    pid: &Pid,
+    compensation: Option<cg::Compensation>,
+) -> cg::CodegenInput {
+    let zoh = plant.c2d_zoh(TS).expect("ZOH plant");
+    let dp = pid.discretize(TS, None).expect("discretize the PID");
     cg::CodegenInput {
         prefix: prefix.into(),
         model: cg::DiscreteModel {

@@ -24,8 +24,8 @@ use ferrosid::limit_cycle::{
 };
 use ferrosid_codegen as cg;
 use ferrosid_tests::closedloop::{
-    build_image, codegen_input, discrete_pid, first_harmonic, plant_continuous, run, ClosedLoopRun,
-    TS,
+    build_image, codegen_input, codegen_input_for, discrete_pid, first_harmonic, lag_pid,
+    lag_plant_continuous, plant_continuous, run, ClosedLoopRun, INERTIA, LAG, TS,
 };
 use ferrosid_tests::{panic_sites, repo_root};
 
@@ -101,7 +101,48 @@ fn elf() -> &'static Path {
     }
 }
 
+/// The friction feedforward for Coulomb friction 0.1 N·m at the motor (velocity from the
+/// filtered output difference at 100 Hz, ramp over 0.05 rad/s).
+fn coulomb_feedforward() -> cg::Compensation {
+    let mut opts = DesignOptions::new("tests/tests/e2e_closedloop.rs (true level)", 0.05, 0.02);
+    opts.velocity = cg::VelocitySource::OutputDifference { filter_hz: 100.0 };
+    let effect = VerdictEffect {
+        effect: "coulomb_friction".into(),
+        place: "motor".into(),
+        params: [("level".to_string(), COULOMB)].into_iter().collect(),
+        share: 1.0,
+    };
+    design_from("coulomb_friction", &[effect], f64::NAN, f64::NAN, &opts)
+        .expect("compensation design")
+}
+
+/// The image with the PID of the Coulomb-friction loop behind the torque lag.
+fn lag_elf() -> &'static Path {
+    static E: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+    let r = E.get_or_init(|| {
+        let dir = work_dir().join("lag");
+        std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+        build_image(
+            &codegen_input_for(
+                "lagservo",
+                &lag_plant_continuous(),
+                &lag_pid(),
+                Some(coulomb_feedforward()),
+            ),
+            &dir,
+        )
+    });
+    match r {
+        Ok(p) => p,
+        Err(e) => panic!("building the closedloop image (lag): {e}"),
+    }
+}
+
 fn target(words: &[&str]) -> ClosedLoopRun {
+    target_on(elf(), words)
+}
+
+fn target_on(elf: &Path, words: &[&str]) -> ClosedLoopRun {
     let mut args = vec![
         format!("seconds={SECONDS:?}"),
         format!("kick={KICK:?}"),
@@ -109,7 +150,7 @@ fn target(words: &[&str]) -> ClosedLoopRun {
     ];
     args.extend(words.iter().map(|w| w.to_string()));
     let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-    let r = run(elf(), &refs).unwrap_or_else(|e| panic!("QEMU: {e}"));
+    let r = run(elf, &refs).unwrap_or_else(|e| panic!("QEMU: {e}"));
     for l in &r.lines {
         println!("target: {l}");
     }
@@ -329,6 +370,94 @@ fn stick_slip_hunting_matches_the_host_simulation() {
         ff_y.freq_hz,
         det_ff.freq_hz
     );
+}
+
+/// Coulomb friction (sliding = breakaway = 0.1 N·m) on the body of a motor whose torque lags
+/// the command by 3 ms, under a PID with integral time 1.2 ms < 3 ms: the target cycles at the
+/// describing function's frequency (15 %) and first-harmonic velocity amplitude (30 %), and
+/// agrees with the host's nonlinear simulation (3 % / 10 %). The generated friction
+/// feedforward acts through the same lag and does not remove the cycle: on target as in the
+/// host simulation the velocity amplitude grows (the physics: host/tests/limit_cycle_coulomb_lag.rs).
+#[test]
+fn coulomb_friction_behind_a_torque_lag_cycles_as_predicted() {
+    let lp = LureLoop::new(
+        &lag_plant_continuous(),
+        &lag_pid().discretize(TS, None).unwrap(),
+        VelocitySource::OutputDerivative,
+    )
+    .and_then(|l| l.with_friction_input(&[0.0, 1.0 / INERTIA, 0.0]))
+    .expect("loop");
+    let nl = Nonlinearity {
+        df: DescribingFunction::Relay { level: COULOMB },
+        site: Site::Velocity,
+    };
+    let preds = predict(&lp, &nl, &PredictOptions::default()).expect("predict");
+    // Cycles below 1e-3 rad/s are the scan's end at the equilibrium (the host test explains).
+    let stable: Vec<_> = preds
+        .iter()
+        .filter(|p| p.stable && p.amplitude > 1e-3)
+        .collect();
+    assert_eq!(stable.len(), 1, "{preds:?}");
+    let pred = stable[0];
+    let sim = simulate(&lp, &nl, None, &host_spec()).expect("host simulation");
+    let sim_cycle = detect(&sim.nl_input, TS, &DetectOptions::default()).expect("host cycle");
+
+    let words = [
+        format!("coulomb={COULOMB:?}"),
+        format!("breakaway={COULOMB:?}"),
+        format!("lag={LAG:?}"),
+    ];
+    let off = target_on(lag_elf(), &[&words[0], &words[1], &words[2], "comp=off"]);
+    let (yc, wc) = (off.y.expect("CYCLE y"), off.omega.expect("CYCLE omega"));
+    assert!(yc.oscillating && wc.oscillating, "{yc:?} {wc:?}");
+    let w: Vec<f64> = off.trace.iter().map(|t| t.2).collect();
+    let a_w = first_harmonic(&w, TS, wc.freq_hz);
+    println!(
+        "Coulomb behind a {LAG} s lag: target {:.3} Hz, velocity first harmonic {a_w:.3} rad/s \
+         (output half p-p {:.4} rad); predicted {:.3} Hz, {:.3} rad/s; host simulation {:.3} Hz, \
+         {:.3} rad/s",
+        wc.freq_hz,
+        yc.amplitude,
+        pred.freq_hz,
+        pred.amplitude,
+        sim_cycle.freq_hz,
+        sim_cycle.amplitude
+    );
+    assert!(
+        (wc.freq_hz / pred.freq_hz - 1.0).abs() < 0.15,
+        "frequency vs prediction"
+    );
+    assert!(
+        (a_w / pred.amplitude - 1.0).abs() < 0.30,
+        "amplitude vs prediction"
+    );
+    assert!(
+        (wc.freq_hz / sim_cycle.freq_hz - 1.0).abs() < 0.03,
+        "frequency vs host sim"
+    );
+    assert!(
+        (a_w / sim_cycle.amplitude - 1.0).abs() < 0.10,
+        "amplitude vs host sim"
+    );
+
+    // Without friction the loop settles on target.
+    let linear = target_on(lag_elf(), &[&words[2], "comp=off"]);
+    assert!(!linear.y.unwrap().oscillating, "{:?}", linear.y);
+
+    // The feedforward through the lag: the cycle persists and grows, as on the host.
+    let ff = target_on(lag_elf(), &[&words[0], &words[1], &words[2], "comp=ff"]);
+    let wf = ff.omega.expect("CYCLE omega");
+    let wff: Vec<f64> = ff.trace.iter().map(|t| t.2).collect();
+    let a_ff = first_harmonic(&wff, TS, wf.freq_hz);
+    let sim_ff = simulate(&lp, &nl, Some(&coulomb_feedforward()), &host_spec()).unwrap();
+    let det_ff = detect(&sim_ff.nl_input, TS, &DetectOptions::default());
+    println!(
+        "with the friction feedforward: target {:.3} Hz, {a_ff:.3} rad/s; host simulation {det_ff:?}",
+        wf.freq_hz
+    );
+    assert!(wf.oscillating && a_ff > a_w, "{wf:?}");
+    let det_ff = det_ff.expect("the host simulation with the feedforward cycles");
+    assert!((wf.freq_hz / det_ff.freq_hz - 1.0).abs() < 0.05);
 }
 
 #[test]

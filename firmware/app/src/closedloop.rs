@@ -15,7 +15,8 @@
 //!   (one image serves several scenarios); asking for a block or part the module does not
 //!   have, or a disabled block, is a set-up error;
 //! * plant: `J=` kg·m², `b=` N·m·s/rad, `k=` N·m/rad, `gain=` N·m/unit, `coulomb=` N·m,
-//!   `breakaway=` N·m (> 0: stick-slip), `deadzone=` input units (full width), `noise=` rad,
+//!   `breakaway=` N·m (> 0: stick-slip), `deadzone=` input units (full width), `lag=` s (the
+//!   torque's first-order lag, `Axis::with_torque_lag`; default 0), `noise=` rad,
 //!   `seed=`, `substeps=`; defaults J = 1e-4, b = k = 0, gain = 1, no friction, no dead zone,
 //!   no noise, 32 sub-steps;
 //! * `r=` reference (rad, default 0), `kick=` input units added for `kick_samples=` samples
@@ -24,7 +25,7 @@
 //!   noise: a smaller cycle is not observable).
 //!
 //! Log lines (decoded defmt):
-//! * `CLOSEDLOOP sha256=<digest> comp=<on|off|ff|dz|bl|aw> samples=<n> ts=<s> J=.. b=.. k=.. gain=.. coulomb=.. breakaway=.. deadzone=..`
+//! * `CLOSEDLOOP sha256=<digest> comp=<on|off|ff|dz|bl|aw> samples=<n> ts=<s> J=.. b=.. k=.. gain=.. coulomb=.. breakaway=.. deadzone=.. lag=..`
 //! * `T <y> <u> <omega>` for each of the last [`TAIL`] samples, oldest first;
 //! * `CYCLE <y|u|omega> freq_hz=<f> amplitude=<a> mean=<m> crossings=<c> oscillating=<bool>`;
 //! * `END`.
@@ -113,6 +114,7 @@ struct Settings {
     kick_samples: u32,
     seconds: f32,
     floor: f32,
+    lag: f32,
 }
 
 fn parse_f32(key: &'static str, v: &str) -> Result<f32, &'static str> {
@@ -143,6 +145,7 @@ fn parse_args() -> Result<Settings, &'static str> {
         kick_samples: 5,
         seconds: 8.0,
         floor: 1e-3,
+        lag: 0.0,
     };
     let args = semihosting::experimental::env::args::<1024>().map_err(|_| "command line")?;
     for (i, a) in (&args).enumerate() {
@@ -179,6 +182,7 @@ fn parse_args() -> Result<Settings, &'static str> {
             "kick_samples" => s.kick_samples = v.parse().map_err(|_| "kick_samples")?,
             "seconds" => s.seconds = parse_f32("seconds", v)?,
             "floor" => s.floor = parse_f32("floor", v)?,
+            "lag" => s.lag = parse_f32("lag", v)?,
             _ => return Err("unknown key"),
         }
     }
@@ -248,7 +252,7 @@ fn main() -> ! {
         }
     };
     let p = s.plant;
-    let mut axis = match Axis::new(p, flashed::TS_S) {
+    let mut axis = match Axis::new(p, flashed::TS_S).and_then(|a| a.with_torque_lag(s.lag)) {
         Ok(a) => a,
         Err(e) => {
             defmt::println!("ERROR plant parameter out of range: {=str}", e.0);
@@ -257,7 +261,7 @@ fn main() -> ! {
     };
     let samples = (s.seconds / flashed::TS_S) as usize;
     defmt::println!(
-        "CLOSEDLOOP sha256={=str} comp={=str} samples={=usize} ts={=f32} J={=f32} b={=f32} k={=f32} gain={=f32} coulomb={=f32} breakaway={=f32} deadzone={=f32}",
+        "CLOSEDLOOP sha256={=str} comp={=str} samples={=usize} ts={=f32} J={=f32} b={=f32} k={=f32} gain={=f32} coulomb={=f32} breakaway={=f32} deadzone={=f32} lag={=f32}",
         flashed::INPUTS_SHA256,
         s.comp.as_str(),
         samples,
@@ -268,7 +272,8 @@ fn main() -> ! {
         p.gain,
         p.coulomb,
         p.breakaway,
-        p.dead_zone
+        p.dead_zone,
+        s.lag
     );
     // SAFETY: `main` runs once and never returns; these are the only references ever taken
     // to the three buffers, so they are unique.

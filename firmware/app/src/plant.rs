@@ -30,6 +30,12 @@
 //!   sliding), else it slides against `coulomb`. The sub-steps are semi-implicit Euler
 //!   (velocity first, then position) instead of RK4, since the friction force is decided per
 //!   sub-step; with `breakaway == coulomb` this is Coulomb friction with sticking.
+//!
+//! Optionally ([`Axis::with_torque_lag`]) the torque follows K·w through a first-order lag τ_T
+//! (a motor's current loop), `τ_T T' = K·w − T`, and the body sees T: the friction then acts on
+//! the body behind the lag, not on the command. The lag state is advanced exactly
+//! (T ← a·T + (1 − a)·K·w, a = e^{−h/τ_T}) at each sub-step before the body's step (RK4 then
+//! holds it over the sub-step).
 use ferrosid_firmware::rng::SplitMix64;
 
 /// Longest transport delay the simulation holds, samples.
@@ -79,6 +85,9 @@ pub struct Axis {
     theta: f32,
     omega: f32,
     stuck: bool,
+    /// Torque-lag factor a = e^{−h/τ_T} per sub-step (0: no lag) and the torque T, N·m.
+    lag_a: f32,
+    torque: f32,
     line: [f32; MAX_DELAY],
     pos: usize,
     rng: SplitMix64,
@@ -134,10 +143,39 @@ impl Axis {
             theta: 0.0,
             omega: 0.0,
             stuck: true,
+            lag_a: 0.0,
+            torque: 0.0,
             line: [0.0; MAX_DELAY],
             pos: 0,
             rng: SplitMix64::new(p.seed),
         })
+    }
+
+    /// The axis with its torque lagging the command by a first-order lag of `tau_s` seconds
+    /// (module docs; 0: no lag).
+    ///
+    /// # Errors
+    /// `"lag"` when `tau_s` is not finite and >= 0.
+    pub fn with_torque_lag(mut self, tau_s: f32) -> Result<Self, InvalidParameter> {
+        if !(tau_s.is_finite() && tau_s >= 0.0) {
+            return Err(InvalidParameter("lag"));
+        }
+        self.lag_a = if tau_s > 0.0 {
+            libm::expf(-self.h / tau_s)
+        } else {
+            0.0
+        };
+        Ok(self)
+    }
+
+    /// The torque the body sees after the lag for this sub-step's command torque `tau`.
+    fn lagged(&mut self, tau: f32) -> f32 {
+        if self.lag_a > 0.0 {
+            self.torque = self.lag_a * self.torque + (1.0 - self.lag_a) * tau;
+            self.torque
+        } else {
+            tau
+        }
     }
 
     /// The parameters.
@@ -224,7 +262,9 @@ impl Axis {
             return;
         }
         let h = self.h;
+        let tau_cmd = tau;
         for _ in 0..self.p.substeps {
+            let tau = self.lagged(tau_cmd);
             let (t0, w0) = (self.theta, self.omega);
             let k1t = w0;
             let k1w = self.accel(t0, w0, tau);
@@ -240,11 +280,12 @@ impl Axis {
     }
 
     /// One sample period of stick-slip friction under torque `tau` (module docs).
-    fn stick_slip_period(&mut self, tau: f32) {
-        let p = &self.p;
+    fn stick_slip_period(&mut self, tau_cmd: f32) {
+        let p = self.p;
         let h = self.h;
         let g = h / p.inertia;
         for _ in 0..p.substeps {
+            let tau = self.lagged(tau_cmd);
             // Velocity at the end of the sub-step without friction; friction changes it by −g·F.
             let v_trial =
                 self.omega + g * (tau - p.damping * self.omega - p.stiffness * self.theta);

@@ -171,3 +171,149 @@ pub(super) fn refine(
     let num = theta[n..n + nb].to_vec();
     TransferFunction::new(num, den, ts)?.to_state_space()
 }
+
+/// One output channel of [`refine_common`]: the start numerator aligned to z^n .. z^0 (monic
+/// denominator), the measured signal and whether it has feedthrough (b₀).
+pub(super) struct Channel<'a> {
+    pub num: Vec<f64>,
+    pub y: &'a [f64],
+    pub feedthrough: bool,
+}
+
+/// Output-error fit of several channels B_i/F driven by the same input `r` with one common
+/// monic denominator F (started from `f0` = f₁..f_n and each channel's numerator): minimises
+/// Σ_i Σ_t (y_i − B_i/F·r − c_i)² by Levenberg–Marquardt with the exact gradient, as
+/// [`refine`]. Returns (F, [B_i]) as coefficient vectors in descending powers of z (B_i padded
+/// to degree n).
+pub(super) fn refine_common(
+    f0: &[f64],
+    channels: &[Channel<'_>],
+    r: &[f64],
+) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+    let n = f0.len();
+    // Parameter layout: f (n), then per channel its b (n or n+1) and c.
+    let mut theta: Vec<f64> = f0.to_vec();
+    let mut offs = Vec::new();
+    for ch in channels {
+        if ch.num.len() != n + 1 {
+            return Err(Error::Numerical(format!(
+                "closed loop, joint refinement: numerator of {} coefficients for order {n}",
+                ch.num.len()
+            )));
+        }
+        offs.push(theta.len());
+        let skip = usize::from(!ch.feedthrough);
+        theta.extend_from_slice(&ch.num[skip..]);
+        theta.push(0.0);
+    }
+    let p = theta.len();
+    let sim = |th: &[f64]| -> Vec<Vec<f64>> {
+        channels
+            .iter()
+            .zip(&offs)
+            .map(|(ch, &o)| {
+                let nb = n + usize::from(ch.feedthrough);
+                let mut t = th[..n].to_vec();
+                t.extend_from_slice(&th[o..o + nb + 1]);
+                simulate(&t, n, ch.feedthrough, r)
+            })
+            .collect()
+    };
+    let total = |yh: &[Vec<f64>]| -> f64 {
+        let v: f64 = channels
+            .iter()
+            .zip(yh)
+            .map(|(ch, h)| {
+                ch.y.iter()
+                    .zip(h)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+            })
+            .sum();
+        if v.is_finite() {
+            v
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut yh = sim(&theta);
+    let mut v = total(&yh);
+    if !v.is_finite() {
+        return Err(Error::Numerical(
+            "closed loop, joint refinement: the N4SID start does not simulate".into(),
+        ));
+    }
+    let mut lambda = 1e-3;
+    for _ in 0..MAX_ITER {
+        let f = &theta[..n];
+        let rf = filter(f, r);
+        let mut jtj = Mat::<f64>::zeros(p, p);
+        let mut jte = Mat::<f64>::zeros(p, 1);
+        for ((ch, &o), h) in channels.iter().zip(&offs).zip(&yh) {
+            let nb = n + usize::from(ch.feedthrough);
+            let c = theta[o + nb];
+            let hf = filter(f, &h.iter().map(|v| v - c).collect::<Vec<_>>());
+            let shift = usize::from(!ch.feedthrough);
+            // Non-zero gradient entries of this channel: f (0..n), its b and c.
+            let idx: Vec<usize> = (0..n).chain(o..o + nb + 1).collect();
+            let mut g = vec![0.0; idx.len()];
+            for t in 0..r.len() {
+                for k in 0..n {
+                    g[k] = if t > k { -hf[t - 1 - k] } else { 0.0 };
+                }
+                for k in 0..nb {
+                    let lag = k + shift;
+                    g[n + k] = if t >= lag { rf[t - lag] } else { 0.0 };
+                }
+                g[n + nb] = 1.0;
+                let e = ch.y[t] - h[t];
+                for (a, &ia) in idx.iter().enumerate() {
+                    jte[(ia, 0)] += g[a] * e;
+                    for (b, &ib) in idx.iter().enumerate() {
+                        jtj[(ia, ib)] += g[a] * g[b];
+                    }
+                }
+            }
+        }
+        let mut improved = false;
+        for _ in 0..20 {
+            let mut m = jtj.clone();
+            for a in 0..p {
+                m[(a, a)] += lambda * jtj[(a, a)].max(f64::MIN_POSITIVE);
+            }
+            let Ok(step) = crate::lti::dense::solve_square(m.as_ref(), jte.as_ref(), "OE step")
+            else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial: Vec<f64> = (0..p).map(|k| theta[k] + step[(k, 0)]).collect();
+            let yt = sim(&trial);
+            let vt = total(&yt);
+            if vt < v {
+                let rel = (v - vt) / v;
+                theta = trial;
+                v = vt;
+                yh = yt;
+                lambda = (lambda / 10.0).max(1e-12);
+                improved = rel > 1e-12;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    let mut den = vec![1.0];
+    den.extend_from_slice(&theta[..n]);
+    let nums = channels
+        .iter()
+        .zip(&offs)
+        .map(|(ch, &o)| {
+            let mut b = if ch.feedthrough { vec![] } else { vec![0.0] };
+            b.extend_from_slice(&theta[o..o + n + usize::from(ch.feedthrough)]);
+            b
+        })
+        .collect();
+    Ok((den, nums))
+}

@@ -148,6 +148,12 @@ pub struct LureLoop {
     /// Friction on the slowest mode ([`LureLoop::with_friction_on_slowest_mode`]); `None`:
     /// friction subtracts at the plant input.
     pub body: Option<Body>,
+    /// Friction at a state of the continuous plant instead of its input
+    /// ([`LureLoop::with_friction_input`]): the column B_f (plant states per unit force, force
+    /// in input units) through which the friction force enters, e.g. the body's velocity
+    /// equation of a motor whose torque lags the command. `None`: at the plant input.
+    pub friction_input: Option<Vec<f64>>,
+    friction_eval: Option<FreqEvaluator>,
     plant_eval: FreqEvaluator,
     plant_continuous_eval: Option<FreqEvaluator>,
     controller_tf: TransferFunction,
@@ -234,6 +240,8 @@ impl LureLoop {
             controller: controller.clone(),
             velocity,
             body: None,
+            friction_input: None,
+            friction_eval: None,
             controller_tf,
         })
     }
@@ -275,6 +283,47 @@ impl LureLoop {
         Ok(self)
     }
 
+    /// The loop with friction entering the continuous plant through the column `b_f` (states
+    /// per unit force, input units) instead of at the plant input: the force acts on the body
+    /// while the command reaches it through the actuator's dynamics (a current-loop lag, a
+    /// transmission). Errors unless the plant is continuous (or has a continuous equivalent),
+    /// `b_f` has one finite entry per state, not all zero, and C·b_f = 0 (a force does not
+    /// move the measured position within an instant; for a velocity output use the plant input).
+    pub fn with_friction_input(mut self, b_f: &[f64]) -> Result<Self> {
+        let bad = |why: String| {
+            Err(Error::InvalidArgument(format!(
+                "limit-cycle loop: friction input column: {why}"
+            )))
+        };
+        let Some(pc) = self.plant_continuous.as_ref() else {
+            return bad("needs a continuous plant (none for this discrete plant)".into());
+        };
+        let n = pc.n_states();
+        if b_f.len() != n {
+            return bad(format!("{} entries for a plant of {n} states", b_f.len()));
+        }
+        if b_f.iter().any(|v| !v.is_finite()) || b_f.iter().all(|v| *v == 0.0) {
+            return bad("entries must be finite and not all zero".into());
+        }
+        let cb: f64 = (0..n).map(|j| pc.c[(0, j)] * b_f[j]).sum();
+        if cb.abs() > 1e-12 * b_f.iter().fold(0.0f64, |m, v| m.max(v.abs())) {
+            return bad(format!("C·b_f = {cb} must be 0 (the output is a position)"));
+        }
+        if self.velocity != VelocitySource::OutputDerivative || self.body.is_some() {
+            return bad("needs a position output (velocity = its derivative) and no body".into());
+        }
+        let sys = StateSpace::new(
+            pc.a.clone(),
+            faer::Mat::from_fn(n, 1, |i, _| b_f[i]),
+            pc.c.clone(),
+            faer::Mat::zeros(1, 1),
+            0.0,
+        )?;
+        self.friction_eval = Some(sys.freq_evaluator());
+        self.friction_input = Some(b_f.to_vec());
+        Ok(self)
+    }
+
     /// Nyquist angular frequency π/T, rad/s.
     pub fn nyquist_rad_s(&self) -> f64 {
         PI / self.ts
@@ -307,6 +356,20 @@ impl LureLoop {
                     let bv = Complex64::new(-b.dc_gain * b.pole_rad_s, 0.0)
                         / (Complex64::new(0.0, w_rad_s) - b.pole_rad_s);
                     return Ok(bv / (one + c * g));
+                }
+                if let (Some(fe), Some(pe)) = (&self.friction_eval, &self.plant_continuous_eval) {
+                    // Friction at the body: v/(−F) = G_vf − G_vu·H·C·G_yf/(1 + C·G), with
+                    // G_yf the continuous force → position response, G_vf = s·G_yf, G_vu = s·G_c
+                    // and H(jω) = (1 − e^{−jωT})/(jωT) the hold's response.
+                    let s = Complex64::new(0.0, w_rad_s);
+                    let gyf = fe.at_rad_s(w_rad_s)?[(0, 0)];
+                    let gvu = pe.at_rad_s(w_rad_s)?[(0, 0)] * s;
+                    let h = if w_rad_s == 0.0 {
+                        one
+                    } else {
+                        (one - Complex64::from_polar(1.0, -w_rad_s * self.ts)) / (s * self.ts)
+                    };
+                    return Ok(s * gyf - gvu * h * c * gyf / (one + c * g));
                 }
                 let gv = match (&self.plant_continuous_eval, self.velocity) {
                     (Some(ev), VelocitySource::Output) => ev.at_rad_s(w_rad_s)?[(0, 0)],

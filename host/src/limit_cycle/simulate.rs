@@ -158,6 +158,22 @@ pub fn simulate(
     let n = sys.n_states();
     let ad: Vec<f64> = (0..n * n).map(|k| sys.a[(k / n, k % n)]).collect();
     let bd: Vec<f64> = (0..n).map(|i| sys.b[(i, 0)]).collect();
+    // The column through which the friction force enters over a sub-step: the plant input's,
+    // or, with friction at the body (lp.friction_input), the ZOH of that column.
+    let bfd: Vec<f64> = match (&lp.friction_input, &lp.plant_continuous, friction) {
+        (Some(bf), Some(pc), true) => {
+            let fsys = crate::lti::StateSpace::new(
+                pc.a.clone(),
+                faer::Mat::from_fn(n, 1, |i, _| bf[i]),
+                pc.c.clone(),
+                faer::Mat::zeros(1, 1),
+                0.0,
+            )?
+            .c2d_zoh(ts / m as f64)?;
+            (0..n).map(|i| fsys.b[(i, 0)]).collect()
+        }
+        _ => bd.clone(),
+    };
     let c: Vec<f64> = (0..n).map(|j| sys.c[(0, j)]).collect();
     let d = sys.d[(0, 0)];
     // Velocity proxy: v = C·x (output) or v = C·(A_c x + B_c w) (derivative of the output).
@@ -183,11 +199,16 @@ pub fn simulate(
     };
     // Change of the velocity at the end of a sub-step per unit friction force.
     let g = if !rate {
-        dot(&c, &bd)
+        dot(&c, &bfd)
     } else if !ca.is_empty() {
-        dot(&ca, &bd) + cb_c
+        dot(&ca, &bfd)
+            + if lp.friction_input.is_some() {
+                0.0
+            } else {
+                cb_c
+            }
     } else {
-        dot(&c, &bd) / (ts / m as f64)
+        dot(&c, &bfd) / (ts / m as f64)
     };
     // Friction on the slowest mode (lp.body): a separate first-order body state x_f per
     // sub-step h, x_f ← p_h·x_f + K·(1 − p_h)·F, y = C·x + D·w − x_f (the gap fit's
@@ -269,7 +290,7 @@ pub fn simulate(
                 let v_trial = velocity_of(&xn, o_before, w);
                 let force = f.force(v_trial, g);
                 for i in 0..n {
-                    xn[i] -= bd[i] * force;
+                    xn[i] -= bfd[i] * force;
                 }
             }
             out_prev = o_before;
