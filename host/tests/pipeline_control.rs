@@ -1,0 +1,194 @@
+//! The `[control] method` switch on the bundled two-mass example (examples/pipeline.toml):
+//! `pid` stays what it was, `loopshape` and `hinf` replace the loop receipts with their own,
+//! computed on their sampled loop, and every new key refuses bad input with file, line and key.
+use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun, ReceiptsDocument};
+use ferrosid::robust::loops::FeedbackLoop;
+use ferrosid::robust::norms::hinf_norm;
+use std::path::{Path, PathBuf};
+
+fn example_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/pipeline.toml")
+}
+
+/// The example without the gap, compensation and physical stages (not what this tests, and
+/// slow in debug), with `extra` lines appended to `[control]`.
+fn example_text(extra: &str) -> String {
+    let t = std::fs::read_to_string(example_path()).unwrap();
+    let t = t.replace("[gap]\nrun = \"always\"", "[gap]\nrun = \"never\"");
+    let t = match t.find("[physical]") {
+        Some(i) => t[..i].to_string(),
+        None => t,
+    };
+    t.replace(
+        "reference_amplitude = 5.0   # rad/s speed step\n",
+        &format!("reference_amplitude = 5.0   # rad/s speed step\n{extra}"),
+    )
+}
+
+fn run(extra: &str) -> PipelineRun {
+    let cfg = LoadedConfig::from_text(&example_path(), &example_text(extra)).unwrap();
+    run_pipeline(&cfg, &|_| {}).unwrap()
+}
+
+fn json(run: &PipelineRun) -> String {
+    ReceiptsDocument::from_run(run).to_json().unwrap()
+}
+
+#[test]
+fn pid_is_the_default_and_writes_no_control_block() {
+    let a = run("");
+    let b = run("method = \"pid\"\n");
+    assert!(a.control.is_none() && b.control.is_none());
+    let (ja, jb) = (json(&a), json(&b));
+    // Only the pipeline file's own digest and size differ (its text differs).
+    let strip = |s: &str| -> String {
+        s.lines()
+            .filter(|l| !l.contains("\"sha256\"") && !l.contains("\"bytes\""))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(strip(&ja), strip(&jb));
+    let doc: serde_json::Value = serde_json::from_str(&ja).unwrap();
+    assert!(doc.get("control").is_none(), "no control block for pid");
+    assert!(doc["provenance"]["settings"]["control"]
+        .get("method")
+        .is_none());
+    assert!(doc["provenance"]["settings"]["control"]["crossover_hz"].is_number());
+}
+
+/// Every loop receipt of the chosen controller, checked against an independent recomputation
+/// of M_s and the stability of the loop from G0 and the written controller.
+fn check_chosen(run: &PipelineRun, method: &str) -> (f64, f64) {
+    let c = run.control.as_ref().expect("control block");
+    assert_eq!(c.status, "designed", "{:?}", c.error);
+    let doc: serde_json::Value = serde_json::from_str(&json(run)).unwrap();
+    assert_eq!(doc["control"]["method"], method);
+    let names: Vec<&str> = doc["receipts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["name"].as_str().unwrap())
+        .collect();
+    for r in &c.receipts.receipts {
+        let top = run.receipts.get(&r.name).expect("merged");
+        assert_eq!(top, r, "{} merged as is", r.name);
+        eprintln!(
+            "{method}: {} = {} (limit {} {}) {}",
+            r.name,
+            r.value_text,
+            r.limit,
+            r.unit,
+            if r.pass { "pass" } else { "FAIL" }
+        );
+    }
+    for n in [
+        "controller_design",
+        "closed_loop_stable",
+        "gain_margin",
+        "phase_margin",
+        "sensitivity_peak",
+        "robust_stability",
+        "peak_control_effort",
+        "step_overshoot",
+    ] {
+        assert_eq!(names.iter().filter(|x| **x == n).count(), 1, "{n} once");
+    }
+    // Independent: the loop of G0 and the controller as written (discrete, ts = model ts).
+    let k = c.controller_ss.as_ref().unwrap();
+    assert!((k.ts - run.model().ts).abs() < 1e-15);
+    let lp = FeedbackLoop::new(run.model(), k).unwrap();
+    assert!(lp.is_stable().unwrap());
+    let ms = hinf_norm(&lp.s).unwrap().gamma;
+    let rec = run.receipts.get("sensitivity_peak").unwrap().value;
+    assert!((ms - rec).abs() <= 1e-6 * ms, "M_s {ms} vs receipt {rec}");
+    let fc = c.gain_crossover_hz.unwrap();
+    let base = c.baseline_pid_crossover_hz.unwrap();
+    eprintln!(
+        "{method}: crossover {fc:.3} Hz vs PID {base:.3} Hz; all pass {}",
+        run.receipts.all_pass
+    );
+    (fc, base)
+}
+
+#[test]
+fn loopshape_reaches_a_higher_crossover_than_pid_with_its_own_receipts() {
+    let r = run("method = \"pid-notch\"\n");
+    let (fc, base) = check_chosen(&r, "loopshape");
+    assert!(fc > base * 1.2, "PID + notch {fc} Hz vs PID {base} Hz");
+    for name in ["robust_stability", "sensitivity_peak", "closed_loop_stable"] {
+        assert!(r.receipts.get(name).unwrap().pass, "{name}");
+    }
+}
+
+#[test]
+fn hinf_designs_and_issues_its_receipts() {
+    let r = run("method = \"hinf\"\n");
+    let (fc, base) = check_chosen(&r, "hinf");
+    assert!(fc > base, "H∞ {fc} Hz vs PID {base} Hz");
+    for name in ["robust_stability", "sensitivity_peak", "closed_loop_stable"] {
+        assert!(r.receipts.get(name).unwrap().pass, "{name}");
+    }
+}
+
+#[test]
+fn bad_control_keys_name_file_line_and_key() {
+    // The `reference_amplitude` line is where the extra lines start.
+    let text = example_text("");
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("reference_amplitude"))
+        .unwrap()
+        + 2;
+    for (extra, key, what) in [
+        ("method = \"mpcc\"", "control.method", "unknown variant"),
+        ("method = 3", "control.method", ""),
+        (
+            "notch_max_damping = 0.3",
+            "control.notch_max_damping",
+            "only used with method = \"loopshape\"",
+        ),
+        (
+            "method = \"loopshape\"\nnotch_max_damping = 1.5",
+            "control.notch_max_damping",
+            "must lie in (0, 1)",
+        ),
+        (
+            "method = \"loopshape\"\nhinf_backoff = 0.1",
+            "control.hinf_backoff",
+            "only used with method = \"hinf\"",
+        ),
+        (
+            "method = \"hinf\"\nhinf_backoff = -0.1",
+            "control.hinf_backoff",
+            "must lie in [0, 1]",
+        ),
+        (
+            "method = \"hinf\"\nhinf_ws_floor = 0",
+            "control.hinf_ws_floor",
+            "must lie in (0, 0.5)",
+        ),
+        (
+            "method = \"hinf\"\nhinf_ws_floor = nan",
+            "control.hinf_ws_floor",
+            "must lie in",
+        ),
+        (
+            "method = \"hinf\"\nnotch_max_damping = 0.2",
+            "control.notch_max_damping",
+            "only used with",
+        ),
+        (
+            "method = \"hinf\"\nhinf_gamma = 2",
+            "control.hinf_gamma",
+            "unknown field",
+        ),
+    ] {
+        let t = example_text(&format!("{extra}\n"));
+        let e = LoadedConfig::from_text(&example_path(), &t)
+            .unwrap_err()
+            .to_string();
+        let at = line + extra.matches('\n').count();
+        assert!(e.contains(&format!("pipeline.toml:{at}")), "{extra}: {e}");
+        assert!(e.contains(key) && e.contains(what), "{extra}: {e}");
+    }
+}
