@@ -50,6 +50,8 @@ fn pid_is_the_default_and_writes_no_control_block() {
     assert_eq!(strip(&ja), strip(&jb));
     let doc: serde_json::Value = serde_json::from_str(&ja).unwrap();
     assert!(doc.get("control").is_none(), "no control block for pid");
+    let html = ferrosid::report::render_html(&a, &[]).unwrap();
+    assert!(!html.contains("chosen-controller"));
     assert!(doc["provenance"]["settings"]["control"]
         .get("method")
         .is_none());
@@ -101,6 +103,15 @@ fn check_chosen(run: &PipelineRun, method: &str) -> (f64, f64) {
     let ms = hinf_norm(&lp.s).unwrap().gamma;
     let rec = run.receipts.get("sensitivity_peak").unwrap().value;
     assert!((ms - rec).abs() <= 1e-6 * ms, "M_s {ms} vs receipt {rec}");
+    // The report: the section with its three figures and the comparison against the PID.
+    let figs = ferrosid::report::figures(run).unwrap();
+    let html = ferrosid::report::render_html(run, &figs).unwrap();
+    assert!(html.contains("<section id=\"chosen-controller\">"));
+    assert!(html.contains(&format!("Chosen controller: {method}")));
+    for f in ["control_loop", "control_sensitivity", "control_step"] {
+        assert!(html.contains(&format!("id=\"fig-{f}\"")), "{f}");
+    }
+    assert!(html.contains("PID baseline"));
     let fc = c.gain_crossover_hz.unwrap();
     let base = c.baseline_pid_crossover_hz.unwrap();
     eprintln!(
