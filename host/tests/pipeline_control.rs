@@ -112,6 +112,58 @@ fn check_chosen(run: &PipelineRun, method: &str) -> (f64, f64) {
         assert!(html.contains(&format!("id=\"fig-{f}\"")), "{f}");
     }
     assert!(html.contains("PID baseline"));
+    // Codegen: the chosen controller is in the header and the module; the header compiles
+    // with the strict flags and its matrices are the written controller's.
+    let input = ferrosid::ops::codegen::codegen_input(
+        run.codegen_parts().unwrap(),
+        &ferrosid::ops::codegen::CodegenOptions {
+            prefix: "axis1".into(),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let sk = input
+        .state_controller
+        .as_ref()
+        .expect("state controller block");
+    assert_eq!(sk.method, method);
+    assert_eq!(sk.matrices.a.len(), k.n_states());
+    assert_eq!(sk.matrices.c[0][0], k.c[(0, 0)]);
+    let files = ferrosid_codegen::generate(&input).unwrap();
+    assert!(files
+        .c_header
+        .contains("#define AXIS1_HAS_STATE_CONTROLLER 1"));
+    assert!(files.rust_module.contains("pub fn k_step("));
+    let dir = std::env::temp_dir().join(format!("ferrosid-pctl-{}-{method}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join(&files.c_file_name), &files.c_header).unwrap();
+    let main = dir.join("main.c");
+    std::fs::write(
+        &main,
+        format!(
+            "#include \"{}\"\nint main(void) {{ float xi[AXIS1_K_N_STATES] = {{0}}; return \
+             AXIS1_k_step(xi, 1.0f) > 1e30f; }}\n",
+            files.c_file_name
+        ),
+    )
+    .unwrap();
+    let st = std::process::Command::new("gcc")
+        .args([
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-pedantic",
+            "-c",
+            "-o",
+        ])
+        .arg(dir.join("main.o"))
+        .arg("-I")
+        .arg(&dir)
+        .arg(&main)
+        .status()
+        .expect("gcc");
+    assert!(st.success(), "gcc -Werror on the generated header");
     let fc = c.gain_crossover_hz.unwrap();
     let base = c.baseline_pid_crossover_hz.unwrap();
     eprintln!(

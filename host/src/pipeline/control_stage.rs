@@ -652,3 +652,21 @@ fn chosen_loop_receipts(
         step: kept,
     })
 }
+
+/// The chosen controller as a codegen block (None for a failed design).
+pub fn codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateController> {
+    let k = c.controller_ss.as_ref()?;
+    Some(ferrosid_codegen::StateController {
+        method: c.method.name().to_string(),
+        ts_s: k.ts,
+        matrices: crate::ops::codegen::matrices(k),
+        note: format!(
+            "{} controller of order {}, lowest gain crossover {} Hz (PID baseline {} Hz); \
+             receipts as in receipts.json",
+            c.method.name(),
+            k.n_states(),
+            c.gain_crossover_hz.map_or("none".into(), fmt_num),
+            c.baseline_pid_crossover_hz.map_or("n/a".into(), fmt_num)
+        ),
+    })
+}

@@ -277,6 +277,7 @@ impl PipelineRun {
             weight: weight_coefficients(weight),
             receipts: self.receipts.receipts.iter().map(receipt_line).collect(),
             sources,
+            state_controller: self.control.as_ref().and_then(control_stage::codegen_block),
         })
     }
 
