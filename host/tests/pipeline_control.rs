@@ -194,6 +194,54 @@ fn hinf_designs_and_issues_its_receipts() {
 }
 
 #[test]
+fn reduced_hinf_controller_keeps_its_receipts_within_the_truncation_bound() {
+    use ferrosid::pipeline::control_stage::DesignSummary;
+    let r = run("method = \"hinf\"\nhinf_order = 4\n");
+    let (fc, base) = check_chosen(&r, "hinf");
+    let c = r.control.as_ref().unwrap();
+    let Some(DesignSummary::Hinf {
+        reduction: Some(red),
+        order,
+        ..
+    }) = &c.design
+    else {
+        panic!("no reduction: {:?}", c.design);
+    };
+    assert_eq!(red.order, 4);
+    assert_eq!(red.full_order, *order);
+    assert_eq!(c.controller_ss.as_ref().unwrap().n_states(), 4);
+    // Glover's bounds: σ_(r+1) ≤ ‖K − K_r‖∞ ≤ 2·Σ discarded σ.
+    let hsv = &red.hankel_singular_values;
+    eprintln!(
+        "reduction {} → 4: ‖K − K_r‖∞ {:.4e}, bound {:.4e}, σ {:?}; crossover {fc:.3} Hz (PID \
+         {base:.3})",
+        red.full_order, red.measured_error, red.error_bound, hsv
+    );
+    assert!(red.measured_error <= red.error_bound * (1.0 + 1e-6));
+    assert!(red.measured_error >= hsv[4] * (1.0 - 1e-6));
+    let before = red.receipts_before.as_ref().expect("full-order receipts");
+    for rc in &c.receipts.receipts {
+        let Some(b) = before.get(&rc.name) else {
+            assert_eq!(
+                rc.name, "controller_design",
+                "only the design receipt is per design"
+            );
+            continue;
+        };
+        eprintln!(
+            "  {}: full {} → reduced {} ({})",
+            rc.name,
+            b.value_text,
+            rc.value_text,
+            if rc.pass { "pass" } else { "FAIL" }
+        );
+    }
+    for name in ["closed_loop_stable", "robust_stability", "sensitivity_peak"] {
+        assert!(r.receipts.get(name).unwrap().pass, "{name} after reduction");
+    }
+}
+
+#[test]
 fn bad_control_keys_name_file_line_and_key() {
     // The `reference_amplitude` line is where the extra lines start.
     let text = example_text("");
@@ -244,6 +292,21 @@ fn bad_control_keys_name_file_line_and_key() {
             "method = \"hinf\"\nhinf_gamma = 2",
             "control.hinf_gamma",
             "unknown field",
+        ),
+        (
+            "method = \"hinf\"\nhinf_order = 0",
+            "control.hinf_order",
+            "must be >= 1",
+        ),
+        (
+            "method = \"hinf\"\nhinf_order = -2",
+            "control.hinf_order",
+            "",
+        ),
+        (
+            "method = \"loopshape\"\nhinf_order = 4",
+            "control.hinf_order",
+            "only used with",
         ),
     ] {
         let t = example_text(&format!("{extra}\n"));

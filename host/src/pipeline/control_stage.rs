@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
 use crate::robust::discretize::tustin_state_space;
 use crate::robust::loops::{margins, FeedbackLoop, Margins};
-use crate::robust::norms::balance;
+use crate::robust::norms::{balance, hinf_norm};
 use crate::robust::pid::{weight_in_domain, Pid, PidDesignPoint, PidTuningSpec, TunedPid};
 use crate::robust::receipts::{
     loop_curves, push_margin_receipts, push_norm_receipts, push_step_receipts, Comparison,
@@ -33,6 +33,7 @@ use crate::robust::receipts::{
 };
 use crate::robust::step::{StepResponse, StepSpec};
 use crate::robust::uncertainty::UncertaintyWeight;
+use crate::synth::balred::balanced_truncation;
 use crate::synth::hinf::{
     hinf_mixed_sensitivity, performance_weight, HinfDesign, HinfOptions, MixedSensitivityWeights,
 };
@@ -99,6 +100,11 @@ pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
             k.hinf_backoff.is_some(),
             ControlMethod::Hinf,
         ),
+        (
+            "control.hinf_order",
+            k.hinf_order.is_some(),
+            ControlMethod::Hinf,
+        ),
     ] {
         if given && k.method != method {
             return Err(cfg.key_error(
@@ -128,7 +134,14 @@ pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
         false,
     )?;
     range("control.hinf_ws_floor", k.hinf_ws_floor, 0.0, 0.5, false)?;
-    range("control.hinf_backoff", k.hinf_backoff, 0.0, 1.0, true)
+    range("control.hinf_backoff", k.hinf_backoff, 0.0, 1.0, true)?;
+    if k.hinf_order == Some(0) {
+        return Err(cfg.key_error(
+            "control.hinf_order",
+            "must be >= 1 (states of the reduced controller)",
+        ));
+    }
+    Ok(())
 }
 
 /// What was designed, per method.
@@ -174,7 +187,26 @@ pub enum DesignSummary {
         order: usize,
         /// True when the continuous controller itself is stable.
         controller_stable: bool,
+        /// The balanced truncation to `hinf_order` (null without reduction).
+        reduction: Option<Reduction>,
     },
+}
+
+/// A balanced truncation of the continuous H∞ controller (before Tustin).
+#[derive(Debug, Clone, Serialize)]
+pub struct Reduction {
+    /// Order of the full controller.
+    pub full_order: usize,
+    /// Order kept.
+    pub order: usize,
+    /// Hankel singular values of the full controller.
+    pub hankel_singular_values: Vec<f64>,
+    /// A-priori bound 2·Σ(discarded σ) on ‖K − K_r‖∞.
+    pub error_bound: f64,
+    /// ‖K − K_r‖∞ measured (Hamiltonian bisection).
+    pub measured_error: f64,
+    /// The loop receipts with the full-order (discretised) controller, for comparison.
+    pub receipts_before: Option<Receipts>,
 }
 
 /// The stage's result, as written to `receipts.json` (`control`).
@@ -215,6 +247,8 @@ pub struct ControlOutcome {
 struct Designed {
     controller: StateSpace,
     law: DiscreteLaw,
+    /// The full-order controller and its law when `controller` is a reduction of it.
+    full: Option<(StateSpace, DiscreteLaw)>,
     /// Crossover the receipt limits and the prewarp refer to, Hz.
     design_hz: f64,
     summary: DesignSummary,
@@ -273,6 +307,7 @@ fn design_loopshape(
     Ok(Ok(Designed {
         controller: d.controller,
         law,
+        full: None,
         design_hz: fc,
         summary: DesignSummary::Loopshape {
             pid: d.pid.pid,
@@ -364,7 +399,32 @@ fn design_hinf(
             }
         )));
     };
-    let kd = tustin_state_space(&balance(&d.controller)?, model.ts, Some(2.0 * PI * bw))?;
+    let wc = 2.0 * PI * bw;
+    let kd = tustin_state_space(&balance(&d.controller)?, model.ts, Some(wc))?;
+    let (kd, full, reduction) = match k.hinf_order {
+        Some(r) if r < d.controller.n_states() => {
+            let red = match finding(balanced_truncation(&balance(&d.controller)?, r))? {
+                Ok(red) => red,
+                Err(e) => return Ok(Err(format!("H∞ controller reduction: {e}"))),
+            };
+            let mut neg = red.reduced.clone();
+            neg.c = &neg.c * faer::Scale(-1.0);
+            neg.d = &neg.d * faer::Scale(-1.0);
+            let measured = hinf_norm(&d.controller.parallel(&neg)?)?.gamma;
+            let kr = tustin_state_space(&balance(&red.reduced)?, model.ts, Some(wc))?;
+            let law = DiscreteLaw::StateSpace(SsFilter::new(&kd)?);
+            let info = Reduction {
+                full_order: d.controller.n_states(),
+                order: r,
+                hankel_singular_values: red.hankel_singular_values.clone(),
+                error_bound: red.error_bound,
+                measured_error: measured,
+                receipts_before: None,
+            };
+            (kr, Some((kd, law)), Some(info))
+        }
+        _ => (kd, None, None),
+    };
     let summary = DesignSummary::Hinf {
         bandwidth_hz: bw,
         bandwidths_tried: tried,
@@ -379,10 +439,12 @@ fn design_hinf(
         riccati_residuals: [d.riccati_residuals.0, d.riccati_residuals.1],
         order: d.controller.n_states(),
         controller_stable: d.controller.is_stable(0.0)?,
+        reduction,
     };
     Ok(Ok(Designed {
         law: DiscreteLaw::StateSpace(SsFilter::new(&kd)?),
         controller: kd,
+        full,
         design_hz: bw,
         summary,
     }))
@@ -460,7 +522,19 @@ pub(super) fn run_control_stage(
         Ok(d) => {
             let fc = d.design_hz;
             let limits = super::stages::receipt_limits(c, fc);
-            let lr = chosen_loop_receipts(c, &inp, &d, &limits)?;
+            let lr = chosen_loop_receipts(c, &inp, (&d.controller, &d.law, fc), &limits)?;
+            let mut d = d;
+            if let (
+                Some((kf, lawf)),
+                DesignSummary::Hinf {
+                    reduction: Some(red),
+                    ..
+                },
+            ) = (&d.full, &mut d.summary)
+            {
+                let before = chosen_loop_receipts(c, &inp, (kf, lawf, fc), &limits)?;
+                red.receipts_before = Some(before.receipts);
+            }
             // The bandwidth: the lowest gain crossover (a loop that stays near |L| = 1 around a
             // resonance has more; the margins refer to the worst of them).
             let achieved = lr
@@ -579,12 +653,11 @@ const UNUSED_PID: Pid = Pid {
 fn chosen_loop_receipts(
     c: &PipelineConfig,
     inp: &ControlStageInputs<'_>,
-    d: &Designed,
+    (controller, law, fc): (&StateSpace, &DiscreteLaw, f64),
     limits: &ReceiptLimits,
 ) -> Result<LoopReceipts> {
     let k = &c.control;
-    let fc = d.design_hz;
-    let lp = FeedbackLoop::new(inp.model, &d.controller)?;
+    let lp = FeedbackLoop::new(inp.model, controller)?;
     let mut rs = Receipts::default();
     let poles = lp.closed_loop_poles()?;
     let stable = lp.is_stable()?;
@@ -600,7 +673,7 @@ fn chosen_loop_receipts(
             poles.len(),
             inp.model.ts,
             c.control.method.name(),
-            d.controller.n_states()
+            controller.n_states()
         ),
     ));
     let wc = 2.0 * PI * fc;
@@ -618,7 +691,8 @@ fn chosen_loop_receipts(
         etfe: None,
         cross_validation: None,
         limits: *limits,
-        anti_windup: k.anti_windup,
+        // The state-space law has none (the step receipts' detail says so).
+        anti_windup: k.anti_windup && matches!(law, DiscreteLaw::PidThenFilter { .. }),
     };
     push_norm_receipts(&mut rs, &ri, &lp, stable)?;
     let spec = StepSpec {
@@ -628,7 +702,7 @@ fn chosen_loop_receipts(
         anti_windup: k.anti_windup,
         settle_band: 0.02,
     };
-    let note = match &d.law {
+    let note = match law {
         DiscreteLaw::StateSpace(_) => format!(
             "sampled loop, ts = {} s, state-space controller clamped at the rail (no \
              anti-windup)",
@@ -639,7 +713,7 @@ fn chosen_loop_receipts(
             inp.model.ts
         ),
     };
-    let step = saturated_step_general(inp.model, d.law.clone(), &spec);
+    let step = saturated_step_general(inp.model, law.clone(), &spec);
     let kept = step.as_ref().ok().cloned();
     push_step_receipts(&mut rs, &ri, &(step, note));
     let nyq = 0.5 * inp.fs;

@@ -223,6 +223,7 @@ fn design_table(h: &mut String, d: &DesignSummary) {
             riccati_residuals,
             order,
             controller_stable,
+            reduction,
             ..
         } => {
             row(
@@ -259,6 +260,33 @@ fn design_table(h: &mut String, d: &DesignSummary) {
                     riccati_residuals[1]
                 ),
             );
+            if let Some(r) = reduction {
+                row(
+                    "reduction",
+                    format!(
+                        "balanced truncation {} → {} states before Tustin: ‖K − K_r‖∞ {} ≤ \
+                         bound 2Σσ {} (σ_{} = {}); receipts of the full-order loop: {}",
+                        r.full_order,
+                        r.order,
+                        fmt_num(r.measured_error),
+                        fmt_num(r.error_bound),
+                        r.order + 1,
+                        fmt_num(
+                            r.hankel_singular_values
+                                .get(r.order)
+                                .copied()
+                                .unwrap_or(0.0)
+                        ),
+                        r.receipts_before.as_ref().map_or("—".into(), |b| {
+                            b.receipts
+                                .iter()
+                                .map(|x| format!("{} {}", x.name, x.value_text))
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        })
+                    ),
+                );
+            }
         }
     }
     h.push_str("</table>\n");

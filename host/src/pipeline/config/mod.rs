@@ -393,6 +393,10 @@ pub struct Control {
     /// `hinf`: the central controller is built at (1 + backoff)·γ_opt (default 0.01).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hinf_backoff: Option<f64>,
+    /// `hinf`: balanced truncation of the controller to this many states before Tustin
+    /// (default: no reduction; an order at or above the controller's keeps it whole).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hinf_order: Option<usize>,
 }
 
 fn default_ms() -> f64 {
