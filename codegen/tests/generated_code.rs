@@ -218,6 +218,39 @@ fn run(cmd: &mut Command, what: &str) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// Writes `module` into a fresh scratch dir and compiles it inside a `no_std` library with
+/// warnings and missing docs denied; returns (dir, module path).
+fn no_std_module(name: &str, file: &str, module: &str) -> (PathBuf, PathBuf) {
+    let dir = scratch(name);
+    let path = dir.join(file);
+    std::fs::write(&path, module).unwrap();
+    let lib = dir.join("lib.rs");
+    std::fs::write(
+        &lib,
+        format!(
+            "#![no_std]\n#![deny(warnings, missing_docs)]\n//! test\n/// flashed\npub mod flashed {{ include!({:?}); }}\n",
+            path.display().to_string()
+        ),
+    )
+    .unwrap();
+    run(
+        Command::new("rustc")
+            .args([
+                "--edition",
+                "2021",
+                "--crate-type",
+                "lib",
+                "--emit",
+                "metadata",
+            ])
+            .args(["-D", "warnings", "--out-dir"])
+            .arg(&dir)
+            .arg(&lib),
+        "rustc (no_std library)",
+    );
+    (dir, path)
+}
+
 const GCC_FLAGS: &[&str] = &["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"];
 
 fn compile_c(dir: &Path, main_c: &str, exe: Option<&str>) {
@@ -439,36 +472,7 @@ int main(void) {{
 fn rust_module_compiles_in_a_no_std_library_and_reads_back_exact_values() {
     let input = full_input();
     let g = generate(&input).unwrap();
-    let dir = scratch("rs");
-    let module = dir.join(&g.rs_file_name);
-    std::fs::write(&module, &g.rust_module).unwrap();
-    // no_std library, warnings denied (missing docs included).
-    let lib = dir.join("lib.rs");
-    std::fs::write(
-        &lib,
-        format!(
-            "#![no_std]\n#![deny(warnings, missing_docs)]\n//! test\n/// flashed\npub mod flashed {{ include!({:?}); }}\n",
-            module.display().to_string()
-        ),
-    )
-    .unwrap();
-    run(
-        Command::new("rustc")
-            .args([
-                "--edition",
-                "2021",
-                "--crate-type",
-                "lib",
-                "--emit",
-                "metadata",
-                "-D",
-                "warnings",
-            ])
-            .arg("--out-dir")
-            .arg(&dir)
-            .arg(&lib),
-        "rustc (no_std library)",
-    );
+    let (dir, module) = no_std_module("rs", &g.rs_file_name, &g.rust_module);
     // std program printing the constants.
     let main = dir.join("main.rs");
     std::fs::write(
@@ -876,33 +880,7 @@ fn state_controller_block_compiles_in_c_and_no_std_rust_and_steps_like_f64() {
         assert!((a - b).abs() <= 1e-4 * peak, "C u[{k}] {a} vs {b}");
     }
     // Rust: no_std library with warnings and missing docs denied, then a std program.
-    let dir = scratch("sk-rs");
-    let module = dir.join(&g.rs_file_name);
-    std::fs::write(&module, &g.rust_module).unwrap();
-    let lib = dir.join("lib.rs");
-    std::fs::write(
-        &lib,
-        format!(
-            "#![no_std]\n#![deny(warnings, missing_docs)]\n//! test\n/// flashed\npub mod flashed {{ include!({:?}); }}\n",
-            module.display().to_string()
-        ),
-    )
-    .unwrap();
-    run(
-        Command::new("rustc")
-            .args([
-                "--edition",
-                "2021",
-                "--crate-type",
-                "lib",
-                "--emit",
-                "metadata",
-            ])
-            .args(["-D", "warnings", "--out-dir"])
-            .arg(&dir)
-            .arg(&lib),
-        "rustc (no_std library)",
-    );
+    let (dir, module) = no_std_module("sk-rs", &g.rs_file_name, &g.rust_module);
     let main = dir.join("main.rs");
     std::fs::write(
         &main,

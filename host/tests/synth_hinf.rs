@@ -87,13 +87,7 @@ fn two_mass_design_with_uncertainty_weight_meets_its_level() {
     // The bundled two-mass model (examples/data/two_mass_sim.json: motor speed from torque) with
     // a W_m rising through 1 near 60 Hz; bandwidth 8 Hz, M_s 1.6, actuator 0.3 N·m for 5 rad/s.
     let g = two_mass();
-    let w0 = 2.0 * std::f64::consts::PI * 60.0;
-    let wm = tf(&[1.0 / w0, 0.1], &[1.0 / (4.0 * w0), 1.0]);
-    let w = MixedSensitivityWeights {
-        ws: performance_weight(8.0, 1.6, 1e-3, 1e3).unwrap(),
-        wks: 5.0 / 0.3,
-        wt: Some(wm),
-    };
+    let w = two_mass_weights();
     let d = hinf_mixed_sensitivity(&g, &w, HinfOptions::default()).unwrap();
     let (norm, lp) = weighted_closed_loop_norm(&g, &d.controller, &w).unwrap();
     eprintln!(
@@ -161,6 +155,16 @@ fn strictly_proper_ws_and_positive_wks_are_required() {
     };
     let e = hinf_mixed_sensitivity(&g, &w, HinfOptions::default()).unwrap_err();
     assert!(e.to_string().contains("W_KS"), "{e}");
+}
+
+/// W_S at 8 Hz with M_s 1.6, W_KS = 5 rad/s / 0.3 N·m, and a W_m rising through 1 near 60 Hz.
+fn two_mass_weights() -> MixedSensitivityWeights {
+    let w0 = 2.0 * std::f64::consts::PI * 60.0;
+    MixedSensitivityWeights {
+        ws: performance_weight(8.0, 1.6, 1e-3, 1e3).unwrap(),
+        wks: 5.0 / 0.3,
+        wt: Some(tf(&[1.0 / w0, 0.1], &[1.0 / (4.0 * w0), 1.0])),
+    }
 }
 
 /// examples/data/two_mass_sim.json: motor speed (rad/s) from torque (N·m).
@@ -275,13 +279,8 @@ fn two_mass_controller_is_stable_and_gamma_is_confirmed_independently() {
     // resonance (48.3 Hz at 1 % backoff); the default now raises the level until K is stable.
     use num_complex::Complex64;
     let g = two_mass();
-    let w0 = 2.0 * std::f64::consts::PI * 60.0;
-    let wm = tf(&[1.0 / w0, 0.1], &[1.0 / (4.0 * w0), 1.0]);
-    let w = MixedSensitivityWeights {
-        ws: performance_weight(8.0, 1.6, 1e-3, 1e3).unwrap(),
-        wks: 5.0 / 0.3,
-        wt: Some(wm.clone()),
-    };
+    let w = two_mass_weights();
+    let wm = w.wt.clone().unwrap();
     // The old behaviour, kept as an option, still shows the unstable pair (the test can fail).
     let old = hinf_mixed_sensitivity(
         &g,

@@ -464,21 +464,15 @@ pub(super) struct ControlStageInputs<'a> {
     pub f_first_bin: Option<f64>,
 }
 
-/// The loop-receipt kinds a chosen controller replaces (plus `controller_design`).
-const LOOP_KINDS: [ReceiptKind; 12] = [
-    ReceiptKind::ControllerDesign,
-    ReceiptKind::ClosedLoopStable,
-    ReceiptKind::GainMargin,
-    ReceiptKind::PhaseMargin,
-    ReceiptKind::SensitivityPeak,
-    ReceiptKind::ComplementarySensitivityPeak,
-    ReceiptKind::RobustStability,
-    ReceiptKind::DisturbanceRejectionBandwidth,
-    ReceiptKind::PeakControlEffort,
-    ReceiptKind::StepActuatorDemand,
-    ReceiptKind::StepOvershoot,
-    ReceiptKind::StepSettlingTime,
-];
+/// A loop receipt a chosen controller replaces: `controller_design` and the loop receipts,
+/// which [`ReceiptKind::ALL`] lists first (up to `step_settling_time`).
+fn is_loop_kind(k: ReceiptKind) -> bool {
+    let loop_end = ReceiptKind::ALL
+        .iter()
+        .position(|x| *x == ReceiptKind::StepSettlingTime)
+        .map_or(0, |i| i + 1);
+    k == ReceiptKind::ControllerDesign || ReceiptKind::ALL[..loop_end].contains(&k)
+}
 
 /// Runs the stage for a non-PID method (None for `pid`) and merges its receipts into
 /// `receipts` (module docs). Returns the outcome and the crossover the receipts refer to.
@@ -572,7 +566,7 @@ fn merge(main: &mut Receipts, chosen: &Receipts) -> Vec<Receipt> {
     let mut replaced = Vec::new();
     let mut list = Vec::with_capacity(main.receipts.len());
     for r in main.receipts.drain(..) {
-        let is_loop = r.kind().is_some_and(|k| LOOP_KINDS.contains(&k));
+        let is_loop = r.kind().is_some_and(is_loop_kind);
         match chosen.get(&r.name) {
             Some(new) if is_loop => {
                 replaced.push(r);
