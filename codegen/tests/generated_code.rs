@@ -584,7 +584,9 @@ fn sha256_matches_the_fips_180_test_vectors() {
 
 #[test]
 fn runtime_engine_renders_the_builtin_templates_byte_identically() {
-    for input in [full_input(), minimal_input()] {
+    let mut with_sk = full_input();
+    with_sk.state_controller = Some(state_controller());
+    for input in [full_input(), minimal_input(), with_sk] {
         let a = generate(&input).unwrap();
         let r = generate_builtin_runtime(&input).unwrap();
         for (x, y) in [(&a.c_header, &r.c_header), (&a.rust_module, &r.rust_module)] {
