@@ -46,7 +46,7 @@ pub(crate) struct MatLit {
     pub rows_doc: Vec<String>,
 }
 
-fn mat_lit(m: &[Vec<f64>]) -> MatLit {
+pub(crate) fn mat_lit(m: &[Vec<f64>]) -> MatLit {
     MatLit {
         rows_c: m
             .iter()
@@ -181,6 +181,8 @@ pub(crate) struct Context {
     pub op_note: String,
     /// The compensation block (`c.comp`).
     pub comp: crate::context_comp::CompLit,
+    /// The state-space controller block (`c.sk`).
+    pub sk: crate::context_sk::SkLit,
 }
 
 fn is_hex64(s: &str) -> bool {
@@ -579,9 +581,11 @@ pub(crate) fn build(
     let (y0_c, y0_rs) = vec_lit(&y0);
 
     let comp = crate::context_comp::comp_lit(input.compensation.as_ref(), ts);
+    let sk = crate::context_sk::sk_lit(input.state_controller.as_ref(), ts)?;
 
     let ctx = Context {
         comp,
+        sk,
         u0_c,
         u0_rs,
         y0_c,

@@ -167,6 +167,22 @@ pub struct PidGains {
     pub continuous: Option<ContinuousPid>,
 }
 
+/// A general discrete SISO controller u = K·e in state-space form (H∞ mixed sensitivity,
+/// PID + notch), emitted next to (and run instead of) the PID:
+/// `xi[k+1] = A xi[k] + B e[k]`, `u[k] = C xi[k] + D e[k]`, e = r − y, u clamped to the rails
+/// by the caller.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StateController {
+    /// Design method (documentation), e.g. `hinf`.
+    pub method: String,
+    /// Sample time, s (must equal the model's).
+    pub ts_s: f64,
+    /// A (n×n), B (n×1), C (1×n), D (1×1).
+    pub matrices: Matrices,
+    /// Where it came from (documentation).
+    pub note: String,
+}
+
 /// The multiplicative uncertainty weight W_m(s) = num(s)/den(s), continuous, s in rad/s,
 /// descending powers. The firmware evaluates |W_m(j·2πf)| at the check frequencies from these
 /// coefficients. `num.len() == den.len()` (a proper weight of order `len - 1`, 0 for a constant
@@ -264,6 +280,11 @@ pub struct CodegenInput {
     /// compensation block (and the digest of an input without one is unchanged).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compensation: Option<crate::Compensation>,
+    /// A state-space controller chosen instead of the PID (`[control] method` other than
+    /// `pid`). None: no such block in the files (and the digest of an input without one is
+    /// unchanged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub state_controller: Option<StateController>,
 }
 
 /// The operating point of the model: it maps deviations, `y − y0 = G (u − u0)`.

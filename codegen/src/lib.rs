@@ -57,6 +57,7 @@
 //!     },
 //!     operating_point: None,
 //!     compensation: None,
+//!     state_controller: None,
 //! };
 //! let out = generate(&input)?;
 //! assert_eq!(out.c_file_name, "axis_1.h");
@@ -69,6 +70,7 @@
 mod compensation;
 mod context;
 mod context_comp;
+mod context_sk;
 mod error;
 mod input;
 mod text;
@@ -87,7 +89,7 @@ pub use error::{Error, Result};
 pub use input::{
     Biquad, CodegenInput, ContinuousModel, ContinuousPid, Dims, DiscreteModel, Matrices,
     OperatingPointValues, PidGains, Provenance, ReceiptLine, SelfIdSettings, SourceDigest,
-    WeightCoefficients,
+    StateController, WeightCoefficients,
 };
 pub use text::{c_float, comment_text, f32_literal, sanitize_prefix};
 

@@ -81,6 +81,44 @@ static const float {{ c.p }}_PID_B_D = {{ c.pid_b_d.c }};
 {% endif %}static const float {{ c.p }}_PID_ROLLOFF_B[3] = { {{ c.pid_rolloff_b_c }} };
 static const float {{ c.p }}_PID_ROLLOFF_A[3] = { {{ c.pid_rolloff_a_c }} };
 {% else %}#define {{ c.p }}_HAS_PID 0
+{% endif %}{% if c.sk.has %}
+/* ---- Chosen controller (discrete state space; run instead of the PID) -------------------
+ * xi[k+1] = K_A xi[k] + K_B e[k];  u[k] = K_C xi[k] + K_D e[k];  e = r - y; clamp u to the
+ * actuator rails after the step (no anti-windup: a general controller has no integrator
+ * state to hold). xi starts at zero.
+{% for d in c.sk.doc %} * {{ d }}
+{% endfor %} */
+#define {{ c.p }}_HAS_STATE_CONTROLLER 1
+#define {{ c.p }}_K_N_STATES {{ c.sk.n }}
+static const float {{ c.p }}_K_A[{{ c.p }}_K_N_STATES][{{ c.p }}_K_N_STATES] = {
+{% for row in c.sk.a.rows_c %}    { {{ row }} },
+{% endfor %}};
+static const float {{ c.p }}_K_B[{{ c.p }}_K_N_STATES] = { {% for row in c.sk.b.rows_c %}{{ row }}{% endfor %} };
+static const float {{ c.p }}_K_C[{{ c.p }}_K_N_STATES] = { {% for row in c.sk.c.rows_c %}{{ row }}{% endfor %} };
+static const float {{ c.p }}_K_D = {{ c.sk.d.c }};
+
+/* One controller step: returns u[k] (before the clamp) and advances xi. */
+static inline float {{ c.p }}_k_step(float xi[{{ c.p }}_K_N_STATES], float e)
+{
+    float next[{{ c.p }}_K_N_STATES];
+    float u = {{ c.p }}_K_D * e;
+    int i;
+    int j;
+    for (i = 0; i < {{ c.p }}_K_N_STATES; ++i) {
+        u += {{ c.p }}_K_C[i] * xi[i];
+    }
+    for (i = 0; i < {{ c.p }}_K_N_STATES; ++i) {
+        float acc = {{ c.p }}_K_B[i] * e;
+        for (j = 0; j < {{ c.p }}_K_N_STATES; ++j) {
+            acc += {{ c.p }}_K_A[i][j] * xi[j];
+        }
+        next[i] = acc;
+    }
+    for (i = 0; i < {{ c.p }}_K_N_STATES; ++i) {
+        xi[i] = next[i];
+    }
+    return u;
+}
 {% endif %}
 /* ---- Compensation of a diagnosed nonlinearity (all in plant INPUT units unless stated) ----
  * Applied after the PID each sample k (absent parts are the identity):

@@ -112,6 +112,46 @@ pub struct DiscretePid {
 {% else %}    rolloff: None,
 {% endif %}});
 {% else %}pub const PID: Option<DiscretePid> = None;
+{% endif %}{% if c.sk.has %}
+// ---- Chosen controller (discrete state space; run instead of the PID) -------------------
+// xi[k+1] = K_A xi[k] + K_B e[k];  u[k] = K_C xi[k] + K_D e[k];  e = r − y; clamp u to the
+// actuator rails after the step (no anti-windup). xi starts at zero.
+{% for d in c.sk.doc %}// {{ d }}
+{% endfor %}/// States of the chosen controller.
+pub const K_N_STATES: usize = {{ c.sk.n }};
+/// Controller state matrix.
+#[allow(clippy::approx_constant)]
+pub static K_A: [[f32; K_N_STATES]; K_N_STATES] = [
+{% for row in c.sk.a.rows_rs %}    [{{ row }}],
+{% endfor %}];
+/// Controller input column (from e).
+#[allow(clippy::approx_constant)]
+pub static K_B: [f32; K_N_STATES] = [{% for row in c.sk.b.rows_rs %}{{ row }}{% endfor %}];
+/// Controller output row.
+#[allow(clippy::approx_constant)]
+pub static K_C: [f32; K_N_STATES] = [{% for row in c.sk.c.rows_rs %}{{ row }}{% endfor %}];
+/// Controller feedthrough.
+#[allow(clippy::approx_constant)]
+pub const K_D: f32 = {{ c.sk.d.rs }};
+
+/// One step of the chosen controller: returns u[k] (before the clamp) and advances `xi`.
+/// Allocation-free; the state lives with the caller.
+pub fn k_step(xi: &mut [f32; K_N_STATES], e: f32) -> f32 {
+    let mut u = K_D * e;
+    for (c, x) in K_C.iter().zip(xi.iter()) {
+        u += c * x;
+    }
+    let mut next = [0.0f32; K_N_STATES];
+    for (i, n) in next.iter_mut().enumerate() {
+        let mut acc = K_B[i] * e;
+        for (a, x) in K_A[i].iter().zip(xi.iter()) {
+            acc += a * x;
+        }
+        *n = acc;
+    }
+    *xi = next;
+    u
+}
 {% endif %}
 // ---- Compensation of a diagnosed nonlinearity (plant INPUT units unless stated) ----------
 // Applied after the PID each sample k (absent parts are the identity):

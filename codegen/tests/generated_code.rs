@@ -116,6 +116,7 @@ fn full_input() -> CodegenInput {
         },
         operating_point: None,
         compensation: Some(full_compensation()),
+        state_controller: None,
     }
 }
 
@@ -215,6 +216,39 @@ fn run(cmd: &mut Command, what: &str) -> String {
         String::from_utf8_lossy(&out.stderr)
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Writes `module` into a fresh scratch dir and compiles it inside a `no_std` library with
+/// warnings and missing docs denied; returns (dir, module path).
+fn no_std_module(name: &str, file: &str, module: &str) -> (PathBuf, PathBuf) {
+    let dir = scratch(name);
+    let path = dir.join(file);
+    std::fs::write(&path, module).unwrap();
+    let lib = dir.join("lib.rs");
+    std::fs::write(
+        &lib,
+        format!(
+            "#![no_std]\n#![deny(warnings, missing_docs)]\n//! test\n/// flashed\npub mod flashed {{ include!({:?}); }}\n",
+            path.display().to_string()
+        ),
+    )
+    .unwrap();
+    run(
+        Command::new("rustc")
+            .args([
+                "--edition",
+                "2021",
+                "--crate-type",
+                "lib",
+                "--emit",
+                "metadata",
+            ])
+            .args(["-D", "warnings", "--out-dir"])
+            .arg(&dir)
+            .arg(&lib),
+        "rustc (no_std library)",
+    );
+    (dir, path)
 }
 
 const GCC_FLAGS: &[&str] = &["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"];
@@ -438,36 +472,7 @@ int main(void) {{
 fn rust_module_compiles_in_a_no_std_library_and_reads_back_exact_values() {
     let input = full_input();
     let g = generate(&input).unwrap();
-    let dir = scratch("rs");
-    let module = dir.join(&g.rs_file_name);
-    std::fs::write(&module, &g.rust_module).unwrap();
-    // no_std library, warnings denied (missing docs included).
-    let lib = dir.join("lib.rs");
-    std::fs::write(
-        &lib,
-        format!(
-            "#![no_std]\n#![deny(warnings, missing_docs)]\n//! test\n/// flashed\npub mod flashed {{ include!({:?}); }}\n",
-            module.display().to_string()
-        ),
-    )
-    .unwrap();
-    run(
-        Command::new("rustc")
-            .args([
-                "--edition",
-                "2021",
-                "--crate-type",
-                "lib",
-                "--emit",
-                "metadata",
-                "-D",
-                "warnings",
-            ])
-            .arg("--out-dir")
-            .arg(&dir)
-            .arg(&lib),
-        "rustc (no_std library)",
-    );
+    let (dir, module) = no_std_module("rs", &g.rs_file_name, &g.rust_module);
     // std program printing the constants.
     let main = dir.join("main.rs");
     std::fs::write(
@@ -579,7 +584,9 @@ fn sha256_matches_the_fips_180_test_vectors() {
 
 #[test]
 fn runtime_engine_renders_the_builtin_templates_byte_identically() {
-    for input in [full_input(), minimal_input()] {
+    let mut with_sk = full_input();
+    with_sk.state_controller = Some(state_controller());
+    for input in [full_input(), minimal_input(), with_sk] {
         let a = generate(&input).unwrap();
         let r = generate_builtin_runtime(&input).unwrap();
         for (x, y) in [(&a.c_header, &r.c_header), (&a.rust_module, &r.rust_module)] {
@@ -815,4 +822,108 @@ fn bad_input_is_an_error_naming_the_field() {
     i.self_id.check_hz.push(16.5);
     let e = input_error(&i);
     assert!(e.contains("16 Hz") && e.contains("16.5 Hz"), "{e}");
+}
+
+/// A 2-state discrete controller (lag + lead) at the model's 1 kHz.
+fn state_controller() -> StateController {
+    StateController {
+        method: "hinf".into(),
+        ts_s: 1e-3,
+        matrices: Matrices {
+            a: vec![vec![0.995, 0.01], vec![-0.02, 0.9]],
+            b: vec![vec![0.5], vec![1.25]],
+            c: vec![vec![0.03, -0.011]],
+            d: vec![vec![0.002]],
+        },
+        note: "test controller".into(),
+    }
+}
+
+/// f64 reference: u[k] of the controller for e = 1 from xi = 0.
+fn controller_reference(m: &Matrices, n: usize) -> Vec<f64> {
+    let ns = m.a.len();
+    let mut x = vec![0.0f64; ns];
+    (0..n)
+        .map(|_| {
+            let u = (0..ns).map(|j| m.c[0][j] * x[j]).sum::<f64>() + m.d[0][0];
+            x = (0..ns)
+                .map(|i| (0..ns).map(|j| m.a[i][j] * x[j]).sum::<f64>() + m.b[i][0])
+                .collect();
+            u
+        })
+        .collect()
+}
+
+#[test]
+fn state_controller_block_compiles_in_c_and_no_std_rust_and_steps_like_f64() {
+    let mut input = full_input();
+    input.state_controller = Some(state_controller());
+    let g = generate(&input).unwrap();
+    // Absent block: nothing of it in the files (the PID-only output is unchanged).
+    let plain = generate(&full_input()).unwrap();
+    assert!(!plain.c_header.contains("STATE_CONTROLLER") && !plain.rust_module.contains("k_step"));
+    assert_ne!(g.inputs_sha256, plain.inputs_sha256);
+    let reference = controller_reference(&state_controller().matrices, 200);
+    let peak = reference.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // C: strict flags, then 200 steps with e = 1 against the f64 reference (f32 arithmetic:
+    // relative 1e-4 of the peak).
+    let dir = scratch("sk-c");
+    std::fs::write(dir.join(&g.c_file_name), &g.c_header).unwrap();
+    let p = "GIMBAL_PITCH";
+    let main = format!(
+        "#include <stdio.h>\n#include \"{f}\"\nint main(void) {{\n    float xi[{p}_K_N_STATES] = {{0}};\n    int k;\n    for (k = 0; k < 200; ++k) {{\n        printf(\"%.9g\\n\", (double){p}_k_step(xi, 1.0f));\n    }}\n    return 0;\n}}\n",
+        f = g.c_file_name
+    );
+    compile_c(&dir, &main, Some("sk"));
+    let out = run(&mut Command::new(dir.join("sk")), "sk");
+    let got: Vec<f64> = out.lines().map(|l| l.parse().unwrap()).collect();
+    assert_eq!(got.len(), 200);
+    for (k, (a, b)) in got.iter().zip(&reference).enumerate() {
+        assert!((a - b).abs() <= 1e-4 * peak, "C u[{k}] {a} vs {b}");
+    }
+    // Rust: no_std library with warnings and missing docs denied, then a std program.
+    let (dir, module) = no_std_module("sk-rs", &g.rs_file_name, &g.rust_module);
+    let main = dir.join("main.rs");
+    std::fs::write(
+        &main,
+        format!(
+            "#[allow(dead_code)]\nmod flashed {{ include!({:?}); }}\nfn main() {{\n    let mut xi = [0.0f32; flashed::K_N_STATES];\n    for _ in 0..200 {{\n        println!(\"{{}}\", flashed::k_step(&mut xi, 1.0));\n    }}\n}}\n",
+            module.display().to_string()
+        ),
+    )
+    .unwrap();
+    run(
+        Command::new("rustc")
+            .args(["--edition", "2021", "-o"])
+            .arg(dir.join("skrs"))
+            .arg(&main),
+        "rustc (std program)",
+    );
+    let out = run(&mut Command::new(dir.join("skrs")), "skrs");
+    let got: Vec<f64> = out.lines().map(|l| l.parse().unwrap()).collect();
+    assert_eq!(got.len(), 200);
+    for (k, (a, b)) in got.iter().zip(&reference).enumerate() {
+        assert!((a - b).abs() <= 1e-4 * peak, "Rust u[{k}] {a} vs {b}");
+    }
+}
+
+#[test]
+fn bad_state_controller_is_an_error_naming_the_field() {
+    let mut input = full_input();
+    let mut k = state_controller();
+    k.ts_s = 2e-3;
+    input.state_controller = Some(k);
+    let e = generate(&input).unwrap_err().to_string();
+    assert!(e.contains("state_controller.ts_s"), "{e}");
+    let mut k = state_controller();
+    k.matrices.b = vec![vec![0.5, 1.0], vec![1.25, 0.0]];
+    k.matrices.d = vec![vec![0.0, 0.0]];
+    input.state_controller = Some(k);
+    let e = generate(&input).unwrap_err().to_string();
+    assert!(e.contains("state_controller") && e.contains("SISO"), "{e}");
+    let mut k = state_controller();
+    k.matrices.a[1][0] = f64::NAN;
+    input.state_controller = Some(k);
+    let e = generate(&input).unwrap_err().to_string();
+    assert!(e.contains("state_controller.a[1][0]"), "{e}");
 }

@@ -408,6 +408,7 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
         weight,
         receipts,
         sources,
+        state_controller: None,
     };
     codegen_input(parts, &args.options())
 }

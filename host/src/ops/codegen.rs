@@ -58,6 +58,8 @@ pub struct CodegenParts {
     pub sources: Vec<cg::SourceDigest>,
     /// The compensation block (from `compensation::design`), if any.
     pub compensation: Option<cg::Compensation>,
+    /// A state-space controller chosen instead of the PID (`[control] method`), if any.
+    pub state_controller: Option<cg::StateController>,
 }
 
 /// `kind` of a [`CompensationFile`].
@@ -362,6 +364,7 @@ pub fn codegen_input(parts: CodegenParts, opts: &CodegenOptions) -> Result<cg::C
     let min_checked = opts.min_checked.unwrap_or(check_hz.len().div_ceil(2));
     Ok(cg::CodegenInput {
         compensation: parts.compensation,
+        state_controller: parts.state_controller,
         prefix: opts.prefix.clone(),
         model: cg::DiscreteModel {
             ts_s: ts,

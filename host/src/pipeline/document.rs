@@ -245,6 +245,9 @@ pub struct ReceiptsDocument {
     /// Physical parameters: `{"status": "skipped"}`, `{"status": "fitted", "run", "fit"}`
     /// (parameters with unit, value, interval and status) or `{"status": "failed", "error"}`.
     pub physical: super::physical_stage::PhysicalOutcome,
+    /// The `[control] method` stage (absent for `pid`; docs/receipts-schema.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub control: Option<super::control_stage::ControlOutcome>,
 }
 
 impl ReceiptsDocument {
@@ -381,6 +384,7 @@ impl ReceiptsDocument {
             gap_diagnosis: run.gap.clone(),
             compensation: run.compensation.clone(),
             physical: run.physical.clone(),
+            control: run.control.clone(),
         }
     }
 

@@ -28,6 +28,7 @@
 //! (`[signals].input_unit`, `output_unit`).
 pub mod compensation_stage;
 pub mod config;
+pub mod control_stage;
 pub mod document;
 pub mod gap_stage;
 pub mod physical_stage;
@@ -225,6 +226,8 @@ pub struct PipelineRun {
     pub compensation: remedy::CompensationOutcome,
     /// Physical parameters of the `[physical]` structure ([`physical_stage`]).
     pub physical: physical_stage::PhysicalOutcome,
+    /// The `[control] method` stage ([`control_stage`]; None for `pid`).
+    pub control: Option<control_stage::ControlOutcome>,
 }
 
 impl PipelineRun {
@@ -274,6 +277,7 @@ impl PipelineRun {
             weight: weight_coefficients(weight),
             receipts: self.receipts.receipts.iter().map(receipt_line).collect(),
             sources,
+            state_controller: self.control.as_ref().and_then(control_stage::codegen_block),
         })
     }
 
@@ -463,6 +467,22 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             curves = Some(cur.clone());
         }
     }
+    progress("control");
+    let control = control_stage::run_control_stage(
+        c,
+        control_stage::ControlStageInputs {
+            model: &model,
+            weight: weight.as_ref(),
+            baseline: tuned.as_ref(),
+            fs,
+            f_first_bin: runs[nominal].etfe.freq_hz.get(1).copied(),
+        },
+        &mut receipts,
+    )?
+    .map(|(outcome, f)| {
+        fc = f;
+        outcome
+    });
     progress("done");
     Ok(PipelineRun {
         title: stages::title(cfg),
@@ -490,6 +510,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         gap,
         compensation,
         physical,
+        control,
     })
 }
 

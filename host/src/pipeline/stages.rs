@@ -14,7 +14,7 @@ use crate::lti::StateSpace;
 use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, OrderSelection};
 use crate::preprocess::preprocess;
 use crate::robust::audit::{audit_nonlinearity, AuditOptions, FrfRun, NonlinearityAudit};
-use crate::robust::pid::{implemented_loop, tune_pid, PidTuningSpec, TunedPid};
+use crate::robust::pid::{implemented_loop, tune_pid, TunedPid};
 use crate::robust::receipts::{
     compute_receipts, cross_validation_receipt, etfe_phase_receipt, loop_curves, phase_agreement,
     Comparison, CrossValidation, EtfeView, LoopCurves, Receipt, ReceiptInputs, ReceiptKind,
@@ -344,17 +344,7 @@ pub(super) fn tune(
     model: &StateSpace,
     weight: Option<&UncertaintyWeight>,
 ) -> Result<std::result::Result<TunedPid, String>> {
-    let k = &c.control;
-    let mut spec = PidTuningSpec::new(k.crossover_hz);
-    spec.ms_max = k.ms_max;
-    spec.weight = weight.cloned();
-    spec.ks_max = k
-        .limit_control_effort
-        .then(|| k.actuator_limit / k.reference_amplitude);
-    spec.rolloff_ratio = k.rolloff_ratio.map(|r| (r, k.rolloff_zeta));
-    spec.integral = k.integral;
-    spec.derivative = k.derivative;
-    spec.min_crossover_scale = k.min_crossover_scale;
+    let spec = super::control_stage::pid_spec(c, weight);
     match tune_pid(model, &spec) {
         Ok(t) => Ok(Ok(t)),
         Err(Error::InvalidArgument(m)) | Err(Error::Numerical(m)) => Ok(Err(m)),

@@ -764,5 +764,6 @@ pub fn figures(run: &PipelineRun) -> Result<Vec<Figure>> {
         out.push(f);
     }
     out.extend(super::compensation_section::figures(run)?);
+    out.extend(super::control_section::figures(run)?);
     Ok(out)
 }

@@ -25,6 +25,7 @@
 //! `provenance`.
 mod charts;
 mod compensation_section;
+mod control_section;
 mod gap_section;
 mod physical_section;
 mod sections;
@@ -183,6 +184,7 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
     physical_section::render(&mut h, &run.physical);
     sections::validation(&mut h, run, figs);
     sections::controller(&mut h, run);
+    control_section::render(&mut h, run, figs);
     sections::provenance(&mut h, run);
     Ok(h)
 }

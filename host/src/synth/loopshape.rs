@@ -32,7 +32,7 @@ use crate::robust::uncertainty::UncertaintyWeight;
 use std::f64::consts::PI;
 
 /// A second-order notch N(s) = (s² + 2ζ_n ω s + ω²)/(s² + 2ζ_d ω s + ω²), ω = 2π·centre.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Notch {
     /// Centre frequency, Hz.
     pub centre_hz: f64,

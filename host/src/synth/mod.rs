@@ -21,6 +21,7 @@ pub mod loopshape;
 pub mod lyapunov;
 pub mod mpc;
 pub mod riccati;
+pub mod sim;
 
 use faer::{Mat, MatRef};
 

@@ -375,6 +375,28 @@ pub struct Control {
     /// Constrain ‖KS‖∞·reference amplitude to the actuator limit while tuning (default true).
     #[serde(default = "yes")]
     pub limit_control_effort: bool,
+    /// Controller structure: `pid` (default, the robust PID above), `loopshape` (alias
+    /// `pid-notch`: PID + notches) or `hinf` (H∞ mixed sensitivity); see
+    /// [`super::control_stage`]. Omitted from the settings echo when `pid`.
+    #[serde(
+        default,
+        skip_serializing_if = "super::control_stage::ControlMethod::is_pid"
+    )]
+    pub method: super::control_stage::ControlMethod,
+    /// `loopshape`: plant modes with damping ratio below this are notched (default 0.3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub notch_max_damping: Option<f64>,
+    /// `hinf`: low-frequency floor ε of the performance weight W_S, |S(0)| ≲ γ·ε (default
+    /// 1e-3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hinf_ws_floor: Option<f64>,
+    /// `hinf`: the central controller is built at (1 + backoff)·γ_opt (default 0.01).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hinf_backoff: Option<f64>,
+    /// `hinf`: balanced truncation of the controller to this many states before Tustin
+    /// (default: no reduction; an order at or above the controller's keeps it whole).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hinf_order: Option<usize>,
 }
 
 fn default_ms() -> f64 {

@@ -299,7 +299,7 @@ impl LoadedConfig {
                 format!("must lie in (0, 1], got {}", k.min_crossover_scale),
             ));
         }
-        Ok(())
+        super::super::control_stage::validate_method_keys(self)
     }
 
     fn validate_receipts(&self) -> Result<()> {

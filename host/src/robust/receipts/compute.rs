@@ -186,7 +186,7 @@ fn check_inputs(inp: &ReceiptInputs<'_>) -> Result<()> {
 
 /// The gain- and phase-margin receipts (failing, with the reason, when the margins could not
 /// be computed).
-fn push_margin_receipts(rs: &mut Receipts, m: Option<&Margins>, lim: &ReceiptLimits) {
+pub(crate) fn push_margin_receipts(rs: &mut Receipts, m: Option<&Margins>, lim: &ReceiptLimits) {
     match m {
         Some(m) => {
             rs.push(Receipt::new(
@@ -259,7 +259,7 @@ fn push_margin_receipts(rs: &mut Receipts, m: Option<&Margins>, lim: &ReceiptLim
 
 /// The peak receipts (M_s, M_t, ‖W_m T‖∞ with a weight, disturbance-rejection bandwidth,
 /// control effort); norms are infinite for an unstable loop.
-fn push_norm_receipts(
+pub(crate) fn push_norm_receipts(
     rs: &mut Receipts,
     inp: &ReceiptInputs<'_>,
     lp: &FeedbackLoop,
@@ -445,7 +445,7 @@ fn saturated_step_of(
 
 /// The step receipts (actuator demand, overshoot, settling time), failing when the
 /// simulation failed.
-fn push_step_receipts(
+pub(crate) fn push_step_receipts(
     rs: &mut Receipts,
     inp: &ReceiptInputs<'_>,
     (step, sim_note): &(Result<StepResponse>, String),

@@ -1,0 +1,273 @@
+//! Saturated closed-loop step of a discrete SISO plant with a general discrete controller (the
+//! counterpart of [`crate::robust::step::saturated_step`], which runs the PID law).
+//!
+//! Per sample k: `y[k] = C x[k] + D u[k]; e[k] = r − y[k]; v[k] = law(e[k]);
+//! u[k] = clamp(v[k], ±limit); x[k+1] = A x[k] + B u[k]`. The laws ([`DiscreteLaw`]):
+//! - a state-space controller `v = C_k ξ + D_k e, ξ⁺ = A_k ξ + B_k e` (no anti-windup: a general
+//!   LTI controller has no integrator state to hold);
+//! - a PID (with its conditional-integration anti-windup, [`DiscretePid::update_detailed`])
+//!   followed by a state-space filter (the notches): `v = N(PID(e))`, the PID's anti-windup
+//!   acting on its own output.
+//!
+//! With a plant feedthrough D ≠ 0 the loop is algebraic; e[k] is then solved from
+//! e = r − C x − D·u(e) by bisection (monotone for a well-posed loop), as in the PID simulation.
+//! Units: time in seconds, amplitude in plant output units, limit in plant input units.
+use crate::error::{Error, Result};
+use crate::lti::StateSpace;
+use crate::robust::pid::{DiscretePid, DiscretePidState};
+use crate::robust::step::{StepResponse, StepSpec};
+
+/// A discrete SISO state-space filter with its state, in flat row-major storage.
+#[derive(Debug, Clone)]
+pub struct SsFilter {
+    n: usize,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    c: Vec<f64>,
+    d: f64,
+    x: Vec<f64>,
+}
+
+impl SsFilter {
+    /// The filter of a discrete SISO model, state zero.
+    pub fn new(sys: &StateSpace) -> Result<Self> {
+        sys.validate()?;
+        if !sys.is_siso() || !sys.is_discrete() {
+            return Err(Error::InvalidArgument(
+                "saturated step: the controller must be a discrete SISO model".into(),
+            ));
+        }
+        let n = sys.n_states();
+        Ok(Self {
+            n,
+            a: (0..n * n).map(|k| sys.a[(k / n, k % n)]).collect(),
+            b: (0..n).map(|i| sys.b[(i, 0)]).collect(),
+            c: (0..n).map(|j| sys.c[(0, j)]).collect(),
+            d: sys.d[(0, 0)],
+            x: vec![0.0; n],
+        })
+    }
+
+    /// Output for input `e` at the current state (state unchanged).
+    pub fn output(&self, e: f64) -> f64 {
+        self.c.iter().zip(&self.x).map(|(c, x)| c * x).sum::<f64>() + self.d * e
+    }
+
+    /// Output for input `e`, then the state advances.
+    pub fn step(&mut self, e: f64) -> f64 {
+        let y = self.output(e);
+        let mut next = vec![0.0; self.n];
+        for (i, v) in next.iter_mut().enumerate() {
+            *v = self.b[i] * e
+                + (0..self.n)
+                    .map(|j| self.a[i * self.n + j] * self.x[j])
+                    .sum::<f64>();
+        }
+        self.x = next;
+        y
+    }
+}
+
+/// A controller law for [`saturated_step_general`].
+#[derive(Debug, Clone)]
+pub enum DiscreteLaw {
+    /// A state-space controller (no anti-windup).
+    StateSpace(SsFilter),
+    /// A PID with anti-windup, then a filter (e.g. the notches).
+    PidThenFilter {
+        /// The PID law.
+        pid: DiscretePid,
+        /// Its state.
+        state: DiscretePidState,
+        /// The filter after it.
+        filter: SsFilter,
+        /// Conditional-integration anti-windup on the PID output.
+        anti_windup: bool,
+    },
+}
+
+impl DiscreteLaw {
+    /// Sample time of the law, s (None for the state-space law, which carries none).
+    fn pid_ts(&self) -> Option<f64> {
+        match self {
+            Self::StateSpace(_) => None,
+            Self::PidThenFilter { pid, .. } => Some(pid.ts),
+        }
+    }
+
+    /// Demand for error `e`; the state advances.
+    fn step(&mut self, e: f64, limit: f64) -> f64 {
+        match self {
+            Self::StateSpace(f) => f.step(e),
+            Self::PidThenFilter {
+                pid,
+                state,
+                filter,
+                anti_windup,
+            } => {
+                let (_, v) = pid.update_detailed(state, e, Some(limit), *anti_windup);
+                filter.step(v)
+            }
+        }
+    }
+}
+
+/// Simulates the saturated step of the discrete SISO `plant` under `law` (module docs).
+/// Errors: a continuous or MIMO plant, mismatched sample times, an invalid spec, an ill-posed
+/// algebraic loop, or a diverging response (unstable loop).
+pub fn saturated_step_general(
+    plant: &StateSpace,
+    mut law: DiscreteLaw,
+    spec: &StepSpec,
+) -> Result<StepResponse> {
+    plant.validate()?;
+    if !plant.is_discrete() || !plant.is_siso() {
+        return Err(Error::InvalidArgument(
+            "saturated step: the plant must be a discrete SISO model".into(),
+        ));
+    }
+    if let Some(t) = law.pid_ts() {
+        if (t - plant.ts).abs() > 1e-12 * plant.ts {
+            return Err(Error::InvalidArgument(format!(
+                "saturated step: plant ts = {} s but controller ts = {t} s",
+                plant.ts
+            )));
+        }
+    }
+    let (r, lim) = (spec.amplitude, spec.actuator_limit);
+    if !(r.is_finite() && r != 0.0 && lim.is_finite() && lim > 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: amplitude {r} must be finite and non-zero, limit {lim} finite and > 0"
+        )));
+    }
+    if !(spec.settle_band > 0.0 && spec.settle_band < 1.0) {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: settling band {} must lie in (0, 1)",
+            spec.settle_band
+        )));
+    }
+    let n_samples = (spec.duration_s / plant.ts).floor();
+    if !(n_samples.is_finite() && (2.0..=5e7).contains(&n_samples)) {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: duration {} s at ts = {} s gives {n_samples} samples (need 2..5e7)",
+            spec.duration_s, plant.ts
+        )));
+    }
+    let mut g = SsFilter::new(plant)?;
+    let mut out = Trace::default();
+    for k in 0..n_samples as usize {
+        let cx = g.output(0.0);
+        let e = if g.d == 0.0 {
+            r - cx
+        } else {
+            solve_algebraic_loop(&law, r, cx, g.d, lim, k)?
+        };
+        let v = law.step(e, lim);
+        let u = v.clamp(-lim, lim);
+        let y = cx + g.d * u;
+        if !(y.is_finite() && v.is_finite()) {
+            return Err(Error::Numerical(format!(
+                "saturated step: the response diverged at t = {} s (unstable loop)",
+                k as f64 * plant.ts
+            )));
+        }
+        g.step(u);
+        out.push(k as f64 * plant.ts, y, u, v, lim);
+    }
+    Ok(out.summarise(plant.ts, r, lim, spec.settle_band))
+}
+
+/// e with e = r − cx − d·clamp(law(e)), by bisection on a copy of the law.
+fn solve_algebraic_loop(
+    law: &DiscreteLaw,
+    r: f64,
+    cx: f64,
+    d: f64,
+    lim: f64,
+    k: usize,
+) -> Result<f64> {
+    let phi = |e: f64| -> f64 {
+        let mut l2 = law.clone();
+        e - (r - cx - d * l2.step(e, lim).clamp(-lim, lim))
+    };
+    let span = (r - cx).abs() + d.abs() * lim + 1.0;
+    let (mut lo, mut hi) = (r - cx - span, r - cx + span);
+    if phi(lo) > 0.0 || phi(hi) < 0.0 {
+        return Err(Error::Numerical(format!(
+            "saturated step: algebraic loop through plant feedthrough D = {d} is ill posed at \
+             sample {k}"
+        )));
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if phi(mid) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Ok(0.5 * (lo + hi))
+}
+
+#[derive(Default)]
+struct Trace {
+    t: Vec<f64>,
+    y: Vec<f64>,
+    u: Vec<f64>,
+    v: Vec<f64>,
+    at_rail: usize,
+    peak_ratio: f64,
+}
+
+impl Trace {
+    fn push(&mut self, t: f64, y: f64, u: f64, v: f64, lim: f64) {
+        if v.abs() >= lim {
+            self.at_rail += 1;
+        }
+        self.peak_ratio = self.peak_ratio.max(v.abs() / lim);
+        self.t.push(t);
+        self.y.push(y);
+        self.u.push(u);
+        self.v.push(v);
+    }
+
+    /// The summary numbers, defined as in [`crate::robust::step::StepResponse`].
+    fn summarise(self, ts: f64, r: f64, lim: f64, band_rel: f64) -> StepResponse {
+        let (sgn, ar) = (r.signum(), r.abs());
+        let peak = self
+            .y
+            .iter()
+            .map(|y| y * sgn)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let band = band_rel * ar;
+        let last_out = self.y.iter().rposition(|y| (y - r).abs() > band);
+        let settling_time_s = match last_out {
+            None => Some(0.0),
+            Some(k) if k + 1 < self.y.len() => Some(self.t[k + 1]),
+            Some(_) => None,
+        };
+        let t10 = self.y.iter().position(|y| y * sgn >= 0.1 * ar);
+        let t90 = self.y.iter().position(|y| y * sgn >= 0.9 * ar);
+        let rise_time_s = match (t10, t90) {
+            (Some(a), Some(b)) => Some(self.t[b] - self.t[a]),
+            _ => None,
+        };
+        let final_error = r - self.y.last().copied().unwrap_or(0.0);
+        StepResponse {
+            ts,
+            amplitude: r,
+            actuator_limit: lim,
+            hits_rail: self.at_rail > 0,
+            samples_at_rail: self.at_rail,
+            peak_demand_ratio: self.peak_ratio,
+            overshoot_pct: ((peak - ar) / ar * 100.0).max(0.0),
+            settling_time_s,
+            rise_time_s,
+            final_error,
+            t: self.t,
+            y: self.y,
+            u: self.u,
+            u_demand: self.v,
+        }
+    }
+}
