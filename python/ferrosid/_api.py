@@ -47,6 +47,18 @@ def _fs(fs: Any) -> float:
     return float(fs)
 
 
+def _sample_time(fs, ts) -> float:
+    """ts in seconds from fs (Hz) or ts; a value that is not finite and positive is a
+    UsageError (exit code 2), as the CLI's --fs."""
+    v = _fs(fs if fs is not None else ts)
+    if not (np.isfinite(v) and v > 0.0):
+        what = "sample rate fs (Hz)" if fs is not None else "sample time ts (s)"
+        err = _native.UsageError(f"{what} must be a finite positive number, got {v}")
+        err.category, err.exit_code = "usage", 2
+        raise err
+    return 1.0 / v if fs is not None else v
+
+
 class Log:
     """One SISO log: input ``u`` and output ``y`` sampled at ``fs`` Hz (or every ``ts``
     seconds). ``name`` stands for the file name in reports and error messages. From a
@@ -68,7 +80,7 @@ class Log:
         self.y = _samples(y, "y")
         if (fs is None) == (ts is None):
             raise TypeError("give the sample rate fs (Hz) or the sample time ts (s), not both")
-        self.ts = 1.0 / _fs(fs) if fs is not None else _fs(ts)
+        self.ts = _sample_time(fs, ts)
         self.name = str(name)
         self.input_name = _name(u, input_name, "u")
         self.output_name = _name(y, output_name, "y")

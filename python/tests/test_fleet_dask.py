@@ -48,7 +48,7 @@ def test_unit_errors_are_results_not_exceptions(tmp_path):
     assert (layout, serials) == ("subdirectories", ["SN1"])
     tpl = pathlib.Path(__file__).resolve().parents[2] / "examples" / "fleet" / "pipeline.toml"
     u = ferrosid.fleet_unit(tmp_path, tpl, layout, "SN1")
-    assert u["status"] == "error" and "high.csv" in u["error"]
+    assert u["status"] == "error" and "low.csv: too few samples" in u["error"]
     s = ferrosid.fleet_summary(tpl, layout, [u])
     assert s["units_error"] == 1
     with pytest.raises(ferrosid.UsageError, match="not a fleet unit result"):
