@@ -39,8 +39,7 @@ def run_fleet_on_dask(
         [layout] * len(serials),
         serials,
         [physical] * len(serials),
-        key=[f"ferrosid-unit-{s}" for s in serials],
-        pure=False,
+        pure=False,  # fresh task keys on every call: the files may have changed
     )
     units = client.gather(futures)
     return ferrosid.fleet_summary(template, layout, units)

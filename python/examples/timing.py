@@ -35,7 +35,7 @@ def cli(*args):
 def main():
     t, u, y = np.loadtxt(HIGH, delimiter=",", skiprows=1, unpack=True)
     rows = [
-        ("identify (one 8000-sample log)",
+        (f"identify (one {u.size}-sample log)",
          lambda: cli("identify", HIGH, "--fs", "1000", "--json"),
          lambda: ferrosid.identify(u, y, fs=1000.0, name=HIGH)),
         ("frf (one log)",
@@ -45,10 +45,12 @@ def main():
          lambda: cli("run", "examples/pipeline.toml", "--out", "target/timing-out", "--json"),
          lambda: ferrosid.run_pipeline("examples/pipeline.toml").to_json()),
     ]
-    for name, c, p in rows:
+    for name, c, p in rows[:2] if "--quick" in sys.argv else rows:
         (cb, cm), (pb, pm) = best(c), best(p)
-        print(f"{name}: CLI best {cb*1e3:.0f} ms (median {cm*1e3:.0f}), "
-              f"Python best {pb*1e3:.0f} ms (median {pm*1e3:.0f})")
+        print(f"{name}: CLI best {cb*1e3:.1f} ms (median {cm*1e3:.1f}), "
+              f"Python best {pb*1e3:.1f} ms (median {pm*1e3:.1f})")
+    if "--quick" in sys.argv:
+        rows = []
     for jobs in (1, 2):
         b, m = best(lambda: cli("fleet", "examples/fleet", "--jobs", str(jobs), "--out",
                                 "target/timing-fleet", "--json"), 3)
