@@ -225,17 +225,17 @@ def audit(pipeline):
 def fit_wm(pipeline):
     """The multiplicative uncertainty weight W_m fitted by the pipeline (its envelope and
     coefficients)."""
-    return _section(pipeline, "uncertainty", "weight")
+    return _section(pipeline, "uncertainty_weight")
 
 
 def tune_pid(pipeline):
     """The robust PID the pipeline tuned (gains, discretisation, achieved margins)."""
-    return _section(pipeline, "controller", "pid", "tuning")
+    return _section(pipeline, "controller")
 
 
 def gap(pipeline):
     """The pipeline's sim-to-real gap diagnosis of its model."""
-    return _section(pipeline, "gap")
+    return _section(pipeline, "gap_diagnosis")
 
 
 def codegen(pipeline, prefix: str = "ferrosid") -> Tuple[str, str]:

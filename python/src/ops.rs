@@ -135,8 +135,8 @@ pub fn identify(
     let physical = match &structure {
         None => None,
         Some(name) => {
-            let s = ferrosid::greybox::Structure::parse(name)
-                .map_err(|e| crate::to_py_err(py, &e))?;
+            let s =
+                ferrosid::greybox::Structure::parse(name).map_err(|e| crate::to_py_err(py, &e))?;
             let mut g = ferrosid::greybox::GreyBoxOptions::new(s);
             for (k, v) in known.iter().flatten() {
                 g = g.with_known(k, *v);
@@ -210,5 +210,10 @@ pub fn read_log<'py>(
             .map(|c| (c.name, PyArray1::from_vec(py, c.data)))
             .collect::<Vec<_>>()
     };
-    Ok((log.ts, arrays(log.inputs), arrays(log.outputs), log.warnings))
+    Ok((
+        log.ts,
+        arrays(log.inputs),
+        arrays(log.outputs),
+        log.warnings,
+    ))
 }

@@ -76,9 +76,8 @@ impl PipelineRun {
                 ..Default::default()
             };
             let input = ferrosid::ops::codegen::codegen_input(parts, &opts)?;
-            let g = ferrosid_codegen::generate(&input).map_err(|e| {
-                ferrosid::Error::InvalidArgument(format!("code generation: {e}"))
-            })?;
+            let g = ferrosid_codegen::generate(&input)
+                .map_err(|e| ferrosid::Error::InvalidArgument(format!("code generation: {e}")))?;
             Ok((g.c_header, g.rust_module))
         })
     }

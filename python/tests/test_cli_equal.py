@@ -55,8 +55,18 @@ def test_identify_equals_cli(cli, in_root):
     )
     assert r.to_json() == out
     m = r.model
-    assert m.A.shape[0] == r["n4sid"]["order"] if "order" in r["n4sid"] else True
-    assert m.ts == pytest.approx(1e-3)
+    assert m.A.shape == (len(r["poles"]), len(r["poles"]))
+    assert m.ts == 1e-3
+
+
+def test_model_converts_to_python_control(in_root):
+    control = pytest.importorskip("control", reason="python-control not installed (optional)")
+    u, y = csv_log(HIGH, in_root)
+    m = ferrosid.identify(u, y, fs=1000.0, order=3).model
+    sys = m.to_control()
+    assert sys.dt == m.ts
+    back = ferrosid.Model.from_control(sys)
+    assert np.array_equal(back.A, m.A) and np.array_equal(back.D, m.D)
 
 
 def test_run_pipeline_equals_cli(cli, in_root, tmp_path):
@@ -71,6 +81,10 @@ def test_run_pipeline_equals_cli(cli, in_root, tmp_path):
     # The stage views are sections of the same document.
     d = json.loads(out)
     assert ferrosid.receipts(run)["receipts"] == d["receipts"]
+    assert ferrosid.audit(run) == d["audit"]
+    assert ferrosid.fit_wm(run) == d["uncertainty_weight"]
+    assert ferrosid.tune_pid(run) == d["controller"]
+    assert ferrosid.gap(run) == d["gap_diagnosis"]
     header, module = run.codegen("axis1")
     assert "AXIS1" in header and "pub" in module
 
