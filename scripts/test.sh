@@ -32,8 +32,8 @@ if [ "${python:-0}" = 1 ]; then
     py_start=$(date +%s)
     ./scripts/python-setup.sh 2>&1 </dev/null | tee -a "$log"
     py_status=${PIPESTATUS[0]}
-    py_result=$(grep -E '^=+ .*(passed|failed|error).* in [0-9.]+s' "$log" | tail -n 1 | tr -d '=')
-    py_line="python: exit status $py_status after $(( $(date +%s) - py_start )) s:${py_result:- no pytest summary (setup failed?)}"
+    py_result=$(grep -E '^(=+ )?[0-9]+ (passed|failed|error).* in [0-9.]+s' "$log" | tail -n 1 | tr -d '=')
+    py_line="python: exit status $py_status after $(( $(date +%s) - py_start )) s: ${py_result:-no pytest summary (setup failed?)}"
 fi
 
 # Sum cargo's per-binary "test result:" lines.
