@@ -50,7 +50,7 @@ pub fn fleet_unit<'py>(
     let layout = layout_of(layout)?;
     let physical: Option<PhysicalConfig> = match physical {
         None => None,
-        Some(d) => Some(crate::ops::options(py, Some(d))?),
+        Some(d) => Some(crate::ops::options(py, "physical", Some(d))?),
     };
     let unit = run_released(py, || {
         if let Some(p) = &physical {

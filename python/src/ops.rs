@@ -55,11 +55,12 @@ impl OwnedLog {
 /// options type with unknown keys refused.
 pub(crate) fn options<T: serde::de::DeserializeOwned>(
     py: Python<'_>,
+    what: &str,
     opts: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<T> {
     let empty = PyDict::new(py);
     let d = opts.unwrap_or(&empty);
-    pythonize::depythonize::<T>(d.as_any()).map_err(|e| UsageError::new_err(format!("{e}")))
+    pythonize::depythonize::<T>(d.as_any()).map_err(|e| UsageError::new_err(format!("{what}: {e}")))
 }
 
 /// Empirical frequency response (Welch H1 or period-synchronous) of `logs`: the JSON of
@@ -72,7 +73,7 @@ pub fn frf(
     logs: Vec<LogArg<'_>>,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<String> {
-    let opts: FrfOptions = self::options(py, options)?;
+    let opts: FrfOptions = self::options(py, "frf options", options)?;
     let owned: Vec<OwnedLog> = logs.iter().map(OwnedLog::of).collect();
     run_released(py, move || {
         let logs = owned
@@ -159,7 +160,7 @@ pub fn identify(
         crossover_hz,
         phase_tol_deg: phase_tol.unwrap_or(IdentifyOptions::default().phase_tol_deg),
         max_lag,
-        etfe: self::options(py, etfe)?,
+        etfe: self::options(py, "etfe options", etfe)?,
         closed_loop: None,
         physical,
     };

@@ -60,7 +60,7 @@ def test_bad_options_are_usage_errors():
     with pytest.raises(ferrosid.UsageError, match="--gate") as e:
         ferrosid.frf(U, Y, fs=100.0, gate=2.0)
     assert e.value.exit_code == 2
-    with pytest.raises(ferrosid.UsageError, match="unknown variant `triangle`, expected one of `hann`"):
+    with pytest.raises(ferrosid.UsageError, match="frf options: unknown variant `triangle`, expected one of `hann`"):
         ferrosid.frf(U, Y, fs=100.0, window="triangle")
     with pytest.raises(TypeError, match="unknown options"):
         ferrosid.frf(U, Y, fs=100.0, nperseg_typo=64)
