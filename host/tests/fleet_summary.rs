@@ -258,7 +258,7 @@ fn fleet_output_dirs_are_checked_before_any_unit_is_computed() {
 /// spread of b, and no other unit is flagged.
 #[test]
 fn physical_parameters_match_the_fleet_and_flag_the_faulty_unit() {
-    use ferrosid::greybox::{GreyBoxOptions, Structure};
+    use ferrosid::pipeline::physical_stage::PhysicalConfig;
     let dir = fleet_dir();
     let truth: Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("units.json")).expect("units"))
@@ -268,9 +268,12 @@ fn physical_parameters_match_the_fleet_and_flag_the_faulty_unit() {
         &dir,
         &template,
         &FleetOptions {
-            physical: Some(
-                GreyBoxOptions::new(Structure::parse("two-mass").unwrap()).with_known("Kt", 1.0),
-            ),
+            physical: Some(PhysicalConfig {
+                structure: "two-mass".into(),
+                known: [("Kt".to_string(), 1.0)].into(),
+                confidence: None,
+                run: None,
+            }),
             ..FleetOptions::default()
         },
         &|_| {},

@@ -5,13 +5,17 @@
 //! Each unit's outputs (receipts, model, report) go to `<out>/<serial>/`, the summary to
 //! `<out>/fleet.json` (default `<out>` = `out/fleet` in the current directory).
 //!
+//! `--shard K/N` runs the K-th of N disjoint shards of the units (default output
+//! `out/fleet-shard-K-of-N`), and `ferrosid fleet merge SHARD...` combines the shards'
+//! `fleet.json` files into the whole fleet's summary (see [`crate::fleet::shard`]).
+//!
 //! Exit status: 0 when every unit passes every receipt, 1 when a unit fails a receipt or its
-//! pipeline could not run (the table says which), 3 when the fleet directory or the template is
-//! unusable.
+//! pipeline could not run (the table says which), 3 when the fleet directory, the template or
+//! a shard summary is unusable.
 use super::ExitCode;
 use crate::error::{Error, Result};
-use crate::fleet::{run_fleet, FleetOptions, FleetSummary, OUTLIER_Z};
-use crate::greybox::{GreyBoxOptions, Structure};
+use crate::fleet::{run_fleet, FleetOptions, FleetSummary, Shard, OUTLIER_Z};
+use crate::pipeline::physical_stage::PhysicalConfig;
 use crate::pipeline::{fmt_num, LoadedConfig};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
@@ -19,14 +23,27 @@ use std::path::PathBuf;
 
 /// Flags of `ferrosid fleet`.
 #[derive(Debug, Clone, clap::Args)]
-#[command(after_help = "Examples:\n  ferrosid fleet examples/fleet\n  \
-    ferrosid fleet logs/line3 --pipeline axis.toml --jobs 4 --json > fleet.json\n\n\
+#[command(
+    after_help = "Examples:\n  ferrosid fleet examples/fleet\n  \
+    ferrosid fleet logs/line3 --pipeline axis.toml --jobs 4 --json > fleet.json\n  \
+    ferrosid fleet logs/line3 --shard 2/4 --out out/shard2   # one array job of four\n  \
+    ferrosid fleet merge out/shard1 out/shard2 out/shard3 out/shard4 --out out/fleet\n\n\
     Layouts: DIR/<serial>/<file> (one subdirectory per unit) or DIR/<serial>_<file>.\n\
-    Exit status: 0 all units pass, 1 a unit fails or errors, 3 unusable directory or template.")]
+    Exit status: 0 all units pass, 1 a unit fails or errors, 3 unusable directory, template \
+    or shard summary.",
+    args_conflicts_with_subcommands = true
+)]
 pub struct Args {
-    /// Fleet directory.
+    /// `merge`: combine shard summaries instead of running a fleet.
+    #[command(subcommand)]
+    pub command: Option<FleetCommand>,
+    /// Fleet directory (a directory named `merge` must be given as `./merge`).
     #[arg(value_name = "DIR")]
-    pub dir: PathBuf,
+    pub dir: Option<PathBuf>,
+    /// Run only the K-th of N shards of the units (1 <= K <= N; units dealt round-robin in
+    /// serial-number order), e.g. one array job of a batch scheduler; combine with `fleet merge`.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
     /// Pipeline template (default: DIR/pipeline.toml); its log paths are per unit.
     #[arg(long, value_name = "TEMPLATE.toml")]
     pub pipeline: Option<PathBuf>,
@@ -47,6 +64,27 @@ pub struct Args {
     /// A parameter of --structure known from elsewhere, held fixed (SI units), e.g. Kt=1.
     #[arg(long, value_name = "NAME=VALUE", requires = "structure")]
     pub known: Vec<String>,
+}
+
+/// Subcommands of `ferrosid fleet`.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum FleetCommand {
+    /// Combine the fleet.json of every shard (`fleet --shard K/N`) into the fleet's summary.
+    Merge(MergeArgs),
+}
+
+/// Flags of `ferrosid fleet merge`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct MergeArgs {
+    /// Shard summaries: fleet.json files, or the shards' output directories holding one.
+    #[arg(value_name = "SHARD", required = true)]
+    pub shards: Vec<PathBuf>,
+    /// Write the merged summary to DIR/fleet.json as well.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Print the summary as JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
 }
 
 fn print(text: &str) -> Result<()> {
@@ -109,6 +147,15 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
     )
     .replace("Subdirectories", "subdirectory")
     .replace("Prefix", "file-prefix");
+    if let Some(sh) = &s.shard {
+        out.insert_str(
+            out.len() - 1,
+            &format!(
+                "shard {}/{} of a fleet of {} units\n",
+                sh.index, sh.count, sh.units_total
+            ),
+        );
+    }
     let nmodes = s
         .units
         .iter()
@@ -182,7 +229,6 @@ pub fn summary_text(dir: &str, s: &FleetSummary) -> String {
     out
 }
 
-/// Runs `ferrosid fleet`.
 /// One row per distribution: parameter, unit, n, min, median, max, mean, std.
 fn distribution_table(dists: &[crate::fleet::Distribution]) -> String {
     let mut rows = vec![[
@@ -277,13 +323,24 @@ fn physical_text(s: &FleetSummary) -> String {
     out
 }
 
+/// Runs `ferrosid fleet` (or `ferrosid fleet merge`).
 pub fn run(args: &Args) -> Result<ExitCode> {
-    if !args.dir.is_dir() {
+    if let Some(FleetCommand::Merge(m)) = &args.command {
+        return merge(m);
+    }
+    let Some(dir) = &args.dir else {
+        return Err(Error::InvalidArgument(
+            "give the fleet directory (ferrosid fleet DIR), or `ferrosid fleet merge SHARD...`"
+                .into(),
+        ));
+    };
+    let shard = args.shard.as_deref().map(Shard::parse).transpose()?;
+    if !dir.is_dir() {
         return Err(Error::Io {
-            file: args.dir.clone(),
+            file: dir.clone(),
             source: std::io::Error::new(
                 std::io::ErrorKind::NotFound,
-                if args.dir.exists() {
+                if dir.exists() {
                     "not a directory: give the fleet directory holding one log set per unit"
                 } else {
                     "fleet directory not found"
@@ -295,7 +352,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     let template_path = args
         .pipeline
         .clone()
-        .unwrap_or_else(|| args.dir.join("pipeline.toml"));
+        .unwrap_or_else(|| dir.join("pipeline.toml"));
     if !template_path.is_file() {
         return Err(Error::Data {
             file: template_path,
@@ -305,9 +362,10 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         });
     }
     let template = LoadedConfig::load(&template_path)?;
-    let (_, serials) = crate::fleet::discover_units(&args.dir)?;
+    let (_, all) = crate::fleet::discover_units(dir)?;
+    let n_units = shard.map_or(all.len(), |s| s.select(&all).len());
     let pb = if std::io::stderr().is_terminal() {
-        ProgressBar::with_draw_target(Some(serials.len() as u64), ProgressDrawTarget::stderr())
+        ProgressBar::with_draw_target(Some(n_units as u64), ProgressDrawTarget::stderr())
     } else {
         ProgressBar::hidden()
     };
@@ -319,38 +377,71 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     let physical = match &args.structure {
         None => None,
         Some(name) => {
-            let mut g = GreyBoxOptions::new(Structure::parse(name)?);
+            let mut known = std::collections::BTreeMap::new();
             for k in &args.known {
                 let (n, v) = super::identify::parse_known(k)?;
-                g = g.with_known(&n, v);
+                known.insert(n, v);
             }
-            g.check()?;
-            Some(g)
+            let p = PhysicalConfig {
+                structure: name.clone(),
+                known,
+                confidence: None,
+                run: None,
+            };
+            p.options()?;
+            Some(p)
         }
+    };
+    let default_out = match shard {
+        Some(s) => format!("out/fleet-shard-{}-of-{}", s.index, s.count),
+        None => "out/fleet".into(),
     };
     let opts = FleetOptions {
         physical,
+        shard,
         jobs: args.jobs,
         out_dir: Some(
             args.out
                 .clone()
-                .unwrap_or_else(|| PathBuf::from("out/fleet")),
+                .unwrap_or_else(|| PathBuf::from(default_out)),
         ),
     };
-    let summary = run_fleet(&args.dir, &template, &opts, &|serial| {
+    let summary = run_fleet(dir, &template, &opts, &|serial| {
         pb.set_message(serial.to_string());
         pb.inc(1);
     });
     pb.finish_and_clear();
-    let summary = summary?;
-    if args.json {
-        print(&crate::pipeline::json_pretty(&summary)?)?;
+    report(&dir.display().to_string(), &summary?, args.json)
+}
+
+/// Prints a summary (JSON or tables) and maps it to the exit status.
+fn report(what: &str, summary: &FleetSummary, json: bool) -> Result<ExitCode> {
+    if json {
+        print(&crate::pipeline::json_pretty(summary)?)?;
     } else {
-        print(&summary_text(&args.dir.display().to_string(), &summary))?;
+        print(&summary_text(what, summary))?;
     }
     Ok(if summary.all_pass() {
         ExitCode::Ok
     } else {
         ExitCode::CheckFailed
     })
+}
+
+/// `ferrosid fleet merge`.
+fn merge(m: &MergeArgs) -> Result<ExitCode> {
+    let shards = m
+        .shards
+        .iter()
+        .map(|p| crate::fleet::shard::read_summary(p))
+        .collect::<Result<Vec<_>>>()?;
+    let summary = crate::fleet::merge_summaries(&m.shards, shards)?;
+    if let Some(o) = &m.out {
+        let mut top = crate::io::file_safety::OutputDir::acquire(o)?;
+        let name = std::path::Path::new(crate::fleet::FLEET_SUMMARY_FILE);
+        top.check_replaceable([name])?;
+        top.write(name, &crate::pipeline::json_pretty(&summary)?)?;
+    }
+    let what = format!("merge of {} shards", m.shards.len());
+    report(&what, &summary, m.json)
 }

@@ -147,7 +147,7 @@ pub struct PhysicalParameter {
 }
 
 /// How a [`PhysicalParameter`]'s value came about.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ParameterStatus {
     /// Estimated from the data, with an interval.

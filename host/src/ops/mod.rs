@@ -3,6 +3,7 @@
 //! their arguments to these options and render the reports; [`crate::pipeline`] composes the
 //! same building blocks into one run.
 //!
+//! * [`arrays`] — logs from arrays in memory, checked like files (the Python package);
 //! * [`codegen`] — the firmware-header generator input from a model, controller, weight and
 //!   receipts in memory (`ferrosid codegen`, and a pipeline run without the disk);
 //! * [`frf`] — empirical frequency response (Welch H1 or period-synchronous) with coherence
@@ -12,6 +13,7 @@
 //!
 //! Long steps report through a [`Progress`] the caller supplies ([`NoProgress`] ignores it),
 //! so the library never draws on a terminal itself.
+pub mod arrays;
 pub mod codegen;
 pub mod frf;
 pub mod identify;

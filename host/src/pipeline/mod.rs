@@ -116,7 +116,7 @@ impl LogData {
 }
 
 /// A continuous-time mode of the identified model, from a discrete pole z via s = ln(z)/ts.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct Mode {
     /// Natural frequency |s|/(2π), Hz.
     pub natural_hz: f64,
