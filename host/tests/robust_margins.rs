@@ -48,6 +48,21 @@ fn third_order_loops_gain_margin() {
 }
 
 #[test]
+fn phase_lead_crossover_of_a_stable_loop_has_a_positive_margin() {
+    // L(s) = 2s/(s + 1): |L| = 1 at ω = 1/√3 where ∠L = 90° − 30° = +60°; the closed loop
+    // (s + 1)/(3s + 1) is stable. A phase lead of 120° reaches −1 first (PM = 120°, not
+    // 180° + 60° wrapped to −120°); a delay must add 240° of lag: τ = (4π/3)/ω.
+    let m = margins(&ss(&[2.0, 0.0], &[1.0, 1.0], 0.0), None).unwrap();
+    let w = 1.0 / 3f64.sqrt();
+    assert!((m.phase_margin_deg - 120.0).abs() < 1e-7, "{m:?}");
+    assert!((m.gain_crossover_hz.unwrap() * 2.0 * PI - w).abs() < 1e-9);
+    assert!(
+        (m.delay_margin_s - (4.0 * PI / 3.0) / w).abs() < 1e-7,
+        "{m:?}"
+    );
+}
+
+#[test]
 fn discrete_integrator_margins() {
     // L(z) = K·ts/(z − 1): phase crossover at Nyquist with GM = 2/(K ts);
     // gain crossover θ = 2 asin(K ts/2), PM = 90° − θ/2.

@@ -136,6 +136,7 @@ pub fn codegen_input_for(
             prewarp_hz: None,
             continuous: None,
         }),
+        state_controller: None,
         weight: cg::WeightCoefficients {
             num: vec![0.2],
             den: vec![1.0],

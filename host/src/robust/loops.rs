@@ -121,12 +121,16 @@ pub struct Margins {
     pub gain_margin_db: f64,
     /// Frequency (Hz) of the phase crossover that sets `gain_margin`.
     pub phase_crossover_hz: Option<f64>,
-    /// Phase margin in degrees (∞ when |L| never crosses 1).
+    /// Phase margin in degrees (∞ when |L| never crosses 1). For a stable closed loop, the
+    /// smallest phase change (lag or lead) at any gain crossover that puts L on −1:
+    /// 180° − |∠L|, never negative. For an unstable closed loop, 180° + ∠L wrapped to
+    /// (−180°, 180°] (negative at a crossover past −180°).
     pub phase_margin_deg: f64,
     /// Frequency (Hz) of the gain crossover that sets `phase_margin_deg`.
     pub gain_crossover_hz: Option<f64>,
-    /// Delay margin in seconds: the smallest PM_rad/ω_gc over gain crossovers with positive
-    /// phase margin (∞ when there is none).
+    /// Delay margin in seconds: the smallest (180° + ∠L)/ω_gc in radians (the phase lag a delay
+    /// must add to reach −1) over gain crossovers with positive phase margin (∞ when there is
+    /// none).
     pub delay_margin_s: f64,
     /// Every gain crossover frequency found, Hz, increasing.
     pub gain_crossovers_hz: Vec<f64>,
@@ -242,6 +246,20 @@ pub(crate) fn sign_changes<F: Fn(f64) -> Result<f64>>(f: &F, grid: &[f64]) -> Re
     Ok(out)
 }
 
+/// Whether the unity negative-feedback loop around the SISO loop transfer `l` is stable
+/// (closed-loop A = A − B·C/(1 + D)); `false` when the loop is ill-posed (D = −1) or its poles
+/// cannot be computed.
+fn closed_loop_stable(l: &StateSpace) -> bool {
+    let den = 1.0 + l.d[(0, 0)];
+    if !(den.abs() > 0.0) {
+        return false;
+    }
+    let a_cl = &l.a - &l.b * &l.c * faer::Scale(1.0 / den);
+    StateSpace::new(a_cl, l.b.clone(), l.c.clone(), l.d.clone(), l.ts)
+        .and_then(|cl| cl.is_stable(0.0))
+        .unwrap_or(false)
+}
+
 /// Gain and phase margins of the SISO loop transfer `l` (see [`Margins`]). `extra_range_rad_s`
 /// widens the search grid (e.g. around the intended crossover).
 pub fn margins(l: &StateSpace, extra_range_rad_s: Option<(f64, f64)>) -> Result<Margins> {
@@ -283,21 +301,30 @@ pub fn margins(l: &StateSpace, extra_range_rad_s: Option<(f64, f64)>) -> Result<
             w_pc = Some(w);
         }
     }
+    let stable = closed_loop_stable(l);
     let mut pm = f64::INFINITY;
     let mut w_gc = None;
     let mut dm = f64::INFINITY;
     for &w in &gcs {
-        let v = h(w)?;
-        let mut p = 180.0 + v.arg().to_degrees();
-        if p > 180.0 {
-            p -= 360.0;
-        }
+        let arg = h(w)?.arg().to_degrees();
+        // Phase lag that puts L(jω) on −1, in (0, 360].
+        let lag = 180.0 + arg;
+        let p = if stable {
+            // The smallest phase change, lag or lead, that makes the loop touch −1: at a
+            // crossover where ∠L lies above 0° (after a resonance, e.g. an H∞ loop) a lead of
+            // 180° − ∠L gets there first.
+            180.0 - arg.abs()
+        } else if lag > 180.0 {
+            lag - 360.0
+        } else {
+            lag
+        };
         if w_gc.is_none() || p < pm {
             pm = p;
             w_gc = Some(w);
         }
         if p > 0.0 && w > 0.0 {
-            dm = dm.min(p.to_radians() / w);
+            dm = dm.min(lag.to_radians() / w);
         }
     }
     let hz = |w: f64| w / (2.0 * PI);
