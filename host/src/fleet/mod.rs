@@ -51,7 +51,6 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-mod exact_json;
 pub mod shard;
 mod summary;
 

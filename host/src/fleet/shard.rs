@@ -103,12 +103,12 @@ pub fn read_summary(path: &Path) -> Result<FleetSummary> {
         file: file.clone(),
         source,
     })?;
-    // Numbers correctly rounded (see exact_json): the merge equals the unsharded run bit
-    // for bit.
-    let v = super::exact_json::parse(&text).map_err(|(line, msg)| Error::Parse {
+    // serde_json's `float_roundtrip` (host/Cargo.toml) reads every number back to the f64
+    // that was written: the merge equals the unsharded run bit for bit.
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
         file: file.clone(),
-        line,
-        msg: format!("not JSON: {msg}"),
+        line: e.line(),
+        msg: format!("not JSON: {e}"),
     })?;
     let schema = v.get("schema").and_then(|s| s.as_str()).unwrap_or("");
     if schema != FLEET_SCHEMA {
