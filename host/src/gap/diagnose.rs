@@ -327,6 +327,7 @@ fn run_selection(
             // cannot separate nested effects nor credit a second one.
             noise_floor: noise_floor.available().then_some(noise_floor.nrmse),
             drift_window: s.drift_window,
+            min_excess_closed: opts.min_excess_closed,
             ..SelectOptions::default()
         },
     )
