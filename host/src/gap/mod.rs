@@ -10,7 +10,9 @@ pub mod evidence;
 pub mod figures;
 pub mod fit;
 pub mod friction_port;
+pub mod linear;
 pub mod locate;
+pub mod logs;
 pub mod modal;
 pub mod noise;
 pub use crate::optim;
@@ -22,6 +24,7 @@ pub mod select;
 pub mod simfile;
 pub mod state_limit;
 pub mod structure;
+pub mod verdict;
 
 pub use diagnose::{diagnose, Diagnosis, GapOptions};
 pub use effect::{Effect, EffectKind};

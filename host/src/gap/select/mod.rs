@@ -15,7 +15,8 @@
 //!    two effects, in place order), and Coulomb friction at the motor always (its single fit is
 //!    masked by a stronger first effect), and play in the drive when the first is friction
 //!    (likewise masked); the best pair is kept if it improves the validation
-//!    NRMSE of the single by `pair_margin` (relative), a pair with Coulomb friction at the motor
+//!    NRMSE of the single by `pair_margin` (relative) and removes `min_excess_closed` of the
+//!    single's excess over the noise floor (the verdict rule's test, step by step), a pair with Coulomb friction at the motor
 //!    weighed against its stiction variant as the singles are; no pair is sought once the
 //!    single is within [`PAIR_FLOOR_FACTOR`] of the noise floor;
 //! 4. a lattice in the measured outputs ([`lattice_evidence`]) decides quantization by itself:
@@ -72,6 +73,12 @@ pub struct SelectOptions {
     /// Validation NRMSE a perfect model would still leave (the noise floor), when known: no
     /// pair is tried once the selected single is within [`PAIR_FLOOR_FACTOR`] of it.
     pub noise_floor: Option<f64>,
+    /// Share of the selected single's excess over the noise floor (its validation NRMSE minus
+    /// `noise_floor`, the floor taken as 0 when unknown) a second effect must remove: the
+    /// verdict rule's test for the first effect, applied to the second (a second effect that
+    /// trims a little off a gap far above the floor stands in for something else, e.g. linear
+    /// dynamics the nominal lacks).
+    pub min_excess_closed: f64,
     /// Drift window of the validation NRMSE ([`crate::gap::modal::validation_nrmse`]), for a
     /// linear part with an integrator; `None`: the plain NRMSE.
     pub drift_window: Option<usize>,
@@ -91,6 +98,7 @@ impl Default for SelectOptions {
             candidates: Vec::new(),
             raw_outputs: Vec::new(),
             noise_floor: None,
+            min_excess_closed: crate::gap::diagnose::DEFAULT_MIN_EXCESS_CLOSED,
             drift_window: None,
         }
     }
@@ -471,7 +479,12 @@ pub fn select_effects(
         pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
         if let Some(p) = pairs.first().cloned() {
             let rel = (first.gap - p.gap) / first.gap;
-            if rel >= opts.pair_margin && (!tentative || p.improvement >= opts.margin) {
+            let floor = opts.noise_floor.unwrap_or(0.0).clamp(0.0, first.gap);
+            let closed = (first.gap - p.gap) / (first.gap - floor).max(1e-300);
+            if rel >= opts.pair_margin
+                && closed >= opts.min_excess_closed
+                && (!tentative || p.improvement >= opts.margin)
+            {
                 let p = pair_stiction_variant(
                     p,
                     td,
@@ -486,8 +499,11 @@ pub fn select_effects(
                 selected_models.push(p);
             } else {
                 notes.push(format!(
-                    "best pair improves on the single by {rel:.3} < pair margin {}",
-                    opts.pair_margin
+                    "best pair improves on the single by {rel:.3} (pair margin {}) and removes \
+                     {:.0} % of its excess over the noise floor (needs {:.0} %): not selected",
+                    opts.pair_margin,
+                    100.0 * closed,
+                    100.0 * opts.min_excess_closed
                 ));
             }
         }

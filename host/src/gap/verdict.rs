@@ -1,0 +1,180 @@
+//! The verdict rule (effect, none or unexplained) and the statistics that separate nested
+//! effects (the training likelihood ratio with an effective sample count).
+use super::evidence::Evidence;
+use super::fit::AugmentedModel;
+use super::noise::NoiseFloor;
+use crate::error::Result;
+
+/// What the verdict rule decided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decision {
+    /// The best candidate (or combination) is the verdict.
+    Effect,
+    /// The linear re-fit reaches the noise floor: no unmodelled effect.
+    None,
+    /// A gap above the noise floor that no candidate closes.
+    Unexplained,
+}
+
+/// The verdict rule (docs/gap.md, "Verdict"). With `floor` the noise-floor NRMSE on the
+/// validation log and `best` the best candidate's validation NRMSE:
+/// 1. **effect** when the candidate improves on the linear re-fit by at least `margin`
+///    (relative) *and* removes at least `min_excess_closed` of the excess
+///    gap_linear − floor (floor taken as 0 when it could not be estimated);
+/// 2. else **none** when gap_linear ≤ `noise_factor`·floor;
+/// 3. else, when the floor could not be estimated, **none** unless the evidence shows a
+///    nonlinearity (amplitude dependence, nonlinear distortion, residual concentration);
+/// 4. else **unexplained**.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerdictRule {
+    /// Relative improvement over the linear re-fit an effect needs.
+    pub margin: f64,
+    /// gap_linear ≤ noise_factor·floor means "at the noise floor".
+    pub noise_factor: f64,
+    /// Share of the excess above the floor an effect must remove.
+    pub min_excess_closed: f64,
+}
+
+impl VerdictRule {
+    /// Decides (see the type docs). `has_candidate`: whether `best` belongs to a fitted effect.
+    pub fn decide(
+        &self,
+        gap_linear: f64,
+        best: f64,
+        has_candidate: bool,
+        floor: &NoiseFloor,
+        evidence: &Evidence,
+    ) -> Decision {
+        let f = if floor.available() { floor.nrmse } else { 0.0 };
+        if has_candidate
+            && best.is_finite()
+            && (gap_linear - best) >= self.margin * gap_linear
+            && (gap_linear - best) >= self.min_excess_closed * (gap_linear - f)
+        {
+            return Decision::Effect;
+        }
+        if floor.available() {
+            if gap_linear <= self.noise_factor * floor.nrmse {
+                Decision::None
+            } else {
+                Decision::Unexplained
+            }
+        } else if evidence.nonlinear() {
+            Decision::Unexplained
+        } else {
+            Decision::None
+        }
+    }
+
+    /// A one-line reason for notes (why not an effect, why none/unexplained).
+    pub fn explain(
+        &self,
+        gap_linear: f64,
+        best: f64,
+        floor: &NoiseFloor,
+        d: Decision,
+    ) -> Option<String> {
+        let fl = floor.nrmse;
+        match d {
+            Decision::Effect => None,
+            Decision::None if floor.available() => Some(format!(
+                "verdict none: the linear re-fit ({gap_linear:.4}) is within {}x the noise floor \
+                 ({fl:.4}, {})",
+                self.noise_factor, floor.method
+            )),
+            Decision::None => Some(format!(
+                "verdict none: no noise floor could be estimated (no repeating input, no \
+                 off-band bins) and no evidence of a nonlinearity; the linear re-fit leaves \
+                 {gap_linear:.4}"
+            )),
+            Decision::Unexplained => Some(format!(
+                "verdict unexplained: the linear re-fit leaves {gap_linear:.4}{}, and the best \
+                 candidate ({best:.4}) does not improve on it by {:.0}% while removing {:.0}% of \
+                 the excess over the floor",
+                if floor.available() {
+                    format!(" against a noise floor of {fl:.4}")
+                } else {
+                    String::new()
+                },
+                100.0 * self.margin,
+                100.0 * self.min_excess_closed
+            )),
+        }
+    }
+}
+
+/// Likelihood-ratio threshold for the nested pair (stiction over Coulomb friction) when the
+/// validation log cannot separate them: the χ² quantile with one degree of freedom (the extra
+/// breakaway parameter) at p = 0.001. See [`nested_likelihood_ratio`].
+pub const NESTED_LR_THRESHOLD: f64 = 10.83;
+
+/// Longest lag of the residual autocorrelation used by [`effective_samples`], samples.
+pub const MAX_CORRELATION_LAG: usize = 2000;
+
+/// Effective number of independent samples of a residual sequence: N/τ with the integrated
+/// autocorrelation time τ = 1 + 2·Σ ρ_k, summed over Geyer's initial positive sequence (pairs
+/// ρ_{2m+1} + ρ_{2m+2} while positive, at most [`MAX_CORRELATION_LAG`] lags). White residuals
+/// give about N; residuals dominated by slow model error give far fewer. At least 1.
+pub fn effective_samples(r: &[f64]) -> f64 {
+    let n = r.len();
+    if n < 4 {
+        return n.max(1) as f64;
+    }
+    let mean = r.iter().sum::<f64>() / n as f64;
+    let d: Vec<f64> = r.iter().map(|v| v - mean).collect();
+    let c0: f64 = d.iter().map(|v| v * v).sum();
+    if c0.is_nan() || c0 <= 0.0 {
+        return 1.0;
+    }
+    let rho = |k: usize| d.iter().zip(&d[k..]).map(|(a, b)| a * b).sum::<f64>() / c0;
+    let mut tau = 1.0;
+    let mut k = 1;
+    while k + 1 < n.min(MAX_CORRELATION_LAG) {
+        let pair = rho(k) + rho(k + 1);
+        if pair.is_nan() || pair <= 0.0 {
+            break;
+        }
+        tau += 2.0 * pair;
+        k += 2;
+    }
+    (n as f64 / tau).max(1.0)
+}
+
+/// Likelihood-ratio statistic of the nested model `rich` over `simple` on the training logs,
+/// Λ = Σ_logs N_eff · ln(SSE_simple / SSE_rich), with N_eff the [`effective_samples`] of the
+/// simple model's residual on that log (Gaussian residuals, variance unknown; the effective
+/// count keeps correlated model error from passing as evidence). Under the simple model Λ is
+/// about χ² with one degree of freedom per extra parameter.
+pub fn nested_likelihood_ratio(
+    simple: &AugmentedModel,
+    rich: &AugmentedModel,
+    u: &[Vec<f64>],
+    y: &[Vec<f64>],
+    warmup: usize,
+) -> Result<f64> {
+    let mut lr = 0.0;
+    for (ul, yl) in u.iter().zip(y) {
+        let rs: Vec<f64> = yl
+            .iter()
+            .zip(&simple.simulate(ul)?)
+            .skip(warmup)
+            .map(|(a, b)| a - b)
+            .collect();
+        let rr: Vec<f64> = yl
+            .iter()
+            .zip(&rich.simulate(ul)?)
+            .skip(warmup)
+            .map(|(a, b)| a - b)
+            .collect();
+        let (ss, sr) = (
+            rs.iter().map(|v| v * v).sum::<f64>(),
+            rr.iter().map(|v| v * v).sum::<f64>(),
+        );
+        if ss > 0.0 && sr > 0.0 {
+            lr += effective_samples(&rs) * (ss / sr).ln();
+        }
+    }
+    // The richer model nests the simpler one, so at its optimum the statistic is >= 0; a
+    // negative value means its fit stopped short of the simpler one's: no evidence (0).
+    Ok(if lr.is_finite() { lr.max(0.0) } else { 0.0 })
+}
