@@ -95,4 +95,9 @@ impl OperatingPoint {
     pub fn output_offset(&self, i: usize) -> f64 {
         self.y0.get(i).copied().unwrap_or(0.0)
     }
+
+    /// `true` when any input or output offset is non-zero.
+    pub fn has_offsets(&self) -> bool {
+        self.u0.iter().chain(&self.y0).any(|v| *v != 0.0)
+    }
 }

@@ -18,6 +18,7 @@ pub mod noise;
 pub use crate::optim;
 pub mod place;
 pub mod plant;
+pub mod reading;
 pub mod report;
 pub mod rng;
 pub mod select;
@@ -27,5 +28,6 @@ pub mod structure;
 pub mod verdict;
 
 pub use diagnose::{diagnose, Diagnosis, GapOptions};
+pub use reading::diagnose_at_operating_point;
 pub use effect::{Effect, EffectKind};
 pub use report::GapReport;

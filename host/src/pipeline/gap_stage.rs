@@ -15,15 +15,19 @@
 //! point (`u − u0`, `y − y0`, the estimation run's means) and rate by
 //! [`crate::operating_point::logs_at_model_point`], exactly as `ferrosid gap` treats the
 //! `model.json` the run writes. (Not each log's own mean: an offset removed per log would move
-//! a friction or dead-zone effect away from where the plant has it.) A failing diagnosis does not fail the
+//! a friction or dead-zone effect away from where the plant has it.) When G0 has an operating
+//! point with offsets, the logs as read (only decimated, G0 applied about zero) are diagnosed
+//! too and the reading with the smaller validated gap is reported
+//! ([`crate::gap::diagnose_at_operating_point`]: friction and dead zones act at zero *absolute*
+//! speed and command). A failing diagnosis does not fail the
 //! run: its error is reported in place of the result (the stage is evidence, not a receipt).
 use serde::{Deserialize, Serialize};
 
 use super::LogData;
 use crate::data::Log;
-use crate::gap::{diagnose, GapOptions, GapReport};
+use crate::gap::{diagnose_at_operating_point, GapOptions, GapReport};
 use crate::lti::StateSpace;
-use crate::operating_point::{logs_at_model_point, OperatingPoint};
+use crate::operating_point::OperatingPoint;
 use crate::robust::receipts::{Receipt, ReceiptKind};
 
 /// When the pipeline runs the gap diagnosis (`[gap] run`).
@@ -138,24 +142,8 @@ pub fn run_gap_stage(
         };
     }
     progress("gap diagnosis");
-    let mut logs: Vec<Log> = runs
-        .iter()
-        .chain(std::iter::once(val))
-        .map(|r| r.raw.clone())
-        .collect();
-    if let Err(e) = logs_at_model_point(op, None, &mut logs) {
-        return GapStage::Failed {
-            triggered_by,
-            error: e.to_string(),
-        };
-    }
-    let Some(validate) = logs.pop() else {
-        return GapStage::Failed {
-            triggered_by,
-            error: "no validation log".into(),
-        };
-    };
-    match diagnose(model, &logs, &validate, &GapOptions::default()) {
+    let logs: Vec<Log> = runs.iter().map(|r| r.raw.clone()).collect();
+    match diagnose_at_operating_point(model, op, None, &logs, &val.raw, &GapOptions::default()) {
         Ok(d) => GapStage::Diagnosed {
             triggered_by,
             report: Box::new(d.report),
