@@ -9,9 +9,11 @@
 //! logs by `y0` moves the effect's switching point with them and hides it (the bundled example:
 //! Coulomb friction 0.008 N·m fitted as 0.00096 in the deviation reading, 0.00802 in the
 //! absolute one); a plant with a bias (gravity, a preload) is only linear about its operating
-//! point. [`diagnose_at_operating_point`] runs both when the model has offsets and keeps the one
-//! with the smaller validated gap (NRMSE is normalised by the mean-removed output, so the two
-//! compare), with a note in the report saying which and why.
+//! point. [`diagnose_at_operating_point`] runs both when the model has offsets. The deviation
+//! reading is the model's own semantics and stays the answer unless the absolute one leaves a
+//! validated gap smaller by more than the verdict margin ([`GapOptions::margin`], 10 %: the
+//! same bar an effect must clear; NRMSE is normalised by the mean-removed output, so the two
+//! compare). The report's notes say which reading was kept and both gaps.
 use crate::data::{Log, OperatingPoint};
 use crate::error::Result;
 use crate::lti::StateSpace;
@@ -21,9 +23,10 @@ use super::{diagnose, Diagnosis, GapOptions};
 
 /// Diagnoses `sim` (discrete, at the rate of the decimated logs) against `train` and `validate`
 /// as read, decimated by `decimate` (default: the factor `op` records), in the deviation
-/// reading and, when `op` has offsets, the absolute reading too; returns the reading with the
-/// smaller validated gap (`gap_after`). Errors: the deviation reading's error when neither
-/// reading succeeds.
+/// reading and, when `op` has offsets, the absolute reading too; returns the absolute reading
+/// when its validated gap (`gap_after`) is below the deviation reading's by more than
+/// `opts.margin` (relative), else the deviation reading. Errors: the deviation reading's error
+/// when neither reading succeeds.
 pub fn diagnose_at_operating_point(
     sim: &StateSpace,
     op: Option<&OperatingPoint>,
@@ -39,7 +42,9 @@ pub fn diagnose_at_operating_point(
     let factor = decimate.unwrap_or(op.decimation);
     let absolute = reading(sim, None, Some(factor), train, validate, opts);
     match (deviation, absolute) {
-        (Ok(dev), Ok(mut abs)) if abs.report.gap_after < dev.report.gap_after => {
+        (Ok(dev), Ok(mut abs))
+            if abs.report.gap_after < (1.0 - opts.margin) * dev.report.gap_after =>
+        {
             abs.report.notes.push(format!(
                 "diagnosed on the logs as read (absolute signals, the model applied about zero): \
                  validated gap after {:.4}, against {:.4} with the logs moved to the model's \
