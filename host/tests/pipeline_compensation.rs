@@ -32,6 +32,13 @@ fn the_bundled_example_runs_the_whole_chain() {
         other => panic!("the example asks for the diagnosis always, got {other:?}"),
     };
     let d = run.compensation.decision().expect("the stage decided");
+    // The example's logs carry Coulomb friction of 0.008 N·m at the motor
+    // (host/examples/make_example_data.rs): the diagnosis must name it, fit its level within
+    // 5 %, and the chain must compensate it.
+    assert_eq!(report.verdict, "coulomb_friction", "{:?}", report.notes);
+    let level = report.verdict_effects[0].params["level"];
+    assert!((level - 0.008).abs() <= 0.05 * 0.008, "Coulomb level {level} N·m, truth 0.008");
+    assert_eq!(d.choice, Choice::Compensate, "{}", d.reason);
     // The choice follows the verdict (compensation_stage's table).
     match report.verdict.as_str() {
         "none" => assert_eq!(d.choice, Choice::Keep),
