@@ -32,7 +32,7 @@ command -v "$PY" >/dev/null 2>&1 || fail "$PY not found: install Python >= 3.11 
 if [ ! -x "$VENV/bin/python" ]; then
     say "creating the virtual environment $VENV"
     "$PY" -m venv "$VENV" \
-        || fail "'$PY -m venv $VENV' failed: install the venv module (Debian: apt-get install python3-venv)."
+        || fail "'$PY -m venv $VENV' failed (its error is above): if the venv module is missing, install it (Debian: apt-get install python3-venv)."
 fi
 VPY="$VENV/bin/python"
 
