@@ -15,6 +15,7 @@
 //! u_pid  = discrete PID of e (see crate::PidGains; integrator state i, roll-off if any)
 //! w      = velocity estimate (see VelocitySource)
 //! u_ff   = coulomb·clamp(w / smoothing_velocity, −1, 1) + viscous·w       (friction feedforward)
+//!          (with `lag_aware`: the lag-aware form below instead)
 //! u_c    = u_pid + u_ff
 //! u_dz   = u_c + (width/2)·clamp(u_c / smoothing, −1, 1)                  (dead-zone inverse)
 //! o[k]   = clamp(o[k−1] + (gap/2)/smoothing·(u_dz[k] − u_dz[k−1]), −gap/2, gap/2)
@@ -22,6 +23,25 @@
 //! u      = clamp(u_bl, u_min, u_max)                                      (anti-windup present)
 //! i     += ts/tracking_time_s · (u − u_bl)                                (back-calculation)
 //! ```
+//! **Lag-aware friction feedforward** ([`LagAwareFriction`], when the friction acts on a body
+//! that the command reaches through a first-order actuator lag τ = `lag_s`, e.g. a current
+//! loop). The plain feedforward arrives τ late and keeps pushing the old way after each
+//! reversal; this form predicts the velocity, switches on the predicted drive torque while the
+//! body is (nearly) stuck, and passes the result through the lag's deadbeat inverse so that it
+//! is at the body one sample later:
+//!
+//! ```text
+//! p      = exp(−ts/lag_s)
+//! a      = (w − w[k−1])/ts                        (0 at the first step)
+//! w_p    = w + (horizon_s + d_w)·a                (d_w: the estimate's own delay, ts/2 + ts(1−α)/α
+//!                                                  for output_difference, 0 otherwise)
+//! T̂      = p·T̂[k−1] + (1 − p)·u_pid               (the PID's command after the lag, next sample)
+//! s      = sign(w_p)                  if |w_p| >= smoothing_velocity   (sliding)
+//!          clamp(T̂/stick_band, −1, 1) otherwise                        (stuck: the torque's side)
+//! f      = coulomb·s + viscous·w_p
+//! u_ff   = f + p/(1 − p)·(f − f[k−1])             (f[−1] = 0; bounded: |u_ff| <= (1+p)/(1−p)·max|f|)
+//! ```
+//!
 //! An absent block is the identity (and without `anti_windup` nothing is clamped). With
 //! `enabled == false` the whole block is off and the law is the plain PID. Initial state:
 //! o = 0, u_dz[−1] = 0, the velocity filter at 0, y[−1] = y[0] (first difference 0).
@@ -140,7 +160,31 @@ pub struct FrictionFeedforward {
     pub smoothing_velocity: f64,
     /// The velocity estimate used.
     pub velocity: VelocitySource,
+    /// The lag-aware form of the law (module docs), when the friction sits behind an actuator
+    /// lag; `None`: the plain feedforward.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lag_aware: Option<LagAwareFriction>,
 }
+
+/// Delivery of the friction feedforward through a first-order actuator lag (module docs: the
+/// lag-aware law).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LagAwareFriction {
+    /// First-order lag τ between the command and the force on the body, s (> 0).
+    pub lag_s: f64,
+    /// How far past the sample instant the velocity is predicted, s (>= 0, at most
+    /// [`MAX_HORIZON_LAGS`] × `lag_s`): where the feedforward reaches the body, one sample
+    /// for the deadbeat inverse.
+    pub horizon_s: f64,
+    /// Input units (> 0): inside the velocity band the Coulomb term follows the predicted drive
+    /// torque, `clamp(T̂/stick_band, −1, 1)`, so a stuck body breaks away as soon as the
+    /// controller pushes (a residual dead zone of about ±stick_band remains).
+    pub stick_band: f64,
+}
+
+/// Largest prediction horizon of [`LagAwareFriction`], in multiples of its lag.
+pub const MAX_HORIZON_LAGS: f64 = 10.0;
 
 /// Inverse of a symmetric dead zone of full width `width` centred on zero.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -264,6 +308,21 @@ impl Compensation {
             if let VelocitySource::OutputDifference { filter_hz } = ff.velocity {
                 check_band("friction_feedforward.velocity.filter_hz", filter_hz)?;
             }
+            if let Some(la) = &ff.lag_aware {
+                check_band("friction_feedforward.lag_aware.lag_s", la.lag_s)?;
+                check_nonneg("friction_feedforward.lag_aware.horizon_s", la.horizon_s)?;
+                if la.horizon_s > MAX_HORIZON_LAGS * la.lag_s {
+                    return Err(Error::input(
+                        field("friction_feedforward.lag_aware.horizon_s"),
+                        format!(
+                            "{} s is more than {MAX_HORIZON_LAGS} lags ({} s): a prediction that \
+                             far ahead extrapolates noise, not the velocity",
+                            la.horizon_s, la.lag_s
+                        ),
+                    ));
+                }
+                check_band("friction_feedforward.lag_aware.stick_band", la.stick_band)?;
+            }
         }
         if let Some(dz) = &self.dead_zone_inverse {
             check_band("dead_zone_inverse.width", dz.width)?;
@@ -329,6 +388,20 @@ impl Compensation {
                 ));
             }
         }
+        if let Some(la) = self.friction_feedforward.and_then(|f| f.lag_aware) {
+            // The deadbeat inverse's lead p/(1 − p) ≈ lag/ts must stay a modest f32 gain.
+            if la.lag_s > 1e4 * ts_s {
+                return Err(Error::input(
+                    field("friction_feedforward.lag_aware.lag_s"),
+                    format!(
+                        "{} s is more than 1e4 sample times ({ts_s} s): the lag's inverse would \
+                         amplify the feedforward's steps by {:.1e}",
+                        la.lag_s,
+                        la.lag_s / ts_s
+                    ),
+                ));
+            }
+        }
         if let Some(aw) = &self.anti_windup {
             if aw.tracking_time_s < ts_s {
                 return Err(Error::input(
@@ -365,6 +438,11 @@ mod tests {
                 viscous: 0.001,
                 smoothing_velocity: 0.5,
                 velocity: VelocitySource::OutputDifference { filter_hz: 50.0 },
+                lag_aware: Some(LagAwareFriction {
+                    lag_s: 3e-3,
+                    horizon_s: 1e-3,
+                    stick_band: 1e-4,
+                }),
             }),
             dead_zone_inverse: Some(DeadZoneInverse {
                 width: 0.1,
@@ -410,6 +488,12 @@ mod tests {
         .unwrap();
         min.validate().unwrap();
         assert!(min.friction_feedforward.is_none() && min.provenance.nrmse_before.is_none());
+        // A feedforward without `lag_aware` is the plain law, and writes no such key.
+        let mut plain = c.clone();
+        plain.friction_feedforward.as_mut().unwrap().lag_aware = None;
+        let json = serde_json::to_string(&plain).unwrap();
+        assert!(!json.contains("lag_aware"), "{json}");
+        assert_eq!(serde_json::from_str::<Compensation>(&json).unwrap(), plain);
     }
 
     #[test]
@@ -438,6 +522,54 @@ mod tests {
                         VelocitySource::OutputDifference { filter_hz: -1.0 }
                 },
                 "compensation.friction_feedforward.velocity.filter_hz",
+            ),
+            (
+                |c| {
+                    c.friction_feedforward
+                        .as_mut()
+                        .unwrap()
+                        .lag_aware
+                        .as_mut()
+                        .unwrap()
+                        .lag_s = 0.0
+                },
+                "compensation.friction_feedforward.lag_aware.lag_s",
+            ),
+            (
+                |c| {
+                    c.friction_feedforward
+                        .as_mut()
+                        .unwrap()
+                        .lag_aware
+                        .as_mut()
+                        .unwrap()
+                        .horizon_s = 0.031
+                },
+                "compensation.friction_feedforward.lag_aware.horizon_s",
+            ),
+            (
+                |c| {
+                    c.friction_feedforward
+                        .as_mut()
+                        .unwrap()
+                        .lag_aware
+                        .as_mut()
+                        .unwrap()
+                        .horizon_s = -1e-3
+                },
+                "compensation.friction_feedforward.lag_aware.horizon_s",
+            ),
+            (
+                |c| {
+                    c.friction_feedforward
+                        .as_mut()
+                        .unwrap()
+                        .lag_aware
+                        .as_mut()
+                        .unwrap()
+                        .stick_band = f64::NAN
+                },
+                "compensation.friction_feedforward.lag_aware.stick_band",
             ),
             (
                 |c| c.dead_zone_inverse.as_mut().unwrap().width = 1e300,
@@ -508,6 +640,19 @@ mod tests {
             "compensation.friction_feedforward.velocity.filter_hz"
         );
         let mut c = full();
+        c.friction_feedforward
+            .as_mut()
+            .unwrap()
+            .lag_aware
+            .as_mut()
+            .unwrap()
+            .lag_s = 20.0;
+        c.validate().unwrap();
+        assert_eq!(
+            err_field(&c, Some(1e-3)),
+            "compensation.friction_feedforward.lag_aware.lag_s"
+        );
+        let mut c = full();
         c.anti_windup.as_mut().unwrap().tracking_time_s = 1e-4;
         c.validate().unwrap();
         assert_eq!(
@@ -524,6 +669,10 @@ mod tests {
             r#"{"enabled": true, "provenance": {"effect":"","place":"","verdict":"","source":""},
                 "friction_feedforward": {"coulomb": 1, "viscous": 0, "smoothing_velocity": 1,
                 "velocity": {"kind": "tachometer"}}}"#,
+            r#"{"enabled": true, "provenance": {"effect":"","place":"","verdict":"","source":""},
+                "friction_feedforward": {"coulomb": 1, "viscous": 0, "smoothing_velocity": 1,
+                "velocity": {"kind": "output"},
+                "lag_aware": {"lag_s": 0.003, "horizon_s": 0.001, "stick_band": 1e-4, "lead": 2}}}"#,
         ] {
             assert!(serde_json::from_str::<Compensation>(bad).is_err(), "{bad}");
         }

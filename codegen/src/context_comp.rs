@@ -37,6 +37,16 @@ pub(crate) struct CompLit {
     pub ff_velocity_rs: String,
     pub ff_filter_hz: Lit,
     pub ff_filter_alpha: Lit,
+    /// The lag-aware form (`friction_feedforward.lag_aware`) is present.
+    pub has_ff_lag: bool,
+    pub ff_lag_s: Lit,
+    pub ff_lag_horizon_s: Lit,
+    pub ff_lag_stick_band: Lit,
+    /// p = exp(−ts/lag_s), computed here in f64.
+    pub ff_lag_pole: Lit,
+    /// horizon_s plus the velocity estimate's own delay (ts/2 + ts(1−α)/α for the output
+    /// difference, 0 otherwise): the firmware's prediction time.
+    pub ff_lag_prediction_s: Lit,
     pub has_dz: bool,
     pub dz_width: Lit,
     pub dz_smoothing: Lit,
@@ -80,6 +90,12 @@ pub(crate) fn comp_lit(comp: Option<&Compensation>, ts: f64) -> CompLit {
         ff_velocity_rs: "VelocitySource::Output".into(),
         ff_filter_hz: zero(),
         ff_filter_alpha: zero(),
+        has_ff_lag: false,
+        ff_lag_s: zero(),
+        ff_lag_horizon_s: zero(),
+        ff_lag_stick_band: zero(),
+        ff_lag_pole: zero(),
+        ff_lag_prediction_s: zero(),
         has_dz: false,
         dz_width: zero(),
         dz_smoothing: zero(),
@@ -130,10 +146,12 @@ pub(crate) fn comp_lit(comp: Option<&Compensation>, ts: f64) -> CompLit {
         out.ff_coulomb = lit(ff.coulomb);
         out.ff_viscous = lit(ff.viscous);
         out.ff_smoothing_velocity = lit(ff.smoothing_velocity);
+        let mut estimate_delay = 0.0;
         let (code, rs, what) = match ff.velocity {
             VelocitySource::Output => (0, "VelocitySource::Output".to_string(), "w = y"),
             VelocitySource::OutputDifference { filter_hz } => {
                 let alpha = 1.0 - (-2.0 * std::f64::consts::PI * filter_hz * ts).exp();
+                estimate_delay = ts / 2.0 + ts * (1.0 - alpha) / alpha;
                 out.ff_filter_hz = lit(filter_hz);
                 out.ff_filter_alpha = lit(alpha);
                 (
@@ -149,12 +167,38 @@ pub(crate) fn comp_lit(comp: Option<&Compensation>, ts: f64) -> CompLit {
         };
         out.ff_velocity_c = code;
         out.ff_velocity_rs = rs;
-        out.doc.push(format!(
-            "friction feedforward: u_ff = {} clamp(w / {}, -1, 1) + {} w, {what}",
-            f64_text(ff.coulomb),
-            f64_text(ff.smoothing_velocity),
-            f64_text(ff.viscous)
-        ));
+        match &ff.lag_aware {
+            None => out.doc.push(format!(
+                "friction feedforward: u_ff = {} clamp(w / {}, -1, 1) + {} w, {what}",
+                f64_text(ff.coulomb),
+                f64_text(ff.smoothing_velocity),
+                f64_text(ff.viscous)
+            )),
+            Some(la) => {
+                let pole = (-ts / la.lag_s).exp();
+                let prediction = la.horizon_s + estimate_delay;
+                out.has_ff_lag = true;
+                out.ff_lag_s = lit(la.lag_s);
+                out.ff_lag_horizon_s = lit(la.horizon_s);
+                out.ff_lag_stick_band = lit(la.stick_band);
+                out.ff_lag_pole = lit(pole);
+                out.ff_lag_prediction_s = lit(prediction);
+                out.doc.push(format!(
+                    "lag-aware friction feedforward (actuator lag {} s, {what}): w_p = w + {} \
+                     (w - w_prev)/ts; T = {} T + {} u_pid; s = sign(w_p) if |w_p| >= {} else \
+                     clamp(T / {}, -1, 1); f = {} s + {} w_p; u_ff = f + {} (f - f_prev)",
+                    f64_text(la.lag_s),
+                    f64_text(prediction),
+                    f64_text(pole),
+                    f64_text(1.0 - pole),
+                    f64_text(ff.smoothing_velocity),
+                    f64_text(la.stick_band),
+                    f64_text(ff.coulomb),
+                    f64_text(ff.viscous),
+                    f64_text(pole / (1.0 - pole))
+                ));
+            }
+        }
     }
     if let Some(dz) = &c.dead_zone_inverse {
         out.has_dz = true;

@@ -82,7 +82,8 @@ use sha2::{Digest, Sha256};
 
 pub use compensation::{
     AntiWindup, BacklashInverse, Compensation, CompensationProvenance, DeadZoneInverse,
-    FrictionFeedforward, VelocitySource, MAX_COMPENSATION_VALUE, MIN_COMPENSATION_BAND,
+    FrictionFeedforward, LagAwareFriction, VelocitySource, MAX_COMPENSATION_VALUE,
+    MAX_HORIZON_LAGS, MIN_COMPENSATION_BAND,
 };
 pub use context::{snap_checks, CheckPoint, MAX_CHECKS};
 pub use error::{Error, Result};
@@ -372,6 +373,10 @@ pub fn context_variables() -> &'static [(&'static str, &'static str)] {
         (
             "c.comp.has_ff, c.comp.ff_coulomb/ff_viscous/ff_smoothing_velocity/ff_filter_hz/ff_filter_alpha, c.comp.ff_velocity_c/_rs",
             "friction feedforward (velocity source 0 output, 1 output difference, 2 reference)",
+        ),
+        (
+            "c.comp.has_ff_lag, c.comp.ff_lag_s/ff_lag_horizon_s/ff_lag_stick_band/ff_lag_pole/ff_lag_prediction_s",
+            "lag-aware friction feedforward (pole = exp(-ts/lag), prediction = horizon + estimate delay)",
         ),
         (
             "c.comp.has_dz, c.comp.dz_width/dz_smoothing, c.comp.has_bl, c.comp.bl_gap/bl_smoothing",

@@ -149,6 +149,13 @@ static const float {{ c.p }}_COMP_FF_VISCOUS = {{ c.comp.ff_viscous.c }};
 static const float {{ c.p }}_COMP_FF_SMOOTHING_VELOCITY = {{ c.comp.ff_smoothing_velocity.c }};
 static const float {{ c.p }}_COMP_FF_FILTER_HZ = {{ c.comp.ff_filter_hz.c }};
 static const float {{ c.p }}_COMP_FF_FILTER_ALPHA = {{ c.comp.ff_filter_alpha.c }};
+{% if c.comp.has_ff_lag %}#define {{ c.p }}_COMP_FF_LAG_AWARE 1
+{% else %}#define {{ c.p }}_COMP_FF_LAG_AWARE 0
+{% endif %}static const float {{ c.p }}_COMP_FF_LAG_S = {{ c.comp.ff_lag_s.c }};
+static const float {{ c.p }}_COMP_FF_LAG_HORIZON_S = {{ c.comp.ff_lag_horizon_s.c }};
+static const float {{ c.p }}_COMP_FF_LAG_STICK_BAND = {{ c.comp.ff_lag_stick_band.c }};
+static const float {{ c.p }}_COMP_FF_LAG_POLE = {{ c.comp.ff_lag_pole.c }};
+static const float {{ c.p }}_COMP_FF_LAG_PREDICTION_S = {{ c.comp.ff_lag_prediction_s.c }};
 {% if c.comp.has_dz %}#define {{ c.p }}_COMP_HAS_DEAD_ZONE_INVERSE 1
 {% else %}#define {{ c.p }}_COMP_HAS_DEAD_ZONE_INVERSE 0
 {% endif %}static const float {{ c.p }}_COMP_DZ_WIDTH = {{ c.comp.dz_width.c }};

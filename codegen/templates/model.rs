@@ -189,6 +189,23 @@ pub struct FrictionFeedforward {
     pub smoothing_velocity: f32,
     /// Where w comes from.
     pub velocity: VelocitySource,
+    /// The lag-aware form (prediction, stick switch, the lag's deadbeat inverse), if any.
+    pub lag_aware: Option<LagAwareFriction>,
+}
+
+/// Delivery of the friction feedforward through a first-order actuator lag.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LagAwareFriction {
+    /// Actuator lag, s.
+    pub lag_s: f32,
+    /// Prediction horizon past the sample instant, s.
+    pub horizon_s: f32,
+    /// Drive-torque band of the stuck branch, input units.
+    pub stick_band: f32,
+    /// exp(−TS_S/lag_s).
+    pub pole: f32,
+    /// horizon_s plus the velocity estimate's own delay, s (what the law multiplies a by).
+    pub prediction_s: f32,
 }
 
 /// Inverse of a dead zone of full width `width`.
@@ -254,7 +271,15 @@ pub const COMPENSATION_SOURCE: &str = {{ c.comp.source_rs }};
         viscous: {{ c.comp.ff_viscous.rs }},
         smoothing_velocity: {{ c.comp.ff_smoothing_velocity.rs }},
         velocity: {{ c.comp.ff_velocity_rs }},
-    }),
+{% if c.comp.has_ff_lag %}        lag_aware: Some(LagAwareFriction {
+            lag_s: {{ c.comp.ff_lag_s.rs }},
+            horizon_s: {{ c.comp.ff_lag_horizon_s.rs }},
+            stick_band: {{ c.comp.ff_lag_stick_band.rs }},
+            pole: {{ c.comp.ff_lag_pole.rs }},
+            prediction_s: {{ c.comp.ff_lag_prediction_s.rs }},
+        }),
+{% else %}        lag_aware: None,
+{% endif %}    }),
 {% else %}    friction_feedforward: None,
 {% endif %}{% if c.comp.has_dz %}    dead_zone_inverse: Some(DeadZoneInverse {
         width: {{ c.comp.dz_width.rs }},

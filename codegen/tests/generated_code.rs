@@ -137,6 +137,11 @@ fn full_compensation() -> Compensation {
             viscous: 1.5e-3,
             smoothing_velocity: 0.25,
             velocity: VelocitySource::OutputDifference { filter_hz: 80.0 },
+            lag_aware: Some(LagAwareFriction {
+                lag_s: 3e-3,
+                horizon_s: 1e-3,
+                stick_band: 1e-4,
+            }),
         }),
         dead_zone_inverse: Some(DeadZoneInverse {
             width: 0.12,
@@ -164,6 +169,8 @@ fn comp_numbers(c: &Compensation, ts: f64) -> Vec<f64> {
     let dz = c.dead_zone_inverse.unwrap();
     let bl = c.backlash_inverse.unwrap();
     let aw = c.anti_windup.unwrap();
+    let la = ff.lag_aware.expect("test compensation is lag-aware");
+    let alpha = 1.0 - (-2.0 * std::f64::consts::PI * filter_hz * ts).exp();
     vec![
         ff.coulomb,
         ff.viscous,
@@ -178,6 +185,12 @@ fn comp_numbers(c: &Compensation, ts: f64) -> Vec<f64> {
         aw.u_max,
         aw.tracking_time_s,
         ts / aw.tracking_time_s,
+        la.lag_s,
+        la.horizon_s,
+        la.stick_band,
+        (-ts / la.lag_s).exp(),
+        // horizon + the output difference's delay ts/2 + ts(1 − α)/α
+        la.horizon_s + ts / 2.0 + ts * (1.0 - alpha) / alpha,
     ]
 }
 
@@ -385,10 +398,11 @@ int main(void) {{
     float x[{p}_N_STATES] = {{0}}, xn[{p}_N_STATES];
     float pid[4] = {{ {p}_PID_KP, {p}_PID_KI_D, {p}_PID_A_D, {p}_PID_B_D }};
     float ts = {p}_TS_S, gate = {p}_COHERENCE_GATE;
-    float comp[13] = {{ {p}_COMP_FF_COULOMB, {p}_COMP_FF_VISCOUS, {p}_COMP_FF_SMOOTHING_VELOCITY,
+    float comp[18] = {{ {p}_COMP_FF_COULOMB, {p}_COMP_FF_VISCOUS, {p}_COMP_FF_SMOOTHING_VELOCITY,
         {p}_COMP_FF_FILTER_HZ, {p}_COMP_FF_FILTER_ALPHA, {p}_COMP_DZ_WIDTH, {p}_COMP_DZ_SMOOTHING,
         {p}_COMP_BL_GAP, {p}_COMP_BL_SMOOTHING, {p}_COMP_AW_U_MIN, {p}_COMP_AW_U_MAX,
-        {p}_COMP_AW_TRACKING_TIME_S, {p}_COMP_AW_GAIN }};
+        {p}_COMP_AW_TRACKING_TIME_S, {p}_COMP_AW_GAIN, {p}_COMP_FF_LAG_S, {p}_COMP_FF_LAG_HORIZON_S,
+        {p}_COMP_FF_LAG_STICK_BAND, {p}_COMP_FF_LAG_POLE, {p}_COMP_FF_LAG_PREDICTION_S }};
     int k, i, j;
     row("A", &{p}_A[0][0], {p}_N_STATES * {p}_N_STATES);
     row("B", &{p}_B[0][0], {p}_N_STATES * {p}_N_INPUTS);
@@ -402,12 +416,12 @@ int main(void) {{
     row("WD", {p}_WM_DEN, {p}_WM_ORDER + 1);
     row("HZ", {p}_CHECK_HZ, {p}_CHECK_COUNT);
     row("GATE", &gate, 1);
-    row("COMP", comp, 13);
+    row("COMP", comp, 18);
     printf("COMPSTR %s|%s|%s|%s\n", {p}_COMP_EFFECT, {p}_COMP_PLACE, {p}_COMP_VERDICT, {p}_COMP_SOURCE);
     if (!({p}_HAS_COMPENSATION == 1 && {p}_COMP_ENABLED == 1 && {p}_COMP_HAS_FRICTION_FF == 1
           && {p}_COMP_FF_VELOCITY == {p}_COMP_FF_VELOCITY_OUTPUT_DIFFERENCE
           && {p}_COMP_HAS_DEAD_ZONE_INVERSE == 1 && {p}_COMP_HAS_BACKLASH_INVERSE == 1
-          && {p}_COMP_HAS_ANTI_WINDUP == 1)) return 4;
+          && {p}_COMP_HAS_ANTI_WINDUP == 1 && {p}_COMP_FF_LAG_AWARE == 1)) return 4;
     printf("BIN");
     for (i = 0; i < {p}_CHECK_COUNT; i++) printf(" %u", (unsigned){p}_CHECK_BIN[i]);
     printf("\nSHA %s\nSTEP", {p}_INPUTS_SHA256);
@@ -508,8 +522,10 @@ fn main() {{
     let dz = c.dead_zone_inverse.unwrap();
     let bl = c.backlash_inverse.unwrap();
     let aw = c.anti_windup.unwrap();
+    let la = ff.lag_aware.unwrap();
     row("COMP", &[ff.coulomb, ff.viscous, ff.smoothing_velocity, filter_hz, alpha, dz.width,
-        dz.smoothing, bl.gap, bl.smoothing, aw.u_min, aw.u_max, aw.tracking_time_s, aw.gain]);
+        dz.smoothing, bl.gap, bl.smoothing, aw.u_min, aw.u_max, aw.tracking_time_s, aw.gain,
+        la.lag_s, la.horizon_s, la.stick_band, la.pole, la.prediction_s]);
     assert_eq!(COMPENSATION_VERDICT, "explained */ \"quoted\" ??/");
     assert_eq!(COMPENSATION_PLACE, "drive");
     println!("BIN {{}}", CHECK_BIN.iter().map(|b| b.to_string()).collect::<Vec<_>>().join(" "));

@@ -7,6 +7,15 @@
 //! τ T' = K u − T (K = 1 N·m per input unit). The friction enters at ω (b_f = [0, 1/J, 0]), not
 //! at the command: [`LureLoop::with_friction_input`].
 //!
+//! The cure that keeps the loop (issue 12's "none with the compensation"): the lag-aware
+//! friction feedforward (`ferrosid_codegen::LagAwareFriction`): velocity predicted one sample
+//! ahead, the lag's deadbeat inverse so the force is at the body one sample after the command,
+//! and, while the body is stuck (predicted velocity inside the band), the side of the lagged
+//! PID command instead of the velocity, so the body breaks away as soon as the controller
+//! pushes. Each of the three is needed (tests below), and it needs the friction level and the
+//! lag within a few per cent: any residual Coulomb level δM is itself a relay in this loop,
+//! whose cycle grows with δM.
+//!
 //! Why a cycle: at small amplitude the friction's describing function 4M/(πA) is a huge
 //! damper, the body moves like ω ≈ T/b and the PID sees an integrator behind the lag; a PI part
 //! on an integrator with lag τ is unstable when the integral time T_i = K_p/K_i is shorter than
@@ -25,8 +34,8 @@ use ferrosid::compensation::design::{design_from, DesignOptions};
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::gap::report::VerdictEffect;
 use ferrosid::limit_cycle::{
-    detect, predict, simulate, DescribingFunction, DetectOptions, LureLoop, Nonlinearity,
-    PredictOptions, SimSpec, Site,
+    analyse, detect, predict, simulate, AnalysisOptions, DescribingFunction, DetectOptions,
+    LureLoop, Nonlinearity, PredictOptions, SimSpec, Site,
 };
 use ferrosid::lti::StateSpace;
 use ferrosid::robust::pid::{DiscretePid, Pid};
@@ -209,4 +218,182 @@ fn bad_friction_input_is_refused() {
     }
     let out = LureLoop::new(&plant(), &dpid(), VelocitySource::Output).unwrap();
     assert!(out.with_friction_input(&[0.0, 1.0 / J, 0.0]).is_err());
+}
+
+/// The lag-aware feedforward for this loop: the true level and lag, velocity from the output
+/// difference at 200 Hz, predicted one sample ahead, stuck branch over ±1e-4 N·m.
+fn lag_aware(coulomb: f64, lag_s: f64, stick_band: f64) -> cg::Compensation {
+    let mut opts = DesignOptions::new("tests/limit_cycle_coulomb_lag.rs", 0.05, 0.02);
+    opts.velocity = cg::VelocitySource::OutputDifference { filter_hz: 200.0 };
+    opts.lag_aware = Some(cg::LagAwareFriction {
+        lag_s,
+        horizon_s: TS,
+        stick_band,
+    });
+    let effect = VerdictEffect {
+        effect: "coulomb_friction".into(),
+        place: "motor".into(),
+        params: [("level".to_string(), coulomb)].into_iter().collect(),
+        share: 1.0,
+    };
+    design_from("coulomb_friction", &[effect], f64::NAN, f64::NAN, &opts).unwrap()
+}
+
+/// Half peak-to-peak of the last `n` values.
+fn half_ptp(x: &[f64], n: usize) -> f64 {
+    let t = &x[x.len() - n..];
+    let (lo, hi) = t
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    0.5 * (hi - lo)
+}
+
+/// The lag-aware law written out independently (textbook form, from its definition in
+/// `ferrosid_codegen::compensation`), closing the same loop as [`hand_simulation`]: returns
+/// the position.
+fn hand_simulation_lag_aware(seconds: f64, coulomb: f64, lag_s: f64, stick_band: f64) -> Vec<f64> {
+    let p = pid();
+    let c = 2.0 / TS;
+    let (ki_d, tc) = (p.ki / c, p.tau_f * c);
+    let (ad, bd) = ((tc - 1.0) / (tc + 1.0), p.kd * c / (tc + 1.0));
+    let alpha = 1.0 - (-2.0 * std::f64::consts::PI * 200.0 * TS).exp();
+    let predict = TS + TS / 2.0 + TS * (1.0 - alpha) / alpha;
+    let pole = (-TS / lag_s).exp();
+    let sub = 64;
+    let h = TS / sub as f64;
+    let decay = (-h / TAU).exp();
+    let (mut th, mut w, mut t) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut i_acc, mut d, mut e_prev) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut y_prev, mut v_est, mut v_prev, mut t_pid, mut f_prev) = (None, 0.0, 0.0, 0.0, 0.0);
+    let mut out = Vec::new();
+    for k in 0..(seconds / TS).round() as usize {
+        let y = th;
+        let e = -y;
+        i_acc += ki_d * (e + e_prev);
+        d = -ad * d + bd * (e - e_prev);
+        e_prev = e;
+        let u_pid = p.kp * e + i_acc + d;
+        let first = y_prev.is_none();
+        let raw = y_prev.map_or(0.0, |yp: f64| (y - yp) / TS);
+        y_prev = Some(y);
+        v_est += alpha * (raw - v_est);
+        let accel = if first { 0.0 } else { (v_est - v_prev) / TS };
+        v_prev = v_est;
+        let v_pred = v_est + predict * accel;
+        t_pid = pole * t_pid + (1.0 - pole) * u_pid;
+        let side = if v_pred.abs() >= 0.05 {
+            v_pred.signum()
+        } else {
+            (t_pid / stick_band).clamp(-1.0, 1.0)
+        };
+        let f = coulomb * side;
+        let u_ff = f + pole / (1.0 - pole) * (f - f_prev);
+        f_prev = f;
+        let u = u_pid + u_ff + if k < 5 { 0.5 } else { 0.0 };
+        out.push(th);
+        for _ in 0..sub {
+            t = decay * t + (1.0 - decay) * u;
+            let g = h / J;
+            let trial = w + g * t;
+            let hold = trial / g;
+            let fr = if hold.abs() <= M {
+                hold
+            } else {
+                M * hold.signum()
+            };
+            w = trial - g * fr;
+            th += h * w;
+        }
+    }
+    out
+}
+
+/// Sensor floor of the target bench (`closedloop`'s `floor`), rad: smaller cycles are not
+/// observable and do not count.
+const FLOOR: f64 = 1e-3;
+
+/// The lag-aware feedforward at the true level and lag removes the cycle: the `limit_cycle`
+/// receipt (describing function on the residual + nonlinear simulation, tolerance the 1 mrad
+/// floor) passes where the plain feedforward's fails; the host simulation's output settles
+/// below 1e-3 of the uncompensated cycle, and an independent simulation of the law agrees.
+#[test]
+fn lag_aware_feedforward_removes_the_cycle() {
+    let lp = lure();
+    let opts = AnalysisOptions {
+        duration_s: Some(6.0),
+        kick: Some(0.5),
+        amplitude_tol: FLOOR,
+        ..AnalysisOptions::default()
+    };
+    let off = analyse(&lp, &relay(), None, &opts).unwrap();
+    let comp = lag_aware(M, TAU, 1e-4);
+    let on = analyse(&lp, &relay(), Some(&comp), &opts).unwrap();
+    let mut plain = comp.clone();
+    plain.friction_feedforward.as_mut().unwrap().lag_aware = None;
+    let ff = analyse(&lp, &relay(), Some(&plain), &opts).unwrap();
+    println!(
+        "output half p-p over the tail: without {:.3e} rad, plain feedforward {:.3e}, lag-aware \
+         {:.3e}; counted cycles {} / {} / {}",
+        off.output_tail_half_ptp,
+        ff.output_tail_half_ptp,
+        on.output_tail_half_ptp,
+        off.count(),
+        ff.count(),
+        on.count()
+    );
+    assert!(!off.passes() && !ff.passes());
+    assert!(
+        on.passes(),
+        "predicted {:?}, simulated {:?}",
+        on.predicted,
+        on.simulated
+    );
+    assert!(on.output_tail_half_ptp < 1e-3 * off.output_tail_half_ptp);
+
+    let sim = simulate(&lp, &relay(), Some(&comp), &spec()).unwrap();
+    let hand = hand_simulation_lag_aware(6.0, M, TAU, 1e-4);
+    let (a_host, a_hand) = (half_ptp(&sim.y, 3000), half_ptp(&hand, 3000));
+    println!("lag-aware, last 3 s: host simulation {a_host:.3e} rad, independent {a_hand:.3e} rad");
+    assert!(a_host < FLOOR / 10.0 && a_hand < FLOOR / 10.0);
+    // Without the law the independent simulation cycles (the reference can fail).
+    let hand_off = hand_simulation_lag_aware(6.0, 0.0, TAU, 1e-4);
+    assert!(half_ptp(&hand_off, 3000) > 0.1);
+}
+
+/// Each part of the lag-aware law is needed, and it needs the model: without the deadbeat
+/// inverse (lag 0.1 ms: pole e^-10, no lead), with the stuck branch made inert
+/// (stick_band 1e3 N·m: zero force while stuck), with the level 4 % low or the lag 10 % short,
+/// the cycle is back above the floor in the host simulation. The describing function on the
+/// residual sees the level error (relay of M − M_c) but not the timing errors: only the
+/// simulation catches those, which is why the receipt needs both.
+#[test]
+fn lag_aware_feedforward_needs_each_part_and_the_model() {
+    let lp = lure();
+    let opts = AnalysisOptions {
+        duration_s: Some(6.0),
+        kick: Some(0.5),
+        amplitude_tol: FLOOR,
+        ..AnalysisOptions::default()
+    };
+    for (what, comp, df_sees_it) in [
+        ("no lag inverse", lag_aware(M, 1e-4, 1e-4), false),
+        ("no stuck branch", lag_aware(M, TAU, 1e3), false),
+        ("level 4 % low", lag_aware(0.96 * M, TAU, 1e-4), true),
+        ("lag 10 % short", lag_aware(M, 0.9 * TAU, 1e-4), false),
+    ] {
+        let a = analyse(&lp, &relay(), Some(&comp), &opts).unwrap();
+        let counted: Vec<_> = a.counted_predicted().collect();
+        println!(
+            "{what}: output half p-p {:.3e} rad, simulated {:?}, describing function {:?}",
+            a.output_tail_half_ptp,
+            a.simulated.map(|c| (c.freq_hz, c.amplitude)),
+            counted
+                .iter()
+                .map(|p| (p.freq_hz, p.amplitude))
+                .collect::<Vec<_>>()
+        );
+        assert!(a.simulated_counts(), "{what}");
+        assert!(a.output_tail_half_ptp > FLOOR, "{what}");
+        assert_eq!(!counted.is_empty(), df_sees_it, "{what}: {counted:?}");
+    }
 }

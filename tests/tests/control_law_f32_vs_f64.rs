@@ -65,6 +65,20 @@ fn fw_comp(c: &cg::Compensation) -> fw::CompensationConfig {
                     }
                 }
             },
+            lag_aware: f.lag_aware.map(|l| {
+                let delay = match f.velocity {
+                    cg::VelocitySource::OutputDifference { filter_hz } => {
+                        let a = 1.0 - (-2.0 * std::f64::consts::PI * filter_hz * TS).exp();
+                        TS / 2.0 + TS * (1.0 - a) / a
+                    }
+                    _ => 0.0,
+                };
+                fw::LagAware {
+                    pole: (-TS / l.lag_s).exp() as f32,
+                    prediction_s: (l.horizon_s + delay) as f32,
+                    stick_band: l.stick_band as f32,
+                }
+            }),
         }),
         dead_zone_inverse: c.dead_zone_inverse.map(|d| fw::DeadZoneInverse {
             width: d.width as f32,
@@ -98,6 +112,7 @@ fn all_parts() -> cg::Compensation {
             viscous: 0.02,
             smoothing_velocity: 0.5,
             velocity: cg::VelocitySource::OutputDifference { filter_hz: 60.0 },
+            lag_aware: None,
         }),
         dead_zone_inverse: Some(cg::DeadZoneInverse {
             width: 0.2,
@@ -177,6 +192,23 @@ fn firmware_f32_law_follows_the_host_f64_law_step_by_step() {
             // from the difference of y: 1 + 0.2·... bounded by the coulomb ramp slope times the
             // velocity error, itself f32 rounding of y differences / ts (~1e-4 units/s).
             1.0,
+        ),
+        (
+            "lag-aware friction feedforward",
+            Some(only(|c| {
+                let mut ff = full.friction_feedforward.unwrap();
+                ff.lag_aware = Some(cg::LagAwareFriction {
+                    lag_s: 3e-3,
+                    horizon_s: 1e-3,
+                    stick_band: 0.05,
+                });
+                c.friction_feedforward = Some(ff);
+            })),
+            // The deadbeat inverse multiplies f's steps by 1 + p/(1 − p) = 3.5 (p = e^{−1/3});
+            // the stuck branch's ramp has slope coulomb/stick_band = 2 per input unit of the
+            // lagged command, the predicted velocity carries (horizon + delay)/ts ≈ 3 times the
+            // rounding of a difference of w.
+            3.5 * (1.0 + 2.0) * 3.0,
         ),
         (
             "dead-zone inverse",

@@ -1,7 +1,8 @@
 //! Limit cycles on target (issue 12): the generated controller closes the loop around a
 //! simulated axis under QEMU (`firmware/app`, image `closedloop`); the host predicts the cycle
 //! with `ferrosid::limit_cycle` (describing function and nonlinear simulation of the same loop);
-//! the compensation of the generated module removes it. Why these loops genuinely have limit
+//! the compensation of the generated module removes it (for Coulomb friction behind a torque
+//! lag: its lag-aware form). Why these loops genuinely have limit
 //! cycles is explained in `ferrosid_tests::closedloop`.
 //!
 //! References are independent of the target code: the describing-function prediction
@@ -19,8 +20,8 @@ use ferrosid::compensation::design::{design_from, DesignOptions};
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::gap::report::VerdictEffect;
 use ferrosid::limit_cycle::{
-    detect, predict, simulate, DescribingFunction, DetectOptions, LureLoop, Nonlinearity,
-    PredictOptions, SimSpec, Site,
+    analyse, detect, predict, simulate, AnalysisOptions, DescribingFunction, DetectOptions,
+    LureLoop, Nonlinearity, PredictOptions, SimSpec, Site,
 };
 use ferrosid_codegen as cg;
 use ferrosid_tests::closedloop::{
@@ -101,11 +102,20 @@ fn elf() -> &'static Path {
     }
 }
 
-/// The friction feedforward for Coulomb friction 0.1 N·m at the motor (velocity from the
-/// filtered output difference at 100 Hz, ramp over 0.05 rad/s).
+/// The friction feedforward for Coulomb friction 0.1 N·m at the motor behind the 3 ms torque
+/// lag, in its lag-aware form (`cg::LagAwareFriction`: velocity from the filtered output
+/// difference at 200 Hz predicted one sample ahead, ramp band 0.05 rad/s, stuck branch over
+/// ±1e-4 N·m of the lagged PID command, the lag's deadbeat inverse), designed by
+/// `ferrosid::compensation::design_from` at the true level and lag. The image runs it as
+/// designed (`comp=ff`) or as the plain feedforward with the same numbers (`comp=ffplain`).
 fn coulomb_feedforward() -> cg::Compensation {
     let mut opts = DesignOptions::new("tests/tests/e2e_closedloop.rs (true level)", 0.05, 0.02);
-    opts.velocity = cg::VelocitySource::OutputDifference { filter_hz: 100.0 };
+    opts.velocity = cg::VelocitySource::OutputDifference { filter_hz: 200.0 };
+    opts.lag_aware = Some(cg::LagAwareFriction {
+        lag_s: LAG,
+        horizon_s: TS,
+        stick_band: 1e-4,
+    });
     let effect = VerdictEffect {
         effect: "coulomb_friction".into(),
         place: "motor".into(),
@@ -114,6 +124,13 @@ fn coulomb_feedforward() -> cg::Compensation {
     };
     design_from("coulomb_friction", &[effect], f64::NAN, f64::NAN, &opts)
         .expect("compensation design")
+}
+
+/// [`coulomb_feedforward`] without its lag-aware form: what `comp=ffplain` runs.
+fn plain_feedforward() -> cg::Compensation {
+    let mut c = coulomb_feedforward();
+    c.friction_feedforward.as_mut().unwrap().lag_aware = None;
+    c
 }
 
 /// The image with the PID of the Coulomb-friction loop behind the torque lag.
@@ -375,9 +392,11 @@ fn stick_slip_hunting_matches_the_host_simulation() {
 /// Coulomb friction (sliding = breakaway = 0.1 N·m) on the body of a motor whose torque lags
 /// the command by 3 ms, under a PID with integral time 1.2 ms < 3 ms: the target cycles at the
 /// describing function's frequency (15 %) and first-harmonic velocity amplitude (30 %), and
-/// agrees with the host's nonlinear simulation (3 % / 10 %). The generated friction
-/// feedforward acts through the same lag and does not remove the cycle: on target as in the
-/// host simulation the velocity amplitude grows (the physics: host/tests/limit_cycle_coulomb_lag.rs).
+/// agrees with the host's nonlinear simulation (3 % / 10 %). The plain friction feedforward
+/// acts through the same lag and does not remove the cycle: on target as in the host
+/// simulation the velocity amplitude grows. The generated lag-aware feedforward removes it: the
+/// target's output stays below the 1 mrad floor (not oscillating), as in the host simulation,
+/// whose `limit_cycle` receipt passes (the physics: host/tests/limit_cycle_coulomb_lag.rs).
 #[test]
 fn coulomb_friction_behind_a_torque_lag_cycles_as_predicted() {
     let lp = LureLoop::new(
@@ -444,12 +463,15 @@ fn coulomb_friction_behind_a_torque_lag_cycles_as_predicted() {
     let linear = target_on(lag_elf(), &[&words[2], "comp=off"]);
     assert!(!linear.y.unwrap().oscillating, "{:?}", linear.y);
 
-    // The feedforward through the lag: the cycle persists and grows, as on the host.
-    let ff = target_on(lag_elf(), &[&words[0], &words[1], &words[2], "comp=ff"]);
+    // The plain feedforward through the lag: the cycle persists and grows, as on the host.
+    let ff = target_on(
+        lag_elf(),
+        &[&words[0], &words[1], &words[2], "comp=ffplain"],
+    );
     let wf = ff.omega.expect("CYCLE omega");
     let wff: Vec<f64> = ff.trace.iter().map(|t| t.2).collect();
     let a_ff = first_harmonic(&wff, TS, wf.freq_hz);
-    let sim_ff = simulate(&lp, &nl, Some(&coulomb_feedforward()), &host_spec()).unwrap();
+    let sim_ff = simulate(&lp, &nl, Some(&plain_feedforward()), &host_spec()).unwrap();
     let det_ff = detect(&sim_ff.nl_input, TS, &DetectOptions::default());
     println!(
         "with the friction feedforward: target {:.3} Hz, {a_ff:.3} rad/s; host simulation {det_ff:?}",
@@ -458,6 +480,48 @@ fn coulomb_friction_behind_a_torque_lag_cycles_as_predicted() {
     assert!(wf.oscillating && a_ff > a_w, "{wf:?}");
     let det_ff = det_ff.expect("the host simulation with the feedforward cycles");
     assert!((wf.freq_hz / det_ff.freq_hz - 1.0).abs() < 0.05);
+
+    // The lag-aware feedforward: no cycle above the 1 mrad floor on target, none in the host
+    // simulation of the same 8 s, and the host's limit-cycle receipt (describing function on
+    // the residual + simulation, tolerance the floor) passes.
+    let la = target_on(lag_elf(), &[&words[0], &words[1], &words[2], "comp=ff"]);
+    let y_la = la.y.expect("CYCLE y");
+    let sim_la = simulate(&lp, &nl, Some(&coulomb_feedforward()), &host_spec()).unwrap();
+    let tail = &sim_la.y[sim_la.y.len() - 4096..];
+    let (lo, hi) = tail
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    let receipt = analyse(
+        &lp,
+        &nl,
+        Some(&coulomb_feedforward()),
+        &AnalysisOptions {
+            duration_s: Some(SECONDS),
+            kick: Some(KICK),
+            amplitude_tol: 1e-3,
+            ..AnalysisOptions::default()
+        },
+    )
+    .expect("limit-cycle analysis");
+    let u_la: Vec<f64> = la.trace.iter().map(|t| t.1).collect();
+    let (ulo, uhi) = u_la
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    println!(
+        "lag-aware feedforward: target output half p-p {:.3e} rad ({:.2e} of the uncompensated \
+         {:.4} rad), command range [{ulo:.3}, {uhi:.3}]; host simulation {:.3e} rad; receipt \
+         passes {} (counted {})",
+        y_la.amplitude,
+        y_la.amplitude / yc.amplitude,
+        yc.amplitude,
+        0.5 * (hi - lo),
+        receipt.passes(),
+        receipt.count()
+    );
+    assert!(!y_la.oscillating, "{y_la:?}");
+    assert!(y_la.amplitude < 1e-3, "{y_la:?}");
+    assert!(0.5 * (hi - lo) < 1e-3);
+    assert!(receipt.passes(), "{receipt:?}");
 }
 
 #[test]

@@ -704,6 +704,7 @@ fn coulomb_friction_passes_with_the_compensation_active() {
             viscous: 0.0,
             smoothing_velocity: 1.0,
             velocity: cg::VelocitySource::OutputDifference { filter_hz: 400.0 },
+            lag_aware: None,
         }),
         dead_zone_inverse: None,
         backlash_inverse: None,

@@ -10,8 +10,9 @@
 //! the image analyses each with [`analyse_oscillation`] and logs the tail.
 //!
 //! Command line (`-semihosting-config ...,arg=WORD`), all optional:
-//! * `comp=on|off|ff|dz|bl|aw` — apply the flashed compensation: all of it, none (default),
-//!   or only its friction feedforward, dead-zone inverse, backlash inverse or anti-windup
+//! * `comp=on|off|ff|ffplain|dz|bl|aw` — apply the flashed compensation: all of it, none
+//!   (default), or only its friction feedforward (`ffplain`: without its lag-aware form, the
+//!   plain law with the same numbers), dead-zone inverse, backlash inverse or anti-windup
 //!   (one image serves several scenarios); asking for a block or part the module does not
 //!   have, or a disabled block, is a set-up error;
 //! * plant: `J=` kg·m², `b=` N·m·s/rad, `k=` N·m/rad, `gain=` N·m/unit, `coulomb=` N·m,
@@ -25,7 +26,7 @@
 //!   noise: a smaller cycle is not observable).
 //!
 //! Log lines (decoded defmt):
-//! * `CLOSEDLOOP sha256=<digest> comp=<on|off|ff|dz|bl|aw> samples=<n> ts=<s> J=.. b=.. k=.. gain=.. coulomb=.. breakaway=.. deadzone=.. lag=..`
+//! * `CLOSEDLOOP sha256=<digest> comp=<on|off|ff|ffplain|dz|bl|aw> samples=<n> ts=<s> J=.. b=.. k=.. gain=.. coulomb=.. breakaway=.. deadzone=.. lag=..`
 //! * `T <y> <u> <omega>` for each of the last [`TAIL`] samples, oldest first;
 //! * `CYCLE <y|u|omega> freq_hz=<f> amplitude=<a> mean=<m> crossings=<c> oscillating=<bool>`;
 //! * `END`.
@@ -39,7 +40,7 @@ use cortex_m_rt::entry;
 use defmt_semihosting as _;
 use ferrosid_firmware::control::{
     analyse_oscillation, Biquad, CompensationConfig, ControlConfig, ControlLaw, ControlState,
-    PidConfig,
+    FrictionFeedforward, PidConfig,
 };
 use ferrosid_powerup::plant::{Axis, AxisParams};
 
@@ -87,6 +88,7 @@ enum Parts {
     None,
     All,
     Friction,
+    FrictionPlain,
     DeadZone,
     Backlash,
     AntiWindup,
@@ -98,6 +100,7 @@ impl Parts {
             Parts::None => "off",
             Parts::All => "on",
             Parts::Friction => "ff",
+            Parts::FrictionPlain => "ffplain",
             Parts::DeadZone => "dz",
             Parts::Backlash => "bl",
             Parts::AntiWindup => "aw",
@@ -161,10 +164,11 @@ fn parse_args() -> Result<Settings, &'static str> {
                     "on" => Parts::All,
                     "off" => Parts::None,
                     "ff" => Parts::Friction,
+                    "ffplain" => Parts::FrictionPlain,
                     "dz" => Parts::DeadZone,
                     "bl" => Parts::Backlash,
                     "aw" => Parts::AntiWindup,
-                    _ => return Err("comp (on|off|ff|dz|bl|aw)"),
+                    _ => return Err("comp (on|off|ff|ffplain|dz|bl|aw)"),
                 }
             }
             "J" => p.inertia = parse_f32("J", v)?,
@@ -226,7 +230,14 @@ fn main() -> ! {
         (Parts::All, Some(c)) => Some(c),
         (part, Some(c)) => {
             let only = CompensationConfig {
-                friction_feedforward: c.friction_feedforward.filter(|_| part == Parts::Friction),
+                friction_feedforward: match part {
+                    Parts::Friction => c.friction_feedforward,
+                    Parts::FrictionPlain => c.friction_feedforward.map(|f| FrictionFeedforward {
+                        lag_aware: None,
+                        ..f
+                    }),
+                    _ => None,
+                },
                 dead_zone_inverse: c.dead_zone_inverse.filter(|_| part == Parts::DeadZone),
                 backlash_inverse: c.backlash_inverse.filter(|_| part == Parts::Backlash),
                 anti_windup: c.anti_windup.filter(|_| part == Parts::AntiWindup),

@@ -5,7 +5,7 @@
 use super::flashed;
 use ferrosid_firmware::control::{
     AntiWindup, BacklashInverse, CompensationConfig, DeadZoneInverse, FrictionFeedforward,
-    VelocitySource,
+    LagAware, VelocitySource,
 };
 
 /// The generated compensation in the firmware's form (`None` when absent or disabled).
@@ -23,6 +23,11 @@ pub fn compensation_config() -> Option<CompensationConfig> {
                 }
                 flashed::VelocitySource::Reference => VelocitySource::Reference,
             },
+            lag_aware: f.lag_aware.map(|l| LagAware {
+                pole: l.pole,
+                prediction_s: l.prediction_s,
+                stick_band: l.stick_band,
+            }),
         }),
         dead_zone_inverse: c.dead_zone_inverse.map(|d| DeadZoneInverse {
             width: d.width,

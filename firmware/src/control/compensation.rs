@@ -28,6 +28,20 @@ pub struct FrictionFeedforward {
     pub smoothing_velocity: f32,
     /// Where w comes from.
     pub velocity: VelocitySource,
+    /// The lag-aware form (the friction sits behind a first-order actuator lag), if any.
+    pub lag_aware: Option<LagAware>,
+}
+
+/// Lag-aware delivery of the friction feedforward (law in the module docs of [`super`];
+/// `ferrosid_codegen::LagAwareFriction` on the host).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LagAware {
+    /// exp(−ts/lag), in [0, 1): the actuator lag's pole per sample.
+    pub pole: f32,
+    /// Prediction time of the velocity, s (>= 0): the horizon plus the estimate's own delay.
+    pub prediction_s: f32,
+    /// Drive-torque band of the stuck branch, input units (> 0).
+    pub stick_band: f32,
 }
 
 /// Inverse of a dead zone of full width `width` (input units, > 0), ramped over `smoothing`.
@@ -89,6 +103,18 @@ struct PreparedFf {
     inv_smoothing: f32,
     source: VelocitySource,
     inv_ts: f32,
+    lag: Option<PreparedLag>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PreparedLag {
+    pole: f32,
+    one_minus_pole: f32,
+    /// p/(1 − p).
+    lead: f32,
+    /// prediction_s/ts.
+    pred_over_ts: f32,
+    inv_stick_band: f32,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -133,12 +159,47 @@ impl Prepared {
                         });
                     }
                 }
+                let lag = match &f.lag_aware {
+                    Some(l) => {
+                        if !(l.pole >= 0.0 && l.pole < 1.0) {
+                            return Err(Error::InvalidControlParameter {
+                                what: "friction_feedforward.lag_aware.pole",
+                            });
+                        }
+                        check(
+                            "friction_feedforward.lag_aware.prediction_s",
+                            l.prediction_s,
+                        )?;
+                        if l.prediction_s < 0.0 {
+                            return Err(Error::InvalidControlParameter {
+                                what: "friction_feedforward.lag_aware.prediction_s",
+                            });
+                        }
+                        check_positive("friction_feedforward.lag_aware.stick_band", l.stick_band)?;
+                        let lead = l.pole / (1.0 - l.pole);
+                        let inv_stick_band = 1.0 / l.stick_band;
+                        if !(lead <= 1e4 && (inv_stick_band * f.coulomb).is_finite()) {
+                            return Err(Error::InvalidControlParameter {
+                                what: "friction_feedforward.lag_aware (lead or band beyond f32)",
+                            });
+                        }
+                        Some(PreparedLag {
+                            pole: l.pole,
+                            one_minus_pole: 1.0 - l.pole,
+                            lead,
+                            pred_over_ts: l.prediction_s / ts_s,
+                            inv_stick_band,
+                        })
+                    }
+                    None => None,
+                };
                 Some(PreparedFf {
                     coulomb: f.coulomb,
                     viscous: f.viscous,
                     inv_smoothing: 1.0 / f.smoothing_velocity,
                     source: f.velocity,
                     inv_ts: 1.0 / ts_s,
+                    lag,
                 })
             }
             None => None,
@@ -225,7 +286,29 @@ impl Prepared {
                 }
                 VelocitySource::Reference => r,
             };
-            let ff = f.coulomb * clamp(w * f.inv_smoothing, -1.0, 1.0) + f.viscous * w;
+            let ff = match &f.lag {
+                None => f.coulomb * clamp(w * f.inv_smoothing, -1.0, 1.0) + f.viscous * w,
+                Some(l) => {
+                    // Velocity predicted where the feedforward reaches the body.
+                    let dw = if st.has_y1 { w - st.w_prev } else { 0.0 };
+                    st.w_prev = w;
+                    let wp = w + l.pred_over_ts * dw;
+                    // The PID's command after the actuator lag, at the next sample.
+                    st.t_lag = l.pole * st.t_lag + l.one_minus_pole * out.u_pid;
+                    let s = if wp * f.inv_smoothing >= 1.0 {
+                        1.0
+                    } else if wp * f.inv_smoothing <= -1.0 {
+                        -1.0
+                    } else {
+                        clamp(st.t_lag * l.inv_stick_band, -1.0, 1.0)
+                    };
+                    let fv = f.coulomb * s + f.viscous * wp;
+                    // Deadbeat inverse of the lag: the force is fv one sample later.
+                    let ff = fv + l.lead * (fv - st.f_prev);
+                    st.f_prev = fv;
+                    ff
+                }
+            };
             out.u_ff = ff;
             u += ff;
         }

@@ -16,6 +16,10 @@
 //! v      = kp·e + i + d;   u_pid = roll-off biquad of v (or v)
 //! w      = y | filtered (y − y_prev)/ts | r             (velocity source)
 //! u_ff   = coulomb·clamp(w/smoothing_velocity, −1, 1) + viscous·w
+//!          or, lag-aware (`FrictionFeedforward::lag_aware`, pole p = exp(−ts/lag)):
+//!          w_p = w + prediction_s·(w − w_prev)/ts;  T = p·T + (1 − p)·u_pid;
+//!          s = sign(w_p) if |w_p| >= smoothing_velocity else clamp(T/stick_band, −1, 1);
+//!          f = coulomb·s + viscous·w_p;  u_ff = f + p/(1 − p)·(f − f_prev)
 //! u_c    = u_pid + u_ff
 //! u_dz   = u_c + (width/2)·clamp(u_c/smoothing, −1, 1)
 //! o      = clamp(o + (gap/2)/smoothing·(u_dz − u_dz_prev), −gap/2, gap/2);  u_bl = u_dz + o
@@ -47,7 +51,7 @@ mod pid;
 
 pub use compensation::{
     AntiWindup, BacklashInverse, CompensationConfig, DeadZoneInverse, FrictionFeedforward,
-    VelocitySource,
+    LagAware, VelocitySource,
 };
 pub use oscillation::{analyse_oscillation, Oscillation};
 pub use pid::{Biquad, PidConfig};
@@ -121,6 +125,11 @@ pub struct ControlState {
     pub(crate) udz1: f32,
     pub(crate) o: f32,
     pub(crate) last_u: f32,
+    /// Lag-aware feedforward: the previous velocity estimate, the PID command after the
+    /// actuator lag, the previous feedforward before the lag's inverse.
+    pub(crate) w_prev: f32,
+    pub(crate) t_lag: f32,
+    pub(crate) f_prev: f32,
 }
 
 impl ControlState {
@@ -140,6 +149,9 @@ impl ControlState {
             udz1: 0.0,
             o: 0.0,
             last_u: 0.0,
+            w_prev: 0.0,
+            t_lag: 0.0,
+            f_prev: 0.0,
         }
     }
     /// The integrator state i, input units.

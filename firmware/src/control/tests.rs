@@ -68,6 +68,90 @@ fn rolloff_matches_an_f64_biquad() {
     assert!((f64::from(l.step(&mut st, 1.0, 0.0).u) - 2.0).abs() < 1e-4);
 }
 
+/// The lag-aware feedforward by hand (velocity output w = y, pole p = 0.5 so the deadbeat
+/// lead is p/(1 − p) = 1, prediction 2 ms = 2 samples, band 1, stuck band 0.1, coulomb 0.2,
+/// no viscous term): the command equals f + (f − f_prev), f = 0.2·s.
+#[test]
+fn lag_aware_feedforward_by_hand() {
+    let ff = FrictionFeedforward {
+        coulomb: 0.2,
+        viscous: 0.0,
+        smoothing_velocity: 1.0,
+        velocity: VelocitySource::Output,
+        lag_aware: Some(LagAware {
+            pole: 0.5,
+            prediction_s: 2e-3,
+            stick_band: 0.1,
+        }),
+    };
+    let comp = Some(CompensationConfig {
+        friction_feedforward: Some(ff),
+        ..CompensationConfig::NONE
+    });
+    // PID zero: the feedforward alone; T stays 0, so a stuck body gets s = 0.
+    let l = law(pid(0.0, 0.0, 0.0, 0.0), comp);
+    let mut st = ControlState::new();
+    // k0: y = 0.5, first step: no acceleration, w_p = 0.5 (stuck), s = T/0.1 = 0: u = 0.
+    assert!(l.step(&mut st, 0.0, 0.5).u.abs() < 1e-7);
+    // k1: y = 0.9, dw = 0.4, w_p = 0.9 + 2·0.4 = 1.7 >= 1: s = 1, f = 0.2, u = 0.2 + 0.2 = 0.4.
+    assert!((l.step(&mut st, 0.0, 0.9).u - 0.4).abs() < 1e-6);
+    // k2: y = 0.3, dw = −0.6, w_p = 0.3 − 1.2 = −0.9: stuck, s = 0: f = 0, u = 0 − 0.2.
+    assert!((l.step(&mut st, 0.0, 0.3).u + 0.2).abs() < 1e-6);
+    // k3: y = −2: w_p = −2 − 4.6 < −1: f = −0.2, u = −0.2 − 0.2.
+    assert!((l.step(&mut st, 0.0, -2.0).u + 0.4).abs() < 1e-6);
+    // A proportional PID (kp = 1, e = −y): stuck body, the lagged command picks the side.
+    let l = law(pid(1.0, 0.0, 0.0, 0.0), comp);
+    let mut st = ControlState::new();
+    // y = −0.08: u_pid = 0.08, T = 0.5·0 + 0.5·0.08 = 0.04, s = 0.4, f = 0.08,
+    // u = 0.08 + 0.08 + 1·0.08 = 0.24.
+    let out = l.step(&mut st, 0.0, -0.08);
+    assert!((out.u - 0.24).abs() < 1e-6, "{}", out.u);
+    // Same y: T = 0.5·0.04 + 0.04 = 0.06, s = 0.6, f = 0.12, u_ff = 0.12 + 0.04 = 0.16.
+    let out = l.step(&mut st, 0.0, -0.08);
+    assert!((out.u_ff - 0.16).abs() < 1e-6, "{}", out.u_ff);
+    // Out-of-range settings are refused naming the field.
+    for (bad, what) in [
+        (
+            LagAware {
+                pole: 1.0,
+                prediction_s: 1e-3,
+                stick_band: 0.1,
+            },
+            "friction_feedforward.lag_aware.pole",
+        ),
+        (
+            LagAware {
+                pole: 0.5,
+                prediction_s: -1e-3,
+                stick_band: 0.1,
+            },
+            "friction_feedforward.lag_aware.prediction_s",
+        ),
+        (
+            LagAware {
+                pole: 0.5,
+                prediction_s: 1e-3,
+                stick_band: 0.0,
+            },
+            "friction_feedforward.lag_aware.stick_band",
+        ),
+    ] {
+        let e = ControlLaw::new(&ControlConfig {
+            ts_s: 1e-3,
+            pid: pid(0.0, 0.0, 0.0, 0.0),
+            compensation: Some(CompensationConfig {
+                friction_feedforward: Some(FrictionFeedforward {
+                    lag_aware: Some(bad),
+                    ..ff
+                }),
+                ..CompensationConfig::NONE
+            }),
+        })
+        .unwrap_err();
+        assert_eq!(e, crate::Error::InvalidControlParameter { what }, "{what}");
+    }
+}
+
 #[test]
 fn friction_feedforward_ramps_through_zero_velocity() {
     let ff = FrictionFeedforward {
@@ -75,6 +159,7 @@ fn friction_feedforward_ramps_through_zero_velocity() {
         viscous: 0.01,
         smoothing_velocity: 2.0,
         velocity: VelocitySource::Output,
+        lag_aware: None,
     };
     let l = law(
         pid(0.0, 0.0, 0.0, 0.0),
@@ -126,6 +211,7 @@ fn output_difference_estimates_the_velocity_of_a_ramp() {
                 velocity: VelocitySource::OutputDifference {
                     alpha: alpha as f32,
                 },
+                lag_aware: None,
             }),
             ..CompensationConfig::NONE
         }),
@@ -298,6 +384,7 @@ fn bad_parameters_are_refused_naming_the_field() {
                 viscous: 0.0,
                 smoothing_velocity: 0.1,
                 velocity: VelocitySource::OutputDifference { alpha: 0.3 },
+                lag_aware: None,
             }),
             dead_zone_inverse: Some(DeadZoneInverse {
                 width: 0.1,
@@ -472,6 +559,7 @@ fn compensate_applies_the_parts_to_an_external_command() {
             viscous: 0.0,
             smoothing_velocity: 1.0,
             velocity: VelocitySource::Output,
+            lag_aware: None,
         }),
         dead_zone_inverse: Some(DeadZoneInverse {
             width: 0.4,

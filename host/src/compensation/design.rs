@@ -2,7 +2,7 @@
 //!
 //! | diagnosed effect @ place | compensation part | parameters |
 //! |---|---|---|
-//! | `coulomb_friction` / `stiction` @ `motor` | friction feedforward | coulomb = fitted (sliding) `level`; viscous = 0 (viscous friction is in the linear model); smoothing_velocity = [`DesignOptions::velocity_resolution`]; velocity = [`DesignOptions::velocity`] |
+//! | `coulomb_friction` / `stiction` @ `motor` | friction feedforward | coulomb = fitted (sliding) `level`; viscous = 0 (viscous friction is in the linear model); smoothing_velocity = [`DesignOptions::velocity_resolution`]; velocity = [`DesignOptions::velocity`]; lag-aware form = [`DesignOptions::lag_aware`] |
 //! | `deadzone` @ `drive` | dead-zone inverse | width = fitted `width`; smoothing = [`DesignOptions::inverse_smoothing_rel`] × width |
 //! | `backlash` @ `drive` | backlash inverse | gap = fitted `gap`; smoothing = `inverse_smoothing_rel` × gap |
 //! | `saturation` @ `drive` | anti-windup | u_min, u_max = ∓ fitted `limit`; tracking time = [`DesignOptions::tracking_time_s`] |
@@ -25,7 +25,7 @@ use crate::gap::report::VerdictEffect;
 use crate::gap::GapReport;
 use ferrosid_codegen::{
     AntiWindup, BacklashInverse, Compensation, CompensationProvenance, DeadZoneInverse,
-    FrictionFeedforward, VelocitySource,
+    FrictionFeedforward, LagAwareFriction, VelocitySource,
 };
 use std::collections::BTreeMap;
 
@@ -44,6 +44,10 @@ pub struct DesignOptions {
     pub inverse_smoothing_rel: f64,
     /// Back-calculation tracking time for saturation, s (> 0).
     pub tracking_time_s: f64,
+    /// The friction feedforward's lag-aware form, when the friction sits on a body that the
+    /// command reaches through a first-order actuator lag (the lag from the model; see
+    /// `ferrosid_codegen::LagAwareFriction`); `None` (default): the plain feedforward.
+    pub lag_aware: Option<LagAwareFriction>,
 }
 
 impl DesignOptions {
@@ -56,6 +60,7 @@ impl DesignOptions {
             velocity_resolution,
             inverse_smoothing_rel: 0.01,
             tracking_time_s,
+            lag_aware: None,
         }
     }
 
@@ -224,6 +229,7 @@ pub fn design_from(
                     viscous: 0.0,
                     smoothing_velocity: opts.velocity_resolution,
                     velocity: opts.velocity,
+                    lag_aware: opts.lag_aware,
                 });
             }
             (Effect::Deadzone { width }, Place::Drive) => {

@@ -8,6 +8,9 @@
 //!                            u_pid = roll-off(v) (identity when absent)
 //! w      = velocity estimate (output y | filtered backward difference of y | reference r)
 //! u_ff   = coulomb·clamp(w/smoothing_velocity, −1, 1) + viscous·w
+//!          or the lag-aware form (`FrictionFeedforward::lag_aware`, the law in
+//!          `ferrosid_codegen::compensation`): velocity predicted `horizon_s` past the sample,
+//!          sign of the lagged PID command while stuck, the lag's deadbeat inverse
 //! u_c    = u_pid + u_ff
 //! u_dz   = u_c + (width/2)·clamp(u_c/smoothing, −1, 1)
 //! o      = clamp(o + (gap/2)/smoothing·(u_dz − u_dz₁), −gap/2, gap/2);  u_bl = u_dz + o
@@ -37,6 +40,9 @@ struct StepState {
     u_c: f64,
     u_dz1: f64,
     o: f64,
+    w_prev: f64,
+    t_lag: f64,
+    f_prev: f64,
 }
 
 /// One controller with its (optional) compensation, stepped once per sample.
@@ -111,7 +117,39 @@ impl ControlStep {
                     s.w_filt
                 }
             };
-            u_c += ff.coulomb * (w / ff.smoothing_velocity).clamp(-1.0, 1.0) + ff.viscous * w;
+            match &ff.lag_aware {
+                None => {
+                    u_c +=
+                        ff.coulomb * (w / ff.smoothing_velocity).clamp(-1.0, 1.0) + ff.viscous * w;
+                }
+                Some(la) => {
+                    let pole = (-p.ts / la.lag_s).exp();
+                    let estimate_delay = match ff.velocity {
+                        CompVelocity::OutputDifference { filter_hz } => {
+                            let alpha =
+                                1.0 - (-2.0 * std::f64::consts::PI * filter_hz * p.ts).exp();
+                            0.5 * p.ts + p.ts * (1.0 - alpha) / alpha
+                        }
+                        CompVelocity::Output | CompVelocity::Reference => 0.0,
+                    };
+                    let dw = if s.y_prev.is_some() {
+                        w - s.w_prev
+                    } else {
+                        0.0
+                    };
+                    s.w_prev = w;
+                    let wp = w + (la.horizon_s + estimate_delay) / p.ts * dw;
+                    s.t_lag = pole * s.t_lag + (1.0 - pole) * u_pid;
+                    let sw = if wp.abs() >= ff.smoothing_velocity {
+                        wp.signum()
+                    } else {
+                        (s.t_lag / la.stick_band).clamp(-1.0, 1.0)
+                    };
+                    let f = ff.coulomb * sw + ff.viscous * wp;
+                    u_c += f + pole / (1.0 - pole) * (f - s.f_prev);
+                    s.f_prev = f;
+                }
+            }
         }
         s.y_prev = Some(y);
         s.u_c = u_c;
@@ -252,6 +290,7 @@ mod tests {
                 viscous: 0.01,
                 smoothing_velocity: 0.5,
                 velocity: CompVelocity::Output,
+                lag_aware: None,
             }),
             dead_zone_inverse: None,
             backlash_inverse: None,

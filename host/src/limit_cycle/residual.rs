@@ -7,7 +7,15 @@
 //!   friction, so the residual's describing function is, by linearity of the first harmonic,
 //!   N_friction(A) − (coulomb/smoothing_velocity)·N_sat(A; smoothing_velocity) − viscous
 //!   (closed form; the velocity estimate is taken as the velocity itself — for a position
-//!   output the filtered difference adds a lag this ignores).
+//!   output the filtered difference adds a lag this ignores). The lag-aware form's stuck
+//!   branch takes, inside the band, the side of the drive torque, i.e. the side the body moves
+//!   to next: its first harmonic is the relay coulomb·sign(v), and its residual
+//!   N_friction(A) − 4·coulomb/(πA) − viscous (the relay of M − coulomb). This assumes the feedforward
+//!   reaches the friction on time. The lag-aware form (`LagAwareFriction`) is built to do
+//!   that behind an actuator lag, and the same expression is used for it; the plain
+//!   feedforward behind a lag arrives late, which this residual does not see, and neither
+//!   does it see the lag-aware form's stuck branch or a wrong lag: only the simulation shows
+//!   those (host/tests/limit_cycle_coulomb_lag.rs), which is why the receipt counts both.
 //! * **Dead zone / backlash + inverse** (drive site): the command passes the inverse of the
 //!   law (dead-zone ramp, play offset) and then the effect; N is the first harmonic of that
 //!   composite, by quadrature over two periods of 2048 points (the map is continuous, so the
@@ -56,6 +64,13 @@ impl Residual {
         };
         match self.nl.site {
             Site::Velocity => match &c.friction_feedforward {
+                // Lag-aware: outside the band the force is coulomb·sign(v) on time; inside it
+                // the stuck branch takes the side of the drive torque, which at a reversal is
+                // the side the body moves to next, so to first harmonic the feedforward is the
+                // relay coulomb·sign(v) and the residual the relay of M − coulomb.
+                Some(ff) if ff.lag_aware.is_some() => {
+                    base - DescribingFunction::Relay { level: ff.coulomb }.eval(a) - ff.viscous
+                }
                 Some(ff) => {
                     let vs = ff.smoothing_velocity;
                     let r = vs / a;

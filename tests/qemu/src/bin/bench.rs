@@ -349,6 +349,7 @@ fn main() -> ! {
         viscous: 0.01,
         smoothing_velocity: 0.05,
         velocity: VelocitySource::OutputDifference { alpha: 0.47 },
+        lag_aware: None,
     };
     let dz = DeadZoneInverse {
         width: 0.2,
