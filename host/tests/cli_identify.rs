@@ -403,7 +403,10 @@ fn structure_prints_and_writes_physical_parameters() {
             let lo = p["interval"][0].as_f64().unwrap();
             let hi = p["interval"][1].as_f64().unwrap();
             let sd = p["std_dev"].as_f64().unwrap();
-            assert!(lo < val && val < hi && sd > 0.0, "{name}: [{lo}, {hi}], {val}");
+            assert!(
+                lo < val && val < hi && sd > 0.0,
+                "{name}: [{lo}, {hi}], {val}"
+            );
             assert!(
                 (val - truth).abs() < 4.0 * sd,
                 "{name} = {val} ± {sd}, truth {truth}"

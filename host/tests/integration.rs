@@ -137,3 +137,28 @@ mod synth_sim;
 mod target_frame;
 #[path = "validate_model.rs"]
 mod validate_model;
+
+/// Every `tests/*.rs` file must be a module above: with `autotests = false` a file left out
+/// would silently never run.
+#[test]
+fn every_test_file_is_a_module_of_this_binary() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
+    let this = include_str!("integration.rs");
+    let mut missing = Vec::new();
+    for entry in std::fs::read_dir(&dir).expect("read host/tests") {
+        let path = entry.expect("dir entry").path();
+        let Some(stem) = path.file_stem().and_then(|s| s.to_str()) else {
+            continue;
+        };
+        if path.extension().and_then(|e| e.to_str()) != Some("rs") || stem == "integration" {
+            continue;
+        }
+        if !this.contains(&format!("#[path = \"{stem}.rs\"]\nmod {stem};")) {
+            missing.push(stem.to_string());
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "host/tests files not in tests/integration.rs: {missing:?}"
+    );
+}

@@ -39,7 +39,10 @@ fn same<T: serde::Serialize>(a: &T, b: &T, tol: f64) {
             _ => assert_eq!(a, b, "{at}"),
         }
     }
-    let (a, b) = (serde_json::to_value(a).unwrap(), serde_json::to_value(b).unwrap());
+    let (a, b) = (
+        serde_json::to_value(a).unwrap(),
+        serde_json::to_value(b).unwrap(),
+    );
     assert!(!a.is_null(), "nothing compared");
     walk(&a, &b, "", tol);
 }
@@ -50,7 +53,10 @@ fn a_run_gives_the_same_codegen_input_as_its_written_files() {
     let dir = toml.parent().expect("dir").to_path_buf();
     let cfg = LoadedConfig::load(&toml).expect("load");
     let run = run_pipeline(&cfg, &|_| {}).expect("run");
-    assert!(run.tuned.is_some() && run.weight.is_some(), "fixture has a PID and a W_m");
+    assert!(
+        run.tuned.is_some() && run.weight.is_some(),
+        "fixture has a PID and a W_m"
+    );
     let out = dir.join("out");
     write_outputs(&run, &out).expect("write");
 
@@ -93,7 +99,11 @@ fn a_run_gives_the_same_codegen_input_as_its_written_files() {
     same(&from_run.continuous, &from_files.continuous, 1e-9);
     same(&from_run.pid, &from_files.pid, 1e-14);
     same(&from_run.weight, &from_files.weight, 1e-14);
-    same(&from_run.operating_point, &from_files.operating_point, 1e-14);
+    same(
+        &from_run.operating_point,
+        &from_files.operating_point,
+        1e-14,
+    );
     assert_eq!(from_run.self_id, from_files.self_id);
     assert!(from_run.operating_point.is_some(), "means were removed");
     assert_eq!(from_run.provenance.receipts, from_files.provenance.receipts);

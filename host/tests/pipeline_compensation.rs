@@ -37,7 +37,10 @@ fn the_bundled_example_runs_the_whole_chain() {
     // 5 %, and the chain must compensate it.
     assert_eq!(report.verdict, "coulomb_friction", "{:?}", report.notes);
     let level = report.verdict_effects[0].params["level"];
-    assert!((level - 0.008).abs() <= 0.05 * 0.008, "Coulomb level {level} N·m, truth 0.008");
+    assert!(
+        (level - 0.008).abs() <= 0.05 * 0.008,
+        "Coulomb level {level} N·m, truth 0.008"
+    );
     assert_eq!(d.choice, Choice::Compensate, "{}", d.reason);
     // The choice follows the verdict (compensation_stage's table).
     match report.verdict.as_str() {
