@@ -150,6 +150,14 @@ def main():
                 "- Whole `ferrosid identify` process / SLICOT n4sid core time = %.2f (target <= 0.5: "
                 "%s)." % (r, "met" if r <= 0.5 else "MISSED")
             )
+            if "identify_process_cpu_best_seconds" in proc:
+                verdicts.append(
+                    "- `ferrosid identify` process CPU time (user + system) best / median %s / %s; "
+                    "1-minute load average %.2f when it was timed (2 cores)."
+                    % (fmt_t(proc["identify_process_cpu_best_seconds"]),
+                       fmt_t(proc["identify_process_cpu_median_seconds"]),
+                       proc["load_average_1min"])
+                )
         names = ["rel. err RMS", "rel. err max", "rel. err RMS <= 100 Hz", "peak err / peak gain"]
         parts = []
         for k, name in enumerate(names):

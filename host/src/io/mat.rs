@@ -746,7 +746,7 @@ pub fn read_mat(path: &Path, opts: &MatOptions) -> Result<Log> {
         sample_time(
             TimeSource::Stamps {
                 t: &t,
-                rounding: &[],
+                rounding: &Vec::new,
                 fs: opts.fs,
                 what: &what,
             },

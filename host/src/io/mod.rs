@@ -240,8 +240,9 @@ pub(crate) enum TimeSource<'a> {
     Stamps {
         t: &'a [f64],
         /// Rounding of each stamp as printed, s (half a unit in its last printed digit);
-        /// empty when the stamps are exact binary numbers.
-        rounding: &'a [f64],
+        /// empty when the stamps are exact binary numbers. Called only when the stamps fail
+        /// the interval rule.
+        rounding: &'a dyn Fn() -> Vec<f64>,
         fs: Option<f64>,
         what: &'a str,
     },
@@ -325,7 +326,7 @@ pub(crate) fn sample_time(
                 .max_by(|a, b| a.2.total_cmp(&b.2));
             let irregular = worst
                 .filter(|w| w.2 > 1.0)
-                .filter(|_| !printed::on_uniform_grid(t, rounding, mean, tol_rel));
+                .filter(|_| !printed::on_uniform_grid(t, &rounding(), mean, tol_rel));
             if let Some(fs) = fs {
                 check_fs(fs)?;
                 // An explicit rate takes precedence over the time column; the column must

@@ -131,11 +131,14 @@ fn kalman_gain(
             *v = w[j][t];
         }
         for i in 0..p {
-            e[i] =
-                w[m + i][t] - dot(&cr[i * n..(i + 1) * n], xs) - dot(&dr[i * m..(i + 1) * m], &ut);
+            e[i] = w[m + i][t]
+                - small_dot(&cr[i * n..(i + 1) * n], xs)
+                - small_dot(&dr[i * m..(i + 1) * m], &ut);
         }
         for i in 0..n {
-            wv[i] = xs1[i] - dot(&ar[i * n..(i + 1) * n], xs) - dot(&br[i * m..(i + 1) * m], &ut);
+            wv[i] = xs1[i]
+                - small_dot(&ar[i * n..(i + 1) * n], xs)
+                - small_dot(&br[i * m..(i + 1) * m], &ut);
         }
         for i in 0..n {
             for j in 0..n {
@@ -170,6 +173,21 @@ fn kalman_gain(
     let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
     let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
     Ok((kf.gain, kf.innovation_cov))
+}
+
+/// [`dot`] for the short vectors of the residual loop, inlined: [`dot`] sums vectors shorter
+/// than its 8 lanes in order from 0.0, and so does this, so the result is the same to the bit;
+/// longer vectors go to [`dot`].
+#[inline(always)]
+fn small_dot(a: &[f64], b: &[f64]) -> f64 {
+    if a.len() >= 8 {
+        return dot(a, b);
+    }
+    let mut s = 0.0;
+    for (x, y) in a.iter().zip(b) {
+        s += x * y;
+    }
+    s
 }
 
 /// Steady-state Kalman filter (innovation form) of x⁺ = Ax + w, y = Cx + v with

@@ -72,3 +72,157 @@ pub(super) fn lstsq(a: MatRef<'_, f64>, b: MatRef<'_, f64>, what: &str) -> Resul
     }
     Ok(x)
 }
+
+/// Upper-triangular factor R (c × c, c = `cols.len()`) of the Householder QR of the tall
+/// matrix whose columns are `cols` (all of one length), so that AᵀA = RᵀR, computed one block
+/// of rows at a time: each block is folded into the running R by the Householder reflections
+/// of the stacked matrix [R; block] (LAPACK's triangular-pentagonal QR, `tpqrt`), which keeps a
+/// block in cache and never stores Q. Backward stable like any Householder QR; the signs of
+/// R's rows may differ from another QR of the same matrix.
+pub(super) fn tall_qr_r(cols: &[&[f64]]) -> Mat<f64> {
+    const BLOCK: usize = 256;
+    let c = cols.len();
+    let rows = cols.first().map_or(0, |x| x.len());
+    let mut r = Mat::<f64>::zeros(c, c);
+    // The block, column-major, and its Householder vectors' tails (in place).
+    let mut blk = vec![0.0f64; BLOCK * c];
+    let mut start = 0;
+    while start < rows {
+        let b = BLOCK.min(rows - start);
+        for (j, col) in cols.iter().enumerate() {
+            blk[j * BLOCK..j * BLOCK + b].copy_from_slice(&col[start..start + b]);
+        }
+        for j in 0..c {
+            let (head, tail) = blk.split_at_mut((j + 1) * BLOCK);
+            let x = &mut head[j * BLOCK..j * BLOCK + b];
+            let alpha = r[(j, j)];
+            let xx = dot(x, x);
+            if xx == 0.0 {
+                continue; // H = I: nothing below the diagonal to annihilate
+            }
+            let norm = alpha.hypot(xx.sqrt());
+            let beta = if alpha >= 0.0 { -norm } else { norm };
+            // v = [1; x/(α − β)], τ = (β − α)/β; H = I − τ v vᵀ maps [α; x] to [β; 0].
+            let scale = 1.0 / (alpha - beta);
+            x.iter_mut().for_each(|v| *v *= scale);
+            let tau = (beta - alpha) / beta;
+            r[(j, j)] = beta;
+            for k in j + 1..c {
+                let y = &mut tail[(k - j - 1) * BLOCK..(k - j - 1) * BLOCK + b];
+                let w = tau * (r[(j, k)] + dot(x, y));
+                r[(j, k)] -= w;
+                y.iter_mut()
+                    .zip(x.iter())
+                    .for_each(|(yv, xv)| *yv -= w * xv);
+            }
+        }
+        start += b;
+    }
+    r
+}
+
+/// Least squares min ‖A θ − y‖ for a tall A given by its columns, through the R factor of
+/// [A y] ([`tall_qr_r`]): R₁₁θ = r₁₂ solved by [`lstsq`] on the small triangle, whose
+/// column-pivoted QR has the same diagonal (rank test) as that of A. Returns θ and R₁₁
+/// (AᵀA = R₁₁ᵀR₁₁).
+pub(super) fn tall_lstsq(a: &[&[f64]], y: &[f64], what: &str) -> Result<(Mat<f64>, Mat<f64>)> {
+    let c = a.len();
+    if y.len() < c || a.iter().any(|col| col.len() != y.len()) {
+        return Err(Error::Numerical(format!(
+            "{what}: regressors are rank deficient ({} rows for {c} unknowns)",
+            y.len()
+        )));
+    }
+    let mut cols: Vec<&[f64]> = a.to_vec();
+    cols.push(y);
+    let r = tall_qr_r(&cols);
+    let r11 = r.as_ref().submatrix(0, 0, c, c).to_owned();
+    let r12 = r.as_ref().submatrix(0, c, c, 1);
+    let theta = lstsq(r11.as_ref(), r12, what)?;
+    Ok((theta, r11))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Columns of a badly scaled, nearly collinear tall matrix and a noisy right-hand side.
+    fn problem(rows: usize) -> (Vec<Vec<f64>>, Vec<f64>) {
+        let mut s = 99u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let base: Vec<f64> = (0..rows).map(|_| next()).collect();
+        let cols: Vec<Vec<f64>> = (0..6)
+            .map(|j| {
+                let g = 10f64.powi(j as i32 - 3);
+                base.iter()
+                    .enumerate()
+                    .map(|(t, v)| g * (v + 1e-3 * ((t * (j + 1)) as f64).sin() + 0.3 * next()))
+                    .collect()
+            })
+            .collect();
+        let y = (0..rows)
+            .map(|t| cols.iter().map(|c| c[t]).sum::<f64>() + 0.01 * next())
+            .collect();
+        (cols, y)
+    }
+
+    /// RᵀR equals AᵀA (to 1e-12 of the diagonal scale) and the solution agrees with faer's
+    /// column-pivoted QR least squares ([`lstsq`] on the full matrix, the former path), for
+    /// row counts that are and are not multiples of the block.
+    #[test]
+    fn tall_least_squares_equals_the_pivoted_qr_solution() {
+        for rows in [7, 256, 1000, 20_001] {
+            let (cols, y) = problem(rows);
+            let views: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+            let (theta, r11) = tall_lstsq(&views, &y, "test").expect("tall");
+            let c = views.len();
+            let gram = r11.transpose() * &r11;
+            for i in 0..c {
+                for j in 0..c {
+                    let direct = dot(views[i], views[j]);
+                    let scale = (dot(views[i], views[i]) * dot(views[j], views[j])).sqrt();
+                    assert!(
+                        (gram[(i, j)] - direct).abs() <= 1e-12 * scale,
+                        "rows {rows}: G[{i}][{j}] {} vs {direct}",
+                        gram[(i, j)]
+                    );
+                }
+            }
+            let a = Mat::from_fn(rows, c, |t, j| cols[j][t]);
+            let b = Mat::from_fn(rows, 1, |t, _| y[t]);
+            let old = lstsq(a.as_ref(), b.as_ref(), "test").expect("pivoted");
+            // Same fitted values (A·θ) to 1e-12 of ‖y‖, hence the same residual; the
+            // coefficients of this deliberately ill-conditioned matrix agree to 1e-6.
+            let diff = &a * (&theta - &old);
+            let dn = diff.col(0).iter().map(|v| v * v).sum::<f64>().sqrt();
+            let yn = dot(&y, &y).sqrt();
+            assert!(
+                dn <= 1e-12 * yn,
+                "rows {rows}: ‖A(θ − θ_old)‖ = {dn:e}, ‖y‖ = {yn:e}"
+            );
+            for k in 0..c {
+                assert!(
+                    (theta[(k, 0)] - old[(k, 0)]).abs() <= 1e-6 * old[(k, 0)].abs(),
+                    "rows {rows}: θ[{k}] {} vs {}",
+                    theta[(k, 0)],
+                    old[(k, 0)]
+                );
+            }
+        }
+    }
+
+    /// A rank-deficient matrix is refused as by the pivoted QR.
+    #[test]
+    fn tall_least_squares_refuses_collinear_columns() {
+        let a: Vec<f64> = (0..500).map(|t| (t as f64 * 0.1).sin()).collect();
+        let b: Vec<f64> = a.iter().map(|v| 2.0 * v).collect();
+        let y: Vec<f64> = (0..500).map(|t| t as f64).collect();
+        let err = tall_lstsq(&[&a, &b], &y, "collinear").expect_err("rank deficient");
+        assert!(err.to_string().contains("rank deficient"), "{err}");
+    }
+}

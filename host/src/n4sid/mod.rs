@@ -69,9 +69,9 @@ pub mod stability;
 
 pub use channels::ChannelSet;
 pub use kalman::{kalman_filter_gain, KalmanFilter};
+pub(crate) use linalg::dot;
 pub use options::{Factorization, N4sidOptions, OrderSelection, Weighting, MAX_BLOCK_ROWS};
 pub use output_error::estimate_x0;
-pub(crate) use linalg::dot;
 pub use result::{one_step_predictor, N4sidResult, N4sidSummary};
 
 use crate::data::Log;

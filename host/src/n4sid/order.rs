@@ -2,13 +2,13 @@
 //! (Bauer's SVC and the largest gap) and the fit of one order.
 // `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
-use super::linalg::{dot, lstsq, thin_svd, Svd};
+use super::linalg::{dot, lstsq, tall_lstsq, thin_svd, Svd};
 use super::options::{N4sidOptions, Weighting};
 use super::output_error::{d_t_ratio, oe_regressors};
 use super::stability::{enforce_stability, fmt_pole};
 use crate::error::{Error, Result};
 use crate::lti::eigenvalues;
-use faer::{Mat, MatRef};
+use faer::Mat;
 
 /// A largest singular-value gap below this ratio is not "clear": the order is then chosen by
 /// BIC on the output-error fits of the candidate orders.
@@ -132,13 +132,18 @@ pub(super) fn fit_order(
     }
 
     // 7. B, D, x0 by output-error least squares.
-    let ybig = Mat::from_fn(len * p, 1, |r, _| ys[r / len][r % len]);
+    let ybig: Vec<f64> = ys.iter().flat_map(|y| y.iter().copied()).collect();
     // θ, the output-error residual y − Φθ and, when D is estimated and tested, its largest
-    // |D|/SE; for D estimated or fixed to zero.
-    let solve = |with_d: bool| -> Result<(Mat<f64>, Mat<f64>, Option<f64>)> {
+    // |D|/SE; for D estimated or fixed to zero. The least squares runs on the R factor of
+    // [Φ y], folded in row blocks (the regressors are tall: len·p rows, a few columns).
+    let solve = |with_d: bool| -> Result<(Mat<f64>, Vec<f64>, Option<f64>)> {
         let (buf, rows, cols) = oe_regressors(&a_s, &c_s, us, len, opts.estimate_x0, with_d);
-        let phi = MatRef::from_column_major_slice(&buf, rows, cols);
-        let theta = lstsq(phi, ybig.as_ref(), "B/D least squares").map_err(|e| {
+        let columns: Vec<&[f64]> = if rows == 0 {
+            Vec::new()
+        } else {
+            buf.chunks_exact(rows).take(cols).collect()
+        };
+        let (theta, r11) = tall_lstsq(&columns, &ybig, "B/D least squares").map_err(|e| {
             if rho >= 1.0 && opts.stability_margin.is_none() {
                 Error::Numerical(format!(
                     "unstable fit (spectral radius {rho:.6}): {e}; set a stability margin"
@@ -148,16 +153,15 @@ pub(super) fn fit_order(
             }
         })?;
         let mut resid = ybig.clone();
-        faer::linalg::matmul::matmul(
-            resid.as_mut(),
-            faer::Accum::Add,
-            phi,
-            theta.as_ref(),
-            -1.0,
-            faer::Par::Seq,
-        );
+        for (k, col) in columns.iter().enumerate() {
+            let th = theta[(k, 0)];
+            resid
+                .iter_mut()
+                .zip(col.iter())
+                .for_each(|(r, v)| *r -= th * v);
+        }
         let t_ratio = match opts.d_significance {
-            Some(_) if with_d => d_t_ratio(phi, resid.as_ref(), theta.as_ref(), p * m)?,
+            Some(_) if with_d => d_t_ratio(rows, r11.as_ref(), &resid, theta.as_ref(), p * m)?,
             _ => None,
         };
         Ok((theta, resid, t_ratio))
@@ -197,7 +201,7 @@ pub(super) fn fit_order(
         }
     }
     // Residual covariance of the output error.
-    let rv = resid.col_as_slice(0);
+    let rv = resid.as_slice();
     let sigma = Mat::from_fn(p, p, |i, j| {
         dot(&rv[i * len..(i + 1) * len], &rv[j * len..(j + 1) * len]) / len as f64
     });

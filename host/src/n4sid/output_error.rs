@@ -68,6 +68,17 @@ pub(super) fn unit_direction_responses(
     len: usize,
     cols: &mut [&mut [f64]],
 ) {
+    // Small orders with the state dimension known at compile time (the recursion's rows stay
+    // in registers); the same operations in the same order as the general loop.
+    macro_rules! fixed {
+        ($($k:literal)*) => {
+            match n {
+                $($k => return responses_fixed::<$k>(ar, cr, p, input, len, cols),)*
+                _ => {}
+            }
+        };
+    }
+    fixed!(1 2 3 4 5 6 7 8);
     let mut r = if input.is_none() {
         cr.to_vec()
     } else {
@@ -98,6 +109,45 @@ pub(super) fn unit_direction_responses(
     }
 }
 
+/// [`unit_direction_responses`] for `N` states.
+fn responses_fixed<const N: usize>(
+    ar: &[f64],
+    cr: &[f64],
+    p: usize,
+    input: Option<&[f64]>,
+    len: usize,
+    cols: &mut [&mut [f64]],
+) {
+    let a: [[f64; N]; N] = std::array::from_fn(|k| std::array::from_fn(|d| ar[k * N + d]));
+    let c: Vec<[f64; N]> = (0..p)
+        .map(|i| std::array::from_fn(|d| cr[i * N + d]))
+        .collect();
+    let mut r: Vec<[f64; N]> = if input.is_none() {
+        c.clone()
+    } else {
+        vec![[0.0; N]; p]
+    };
+    let cols: &mut [&mut [f64]; N] = match cols.try_into() {
+        Ok(c) => c,
+        Err(_) => return,
+    };
+    for t in 0..len {
+        let ut = input.map_or(0.0, |s| s[t]);
+        for (i, (ri, ci)) in r.iter_mut().zip(&c).enumerate() {
+            for (col, v) in cols.iter_mut().zip(ri.iter()) {
+                col[i * len + t] = *v;
+            }
+            let mut row: [f64; N] = std::array::from_fn(|d| ut * ci[d]);
+            for (rik, ak) in ri.iter().zip(&a) {
+                for (v, akd) in row.iter_mut().zip(ak) {
+                    *v += rik * akd;
+                }
+            }
+            *ri = row;
+        }
+    }
+}
+
 /// Estimates the initial state x0 (state coordinates of `model`) that makes the free-run
 /// simulation of the discrete `model` driven by `u` best match `y` in least squares.
 /// `u[j]`, `y[i]` are channels of equal length.
@@ -118,8 +168,14 @@ pub fn estimate_x0<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
             y.len()
         )));
     }
-    let y0 = model.simulate(u, None)?;
-    let len = y0[0].len();
+    let len = u.first().map_or(0, |c| c.as_ref().len());
+    let inputs_ok = u.len() == model.n_inputs()
+        && u.iter()
+            .all(|c| c.as_ref().len() == len && c.as_ref().iter().all(|v| v.is_finite()));
+    if !inputs_ok {
+        // The simulation reports what is wrong with the inputs.
+        model.simulate(u, None)?;
+    }
     if n == 0 {
         return Ok(Vec::new());
     }
@@ -139,7 +195,11 @@ pub fn estimate_x0<U: AsRef<[f64]>, Y: AsRef<[f64]>>(
     }
     // Only the samples before the free response C·Aᵗ has decayed carry information on x0: the
     // later rows of the regressor are zero to working precision and cannot change the solution.
+    // The forced response y0 (x0 = 0) is needed over those samples only (the simulation of a
+    // prefix is the prefix of the simulation).
     let h = free_response_horizon(&model.a, &model.c, len);
+    let u_head: Vec<&[f64]> = u.iter().map(|c| &c.as_ref()[..h]).collect();
+    let y0 = model.simulate(&u_head, None)?;
     let (buf, rows, cols) = oe_regressors(&model.a, &model.c, &[], h, true, false);
     let phi = MatRef::from_column_major_slice(&buf, rows, cols);
     let rhs = Mat::from_fn(h * p, 1, |r, _| {
@@ -168,37 +228,47 @@ fn free_response_horizon(a: &Mat<f64>, c: &Mat<f64>, len: usize) -> usize {
     if !(scale > 0.0) || n == 0 {
         return len;
     }
-    let mut r = c.clone();
+    // R(t) = C·Aᵗ, row-major p×n, R(t+1)[i][d] = Σ_k R(t)[i][k]·A[k][d].
+    let ar: Vec<f64> = (0..n * n).map(|k| a[(k / n, k % n)]).collect();
+    let mut r: Vec<f64> = (0..p * n).map(|k| c[(k / n, k % n)]).collect();
+    let mut rn = vec![0.0; p * n];
     let mut small_run = 0usize;
     for t in 0..len {
-        let big = (0..p)
-            .flat_map(|i| (0..n).map(move |d| (i, d)))
-            .any(|(i, d)| !(r[(i, d)].abs() <= DECAYED * scale));
+        let big = r.iter().any(|v| !(v.abs() <= DECAYED * scale));
         small_run = if big { 0 } else { small_run + 1 };
         if small_run >= n {
             return (t + 1 + n).min(len);
         }
-        r = &r * a;
+        for (ri, rni) in r.chunks_exact(n).zip(rn.chunks_exact_mut(n)) {
+            rni.fill(0.0);
+            for (rik, ak) in ri.iter().zip(ar.chunks_exact(n)) {
+                for (v, akd) in rni.iter_mut().zip(ak) {
+                    *v += rik * akd;
+                }
+            }
+        }
+        std::mem::swap(&mut r, &mut rn);
     }
     len
 }
 
 /// Largest |θ_k|/SE(θ_k) over the last `n_d` parameters (the D entries) of the least-squares fit
-/// `phi · theta ≈ y` with residual `resid` = y − Φθ: SE² = σ²·[(ΦᵀΦ)⁻¹]_kk, σ² the residual
-/// variance (rows − cols degrees of freedom). `None` when there are no D entries or no residual
-/// degrees of freedom.
+/// `Φ·θ ≈ y` over `rows` rows, given the triangular factor `r11` of Φ (ΦᵀΦ = R₁₁ᵀR₁₁) and the
+/// residual `resid` = y − Φθ: SE² = σ²·[(ΦᵀΦ)⁻¹]_kk, σ² the residual variance (rows − cols
+/// degrees of freedom). `None` when there are no D entries or no residual degrees of freedom.
 pub(super) fn d_t_ratio(
-    phi: MatRef<'_, f64>,
-    resid: MatRef<'_, f64>,
+    rows: usize,
+    r11: MatRef<'_, f64>,
+    resid: &[f64],
     theta: MatRef<'_, f64>,
     n_d: usize,
 ) -> Result<Option<f64>> {
-    let (rows, cols) = (phi.nrows(), phi.ncols());
+    let cols = r11.ncols();
     if n_d == 0 || n_d > cols || rows <= cols {
         return Ok(None);
     }
-    let s2 = resid.col(0).iter().map(|r| r * r).sum::<f64>() / (rows - cols) as f64;
-    let gram = phi.transpose() * phi;
+    let s2 = resid.iter().map(|r| r * r).sum::<f64>() / (rows - cols) as f64;
+    let gram = r11.transpose() * r11;
     let inv = crate::lti::solve_square(
         gram.as_ref(),
         Mat::<f64>::identity(cols, cols).as_ref(),
