@@ -10,6 +10,10 @@ Jupyter (``_repr_html_``), and errors are :class:`FerrosidError` subclasses whos
     >>> import numpy as np, ferrosid
     >>> r = ferrosid.frf(u, y, fs=1000.0)            # Welch H1 + coherence (ferrosid frf)
     >>> m = ferrosid.identify(u, y, fs=1000.0, validate=(u2, y2))   # ferrosid identify
+    >>> a = ferrosid.audit(low=(u1, y1, 0.05), high=(u2, y2, 0.15), fs=1000.0, crossover_hz=8.0)
+    >>> wm = ferrosid.fit_wm(m.model, low=(u1, y1), high=(u2, y2), validation=(u3, y3), fs=1000.0)
+    >>> pid = ferrosid.tune_pid(m.model, wm, crossover_hz=8.0, actuator_limit=0.3)
+    >>> g = ferrosid.gap(m.model, low=(u1, y1), high=(u2, y2), validation=(u3, y3), fs=1000.0)
     >>> run = ferrosid.run_pipeline("examples/pipeline.toml")       # ferrosid run
     >>> run.receipts, run.audit, run.weight, run.controller, run.physical, run.gap
 """
@@ -23,7 +27,11 @@ from ._native import (  # noqa: F401  (re-exported)
     __version__,
 )
 from ._results import (  # noqa: F401
+    AuditResult,
+    ControllerResult,
     FleetSummary,
+    GapResult,
+    WeightResult,
     FrfResult,
     IdentifyResult,
     Model,
@@ -58,6 +66,10 @@ __all__ = [
     "Model",
     "PipelineResult",
     "FleetSummary",
+    "AuditResult",
+    "WeightResult",
+    "ControllerResult",
+    "GapResult",
     "frf",
     "identify",
     "run_pipeline",

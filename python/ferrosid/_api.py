@@ -2,13 +2,24 @@
 library (``ferrosid._native``), typed results out."""
 from __future__ import annotations
 
+import json
 import os
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _native
-from ._results import FleetSummary, FrfResult, IdentifyResult, PipelineResult
+from ._results import (
+    AuditResult,
+    ControllerResult,
+    FleetSummary,
+    FrfResult,
+    GapResult,
+    IdentifyResult,
+    Model,
+    PipelineResult,
+    WeightResult,
+)
 
 ArrayLike = Any
 
@@ -41,10 +52,14 @@ def _name(x: ArrayLike, given: Optional[str], default: str) -> str:
     return str(n) if isinstance(n, str) and n else default
 
 
+def _number(v: Any, what: str) -> float:
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{what}: expected a number, got {type(v).__name__}")
+    return float(v)
+
+
 def _fs(fs: Any) -> float:
-    if isinstance(fs, (bool, np.bool_)) or not isinstance(fs, (int, float, np.integer, np.floating)):
-        raise TypeError(f"fs: expected a sample rate in Hz (a number), got {type(fs).__name__}")
-    return float(fs)
+    return _number(fs, "fs (a sample rate in Hz)")
 
 
 def _sample_time(fs, ts) -> float:
@@ -217,25 +232,310 @@ def _section(pipeline, *names: str):
     raise KeyError(f"the receipts document has none of {names}; keys: {list(d)}")
 
 
-def audit(pipeline):
-    """The nonlinearity audit of a pipeline's runs (the pipeline's audit stage)."""
-    return _section(pipeline, "audit")
+# --- the pipeline's stages on arrays -----------------------------------------------------------
+#
+# audit / fit_wm / tune_pid / gap take logs as numpy arrays (or Log objects) and call the
+# pipeline's own stage functions (ferrosid::pipeline::arrays in the library): the same numbers
+# as `ferrosid run` on the same logs and settings. Settings are the keys of a PIPELINE.toml's
+# sections ([preprocess], [etfe], [audit], [uncertainty], [control]) with the file's defaults.
+# Given a pipeline (a PipelineResult or the path of a PIPELINE.toml) instead of logs, each
+# returns the pipeline's section as a plain dict.
+
+_PREPROCESS_KEYS = ("remove", "decimate")
+_ETFE_KEYS = ("nperseg", "overlap", "window", "coherence_gate")
+_AUDIT_KEYS = (
+    "band_factor",
+    "max_gain_shift_db",
+    "max_phase_shift_deg",
+    "min_coherence",
+    "coherence_band_factor",
+)
+_UNCERTAINTY_KEYS = ("order", "min_level", "family", "beyond_band_level", "below_band_level")
+_CONTROL_KEYS = (
+    "crossover_hz",
+    "actuator_limit",
+    "ms_max",
+    "reference_amplitude",
+    "integral",
+    "derivative",
+    "rolloff_ratio",
+    "rolloff_zeta",
+    "min_crossover_scale",
+    "limit_control_effort",
+)
 
 
-def fit_wm(pipeline):
-    """The multiplicative uncertainty weight W_m fitted by the pipeline (its envelope and
-    coefficients)."""
-    return _section(pipeline, "uncertainty_weight")
+def _is_pipeline(x) -> bool:
+    return isinstance(x, (PipelineResult, str, os.PathLike))
 
 
-def tune_pid(pipeline):
-    """The robust PID the pipeline tuned (gains, discretisation, achieved margins)."""
-    return _section(pipeline, "controller")
+def _sections(values: Dict[str, Any], **sections: Sequence[str]) -> Dict[str, Dict[str, Any]]:
+    """{section: {key: value}} of the keys given (None: the pipeline file's default)."""
+    out: Dict[str, Dict[str, Any]] = {}
+    for sec, keys in sections.items():
+        d = {k: values[k] for k in keys if values.get(k) is not None}
+        if d:
+            out[sec] = d
+    return out
 
 
-def gap(pipeline):
-    """The pipeline's sim-to-real gap diagnosis of its model."""
-    return _section(pipeline, "gap_diagnosis")
+def _as_log(what: str, v, fs, ts: Optional[float] = None) -> Log:
+    """A Log from a Log, or (u, y) / (u, y, amplitude) arrays at fs Hz (named `what`)."""
+    if isinstance(v, Log):
+        return v
+    if isinstance(v, (tuple, list)) and len(v) in (2, 3):
+        if fs is None and ts is None:
+            raise TypeError(f"{what}: (u, y) arrays need the sample rate fs (Hz)")
+        if fs is not None:
+            return Log(v[0], v[1], fs, name=what)
+        return Log(v[0], v[1], name=what, ts=ts)
+    raise TypeError(
+        f"{what}: expected a ferrosid.Log or a tuple (u, y) or (u, y, amplitude) of arrays, "
+        f"got {type(v).__name__}"
+    )
+
+
+def _runs(func: str, runs, named: Dict[str, Any], fs) -> List[Tuple[str, Optional[float], Log]]:
+    """[(name, amplitude, Log)] of the runs, given as a mapping name -> run or as keyword
+    arguments name=run; a run is a Log, (Log, amplitude), (u, y) or (u, y, amplitude)."""
+    if runs is not None and named:
+        raise TypeError(f"{func}(): give the runs as a mapping or as keywords, not both")
+    if runs is None:
+        runs = named
+    if not hasattr(runs, "items"):
+        raise TypeError(
+            f"{func}(): the runs must be keyword arguments name=(u, y[, amplitude]) or a "
+            f"mapping of them, got {type(runs).__name__}"
+        )
+    out = []
+    for name, v in runs.items():
+        amplitude = None
+        if isinstance(v, (tuple, list)) and len(v) == 2 and isinstance(v[0], Log):
+            v, amplitude = v  # (Log, amplitude)
+        elif isinstance(v, (tuple, list)) and len(v) == 3:
+            amplitude = v[2]
+        if amplitude is not None:
+            amplitude = _number(amplitude, f"{name}: amplitude")
+        out.append((str(name), amplitude, _as_log(str(name), v, fs)))
+    if not out:
+        raise TypeError(f"{func}(): no run given (e.g. low=(u1, y1), high=(u2, y2))")
+    return out
+
+
+def _native_runs(runs) -> list:
+    return [(n, a, l._native()) for n, a, l in runs]
+
+
+def _model_json(model) -> str:
+    """JSON text of a model file from a Model, an identify or pipeline result, a dict
+    ({a, b, c, d, ts[, operating_point]} or {num, den, ts}), JSON text or a discrete
+    python-control StateSpace."""
+    if isinstance(model, (IdentifyResult, PipelineResult)):
+        model = model.model
+    if isinstance(model, Model):
+        return json.dumps(model.data)
+    if isinstance(model, dict):
+        return json.dumps(model)
+    if isinstance(model, str):
+        return model
+    if all(hasattr(model, k) for k in ("A", "B", "C", "D", "dt")):
+        return json.dumps(Model.from_control(model).data)
+    raise TypeError(
+        "model: expected a ferrosid.Model (e.g. identify(...).model), an identify or pipeline "
+        f"result, a model dict or JSON text, or a control.StateSpace; got {type(model).__name__}"
+    )
+
+
+def audit(
+    runs=None,
+    fs: Optional[float] = None,
+    *,
+    crossover_hz: Optional[float] = None,
+    band_factor: Optional[float] = None,
+    max_gain_shift_db: Optional[float] = None,
+    max_phase_shift_deg: Optional[float] = None,
+    min_coherence: Optional[float] = None,
+    coherence_band_factor: Optional[float] = None,
+    remove: Optional[str] = None,
+    decimate: Optional[int] = None,
+    nperseg: Optional[int] = None,
+    overlap: Optional[int] = None,
+    window: Optional[str] = None,
+    coherence_gate: Optional[float] = None,
+    **named_runs,
+):
+    """The dual-amplitude nonlinearity audit (the pipeline's audit stage): do the runs' ETFEs
+    agree within ``max_gain_shift_db`` / ``max_phase_shift_deg`` in the band
+    [f_c/band_factor, f_c·band_factor] around ``crossover_hz``?
+
+        ferrosid.audit(low=(u1, y1, 0.05), high=(u2, y2, 0.15), fs=1000, crossover_hz=8)
+
+    Runs as keywords or a mapping ``name -> Log | (u, y) | (u, y, amplitude)`` (amplitude in
+    input units; default the input RMS after preprocessing), two or more. The keys of
+    ``[audit]``, ``[etfe]`` and ``[preprocess]`` with the pipeline file's defaults. Returns an
+    :class:`AuditResult` (``to_dict()``: the ``audit`` section of ``receipts.json``;
+    ``receipts``: the audit's receipts). Given a pipeline (result or path) instead, its
+    ``audit`` section as a dict."""
+    if isinstance(runs, (Model, IdentifyResult)):
+        raise TypeError(
+            "audit() compares the runs' frequency responses with each other and takes no "
+            "model: audit(low=(u1, y1), high=(u2, y2), fs=..., crossover_hz=...)"
+        )
+    if _is_pipeline(runs) and not named_runs:
+        return _section(runs, "audit")
+    if crossover_hz is None:
+        raise TypeError("audit(): crossover_hz (Hz) is required: the audit band is around it")
+    rs = _runs("audit", runs, named_runs, fs)
+    settings = _sections(
+        locals(), preprocess=_PREPROCESS_KEYS, etfe=_ETFE_KEYS, audit=_AUDIT_KEYS
+    )
+    summary, rec = _native.audit(_native_runs(rs), _number(crossover_hz, "crossover_hz"), settings)
+    return AuditResult(summary, rec)
+
+
+def fit_wm(
+    model=None,
+    runs=None,
+    fs: Optional[float] = None,
+    *,
+    validation=None,
+    order: Optional[int] = None,
+    min_level: Optional[float] = None,
+    family: Optional[Sequence[str]] = None,
+    beyond_band_level: Optional[float] = None,
+    below_band_level: Optional[float] = None,
+    remove: Optional[str] = None,
+    decimate: Optional[int] = None,
+    nperseg: Optional[int] = None,
+    overlap: Optional[int] = None,
+    window: Optional[str] = None,
+    coherence_gate: Optional[float] = None,
+    **named_runs,
+):
+    """The multiplicative uncertainty weight W_m (the pipeline's uncertainty stage): the
+    relative spread of the runs' (and the validation log's) ETFEs around ``model`` at the bins
+    where every one passes the coherence gate, overbounded by a stable minimum-phase W_m.
+
+        wm = ferrosid.fit_wm(model, low=(u1, y1), high=(u2, y2), validation=(u3, y3), fs=1000)
+
+    ``model``: the discrete model at the logs' rate (``identify(...).model``, a model dict,
+    ...). Runs as for :func:`audit`; ``validation``: a Log or (u, y). The keys of
+    ``[uncertainty]``, ``[etfe]`` and ``[preprocess]``. Returns a :class:`WeightResult`
+    (``to_dict()``: the ``uncertainty_weight`` section; pass it to :func:`tune_pid`). Given a
+    pipeline instead of a model, its ``uncertainty_weight`` section as a dict."""
+    if _is_pipeline(model) and runs is None and not named_runs:
+        return _section(model, "uncertainty_weight")
+    if model is None:
+        raise TypeError("fit_wm(): the model is required (e.g. identify(...).model)")
+    rs = _runs("fit_wm", runs, named_runs, fs)
+    v = None
+    if validation is not None:
+        v = _as_log("validation", validation, fs, ts=rs[0][2].ts)._native()
+    if family is not None:
+        family = [str(f) for f in family]
+    settings = _sections(
+        locals(),
+        preprocess=_PREPROCESS_KEYS,
+        etfe=_ETFE_KEYS,
+        uncertainty=_UNCERTAINTY_KEYS,
+    )
+    summary, weight = _native.fit_wm(_model_json(model), _native_runs(rs), v, settings)
+    return WeightResult(summary, weight)
+
+
+def tune_pid(
+    model=None,
+    wm=None,
+    *,
+    crossover_hz: Optional[float] = None,
+    actuator_limit: Optional[float] = None,
+    ms_max: Optional[float] = None,
+    reference_amplitude: Optional[float] = None,
+    integral: Optional[bool] = None,
+    derivative: Optional[bool] = None,
+    rolloff_ratio: Optional[float] = None,
+    rolloff_zeta: Optional[float] = None,
+    min_crossover_scale: Optional[float] = None,
+    limit_control_effort: Optional[bool] = None,
+):
+    """The robust PID (the pipeline's tuning stage): the highest crossover up to
+    ``crossover_hz`` meeting M_s <= ``ms_max``, ‖W_m T‖∞ < 1 (with ``wm``) and
+    ‖KS‖∞·reference_amplitude <= ``actuator_limit``.
+
+        pid = ferrosid.tune_pid(model, wm, crossover_hz=8, actuator_limit=0.3,
+                                reference_amplitude=5, rolloff_ratio=4)
+
+    ``model``: the discrete model; ``wm``: a :class:`WeightResult` from :func:`fit_wm` (None:
+    robust stability unconstrained). The keys of ``[control]`` with the pipeline file's
+    defaults (``crossover_hz`` and ``actuator_limit`` required). Returns a
+    :class:`ControllerResult` (``to_dict()``: the ``controller`` section); no controller
+    meeting the requirements raises :class:`NumericalError` with the reason. Given a pipeline
+    instead of a model, its ``controller`` section as a dict."""
+    if _is_pipeline(model) and wm is None and crossover_hz is None:
+        return _section(model, "controller")
+    if model is None:
+        raise TypeError("tune_pid(): the model is required (e.g. identify(...).model)")
+    if wm is not None and not isinstance(wm, WeightResult):
+        raise TypeError(f"wm: expected the WeightResult of fit_wm(), got {type(wm).__name__}")
+    for k in ("crossover_hz", "actuator_limit"):
+        if locals()[k] is None:
+            raise TypeError(f"tune_pid(): {k} is required (the [control] key of a pipeline file)")
+    control = _sections(locals(), control=_CONTROL_KEYS)["control"]
+    return ControllerResult(
+        _native.tune_pid(_model_json(model), control, None if wm is None else wm.weight_json())
+    )
+
+
+def gap(
+    model=None,
+    runs=None,
+    fs: Optional[float] = None,
+    *,
+    validation=None,
+    margin: Optional[float] = None,
+    threshold: float = 0.2,
+    gate: Optional[float] = None,
+    warmup: Optional[int] = None,
+    nperseg: Optional[int] = None,
+    effects: Optional[Sequence[str]] = None,
+    **named_runs,
+):
+    """The sim-to-real gap diagnosis (``ferrosid gap``; the pipeline's gap stage): where the
+    model and the logs as recorded disagree and which unmodelled effect (friction, backlash,
+    dead zone, saturation, delay, resonance, quantisation) explains it.
+
+        g = ferrosid.gap(model, low=(u1, y1), high=(u2, y2), validation=(u3, y3), fs=1000)
+
+    ``model``: with its operating point when identified from the logs (``identify(...).model``
+    carries it), as ``model.json``; the runs train, ``validation`` (required) ranks. Options as
+    ``ferrosid gap``: ``margin``, ``threshold``, ``gate``, ``warmup``, ``nperseg``,
+    ``effects``. Returns a :class:`GapResult` (``to_dict()``: the ``ferrosid gap --json``
+    report, the pipeline's ``gap_diagnosis.report``). Given a pipeline instead of a model, its
+    ``gap_diagnosis`` section as a dict."""
+    if _is_pipeline(model) and runs is None and not named_runs:
+        return _section(model, "gap_diagnosis")
+    if model is None:
+        raise TypeError("gap(): the model is required (e.g. identify(...).model)")
+    if validation is None:
+        raise TypeError("gap(): validation=(u, y) is required: the diagnosis ranks on fresh data")
+    rs = _runs("gap", runs, named_runs, fs)
+    for n, a, _ in rs:
+        if a is not None:
+            raise TypeError(f"gap(): run {n!r}: give (u, y) (the diagnosis takes no amplitude)")
+    v = _as_log("validation", validation, fs, ts=rs[0][2].ts)
+    return GapResult(
+        _native.gap(
+            _model_json(model),
+            [l._native() for _, _, l in rs],
+            v._native(),
+            margin=margin,
+            threshold=threshold,
+            gate=gate,
+            warmup=warmup,
+            nperseg=nperseg,
+            effects=[str(e) for e in (effects or [])],
+        )
+    )
 
 
 def codegen(pipeline, prefix: str = "ferrosid") -> Tuple[str, str]:

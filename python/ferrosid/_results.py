@@ -135,7 +135,13 @@ class IdentifyResult(Result):
 
     @property
     def model(self) -> Model:
-        return Model(self._d["n4sid"]["model"])
+        """The model with its operating point: the content of ``model.json`` as ``ferrosid
+        identify --out`` writes it (what :func:`ferrosid.gap` needs to read the logs as
+        recorded)."""
+        data = dict(self._d["n4sid"]["model"])
+        if self._d.get("operating_point") is not None:
+            data.setdefault("operating_point", self._d["operating_point"])
+        return Model(data)
 
 
 class PipelineResult(Result):
@@ -184,6 +190,98 @@ class PipelineResult(Result):
 
     def _repr_html_(self) -> str:
         return self.report_html()
+
+
+class AuditResult(Result):
+    """The dual-amplitude nonlinearity audit (the pipeline's audit stage): ``to_dict()`` is
+    the ``audit`` section of ``receipts.json``; ``receipts`` the audit's receipts (gain shift,
+    phase shift, coherence near crossover) as the pipeline issues them."""
+
+    kind = "nonlinearity audit"
+
+    def __init__(self, json_text: str, receipts_json: str):
+        super().__init__(json_text)
+        self.receipts: List[Dict[str, Any]] = json.loads(receipts_json)
+
+    @property
+    def verdict(self) -> str:
+        """``linear_enough`` or ``not_linear``."""
+        return self._d["verdict"]
+
+    @property
+    def linear_enough(self) -> bool:
+        return self.verdict == "linear_enough"
+
+
+class WeightResult(Result):
+    """The multiplicative uncertainty weight W_m (the pipeline's uncertainty stage):
+    ``to_dict()`` is the ``uncertainty_weight`` section of ``receipts.json``; pass the result to
+    :func:`ferrosid.tune_pid`. ``weight`` is the full fit (envelope, overbound ratios)."""
+
+    kind = "uncertainty weight"
+
+    def __init__(self, json_text: str, weight_json: str):
+        super().__init__(json_text)
+        self._weight_json = weight_json
+
+    def weight_json(self) -> str:
+        """The fitted weight as the library serialises it (what tune_pid reads back)."""
+        return self._weight_json
+
+    @property
+    def weight(self) -> Dict[str, Any]:
+        return json.loads(self._weight_json)
+
+    @property
+    def num(self) -> np.ndarray:
+        """Numerator, descending powers of s (s in rad/s)."""
+        return np.asarray(self._d["num"], dtype=float)
+
+    @property
+    def den(self) -> np.ndarray:
+        """Denominator, descending powers of s, monic."""
+        return np.asarray(self._d["den"], dtype=float)
+
+    def magnitude(self, f_hz) -> np.ndarray:
+        """|W_m(j 2π f)| at the frequencies ``f_hz`` (Hz)."""
+        s = 2j * np.pi * np.asarray(f_hz, dtype=float)
+        return np.abs(np.polyval(self.num, s) / np.polyval(self.den, s))
+
+
+class ControllerResult(Result):
+    """The robust PID (the pipeline's tuning stage): ``to_dict()`` is the ``controller``
+    section of ``receipts.json`` (continuous gains, the discrete firmware law, the design
+    point with its achieved margins)."""
+
+    kind = "robust PID"
+
+    @property
+    def pid(self) -> Dict[str, Any]:
+        return self._d["pid"]
+
+    @property
+    def discrete(self) -> Optional[Dict[str, Any]]:
+        return self._d["discrete"]
+
+    @property
+    def design(self) -> Dict[str, Any]:
+        return self._d["design"]
+
+    @property
+    def crossover_hz(self) -> float:
+        """The achieved design crossover, Hz."""
+        return float(self._d["design"]["crossover_hz"])
+
+
+class GapResult(Result):
+    """The sim-to-real gap diagnosis: ``to_dict()`` is the report of ``ferrosid gap --json``
+    (the pipeline's ``gap_diagnosis.report``)."""
+
+    kind = "gap diagnosis"
+
+    @property
+    def verdict(self) -> str:
+        return self._d["verdict"]
 
 
 class FleetSummary(Result):

@@ -1,8 +1,9 @@
 //! `ferrosid._native`: the library operations of ferrosid for Python. Every function maps its
 //! arguments to the library's typed options, calls the same library function as the command
-//! line (`ferrosid::ops::*`, `ferrosid::pipeline::run_pipeline`, `ferrosid::fleet`) with the
-//! GIL released, and returns the report as the CLI's JSON text (plus the report's inline SVG
-//! where there is one); the Python package (`python/ferrosid/`) wraps them in typed result
+//! line (`ferrosid::ops::*`, `ferrosid::pipeline::run_pipeline`, the pipeline's stages through
+//! `ferrosid::pipeline::arrays`, `ferrosid::fleet`) with the GIL released, and returns the
+//! report as the CLI's JSON text (plus the report's inline SVG where there is one); the Python
+//! package (`python/ferrosid/`) wraps them in typed result
 //! objects. Errors become `ferrosid.FerrosidError` subclasses carrying the library's message
 //! and the CLI's exit-code category; a panic is caught at the boundary and becomes a
 //! `FerrosidError` too, never an abort of the interpreter.
@@ -12,6 +13,7 @@ use pyo3::prelude::*;
 mod fleet;
 mod ops;
 mod pipeline;
+mod stages;
 
 pyo3::create_exception!(
     _native,
@@ -99,6 +101,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ops::identify, m)?)?;
     m.add_function(wrap_pyfunction!(ops::read_log, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::run_pipeline, m)?)?;
+    m.add_function(wrap_pyfunction!(stages::audit, m)?)?;
+    m.add_function(wrap_pyfunction!(stages::fit_wm, m)?)?;
+    m.add_function(wrap_pyfunction!(stages::tune_pid, m)?)?;
+    m.add_function(wrap_pyfunction!(stages::gap, m)?)?;
     m.add_function(wrap_pyfunction!(fleet::fleet_units, m)?)?;
     m.add_function(wrap_pyfunction!(fleet::fleet_unit, m)?)?;
     m.add_function(wrap_pyfunction!(fleet::fleet_summary, m)?)?;

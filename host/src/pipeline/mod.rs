@@ -26,6 +26,7 @@
 //!
 //! Units: frequencies in Hz, time in seconds, signals in the log's units
 //! (`[signals].input_unit`, `output_unit`).
+pub mod arrays;
 pub mod compensation_stage;
 pub mod config;
 pub mod control_stage;
