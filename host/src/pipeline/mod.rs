@@ -28,6 +28,7 @@
 //! (`[signals].input_unit`, `output_unit`).
 pub mod compensation_stage;
 pub mod config;
+pub mod control_mpc;
 pub mod control_stage;
 pub mod document;
 pub mod gap_stage;
