@@ -169,6 +169,7 @@ static inline float {{ c.p }}_mpc_step(struct {{ c.p }}_mpc_warm *w, const float
     float f[{{ c.p }}_MPC_N];
     float rhs[{{ c.p }}_MPC_N];
     const float rho = {{ c.p }}_MPC_RHO;
+    const float inv_rho = 1.0f / {{ c.p }}_MPC_RHO;
     float u;
     int i;
     int j;
@@ -197,7 +198,7 @@ static inline float {{ c.p }}_mpc_step(struct {{ c.p }}_mpc_warm *w, const float
         }
         for (i = 0; i < {{ c.p }}_MPC_N; ++i) {
             float mb = w->u[i];
-            float zb = {{ c.p }}_mpc_clamp(mb + w->l_box[i] / rho, {{ c.p }}_MPC_U_MIN, {{ c.p }}_MPC_U_MAX);
+            float zb = {{ c.p }}_mpc_clamp(mb + w->l_box[i] * inv_rho, {{ c.p }}_MPC_U_MIN, {{ c.p }}_MPC_U_MAX);
             float mr;
             float lo;
             float hi;
@@ -213,7 +214,7 @@ static inline float {{ c.p }}_mpc_step(struct {{ c.p }}_mpc_warm *w, const float
                 lo = -{{ c.p }}_MPC_DU_MAX;
                 hi = {{ c.p }}_MPC_DU_MAX;
             }
-            zr = {{ c.p }}_mpc_clamp(mr + w->l_rate[i] / rho, lo, hi);
+            zr = {{ c.p }}_mpc_clamp(mr + w->l_rate[i] * inv_rho, lo, hi);
             w->l_rate[i] += rho * (mr - zr);
             w->z_rate[i] = zr;
         }
