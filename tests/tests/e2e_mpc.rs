@@ -99,9 +99,7 @@ fn check_horizon(n: usize) {
     let run = mpc_run(n);
     let c = run.control.as_ref().expect("control block");
     assert_eq!(c.status, "designed", "{:?}", c.error);
-    let (d, model) = c.mpc.as_ref().expect("MPC design");
-    let k = &run.config.control;
-    let r = k.reference_amplitude;
+    assert!(c.mpc.is_some(), "MPC design");
     // Generated module -> image.
     let input = ferrosid::ops::codegen::codegen_input(
         run.codegen_parts().unwrap(),
@@ -119,16 +117,31 @@ fn check_horizon(n: usize) {
         std::fs::write(&module, &files.rust_module).unwrap();
     }
     let elf = build_mpc_image(&module, &dir);
+    check_run(&run, &elf, n, false);
+    // The same loop with nalgebra's fixed-size matrices (the comparison of the issue).
+    check_run(&run, &elf, n, true);
+}
+
+fn check_run(run: &PipelineRun, elf: &Path, n: usize, nalgebra: bool) {
+    let c = run.control.as_ref().unwrap();
+    let (d, model) = c.mpc.as_ref().unwrap();
+    let k = &run.config.control;
+    let r = k.reference_amplitude;
+    let mut args = vec![format!("r={r}")];
+    if nalgebra {
+        args.push("nalgebra".into());
+    }
     let q = run_qemu(
-        &elf,
+        elf,
         &RunOptions {
-            args: vec![format!("r={r}")],
+            args,
             icount: true,
             timeout: std::time::Duration::from_secs(600),
         },
     )
     .unwrap();
-    let lines = decode_defmt(&elf, &q.stdout).unwrap();
+    let solver = if nalgebra { "nalgebra" } else { "loops" };
+    let lines = decode_defmt(elf, &q.stdout).unwrap();
     let mut trace = Vec::new();
     for l in &lines {
         if let Some(rest) = l.text.strip_prefix("T ") {
@@ -179,9 +192,10 @@ fn check_horizon(n: usize) {
         .iter()
         .filter(|(_, u)| u.abs() >= lim * (1.0 - 1e-6))
         .count();
-    let size = image_size(&elf).unwrap();
+    assert_eq!(text("SOLVER "), format!("SOLVER {solver}"));
+    let size = image_size(elf).unwrap();
     eprintln!(
-        "N = {n}: target vs host max |Δy| {ey:.3e} ({:.3e} of r), max |Δu| {eu:.3e}; samples at \
+        "N = {n} ({solver}): target vs host max |Δy| {ey:.3e} ({:.3e} of r), max |Δu| {eu:.3e}; samples at \
          the rail {at_rail}; y(1.5 s) target {:.4} host {:.4}; peak target {:.4}; {icount}; \
          {stack}; flash {} B, static RAM {} B (text {}, data {}, bss {})",
         ey / r,

@@ -46,6 +46,96 @@ static QP: MpcQp<MPC_N, MPC_NX> = MpcQp {
     iterations: flashed::MPC_ITERATIONS,
 };
 
+/// The same ADMM step as `MpcQp::step` with nalgebra's fixed-size matrices for the dense
+/// products (K·rhs and G_x·x) and vectors for the iterate: the comparison the issue asks for.
+mod na {
+    use super::{MPC_N, MPC_NX, QP};
+    use nalgebra::{SMatrix, SVector};
+
+    type V = SVector<f32, MPC_N>;
+
+    /// The iterate (warm start).
+    #[derive(Default)]
+    pub struct Warm {
+        u: V,
+        z_box: V,
+        z_rate: V,
+        l_box: V,
+        l_rate: V,
+    }
+
+    /// K and G_x as nalgebra matrices (built once).
+    pub struct Mats {
+        k: SMatrix<f32, MPC_N, MPC_N>,
+        gx: SMatrix<f32, MPC_N, MPC_NX>,
+        gr: V,
+    }
+
+    impl Mats {
+        pub fn new() -> Self {
+            Mats {
+                k: SMatrix::from_fn(|i, j| QP.k[i][j]),
+                gx: SMatrix::from_fn(|i, j| QP.gx[i][j]),
+                gr: V::from_fn(|i, _| QP.gr[i]),
+            }
+        }
+
+        fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
+            if v < lo {
+                lo
+            } else if v > hi {
+                hi
+            } else {
+                v
+            }
+        }
+
+        pub fn step(&self, w: &mut Warm, x: &[f32; MPC_NX], r: f32, u_prev: f32) -> f32 {
+            let xv = SVector::<f32, MPC_NX>::from_fn(|i, _| x[i]);
+            let mut f = self.gx * xv - self.gr * r;
+            f[0] -= QP.two_r_rate * u_prev;
+            let (rho, inv_rho) = (QP.rho, 1.0 / QP.rho);
+            for _ in 0..QP.iterations {
+                let a = w.z_box * rho - w.l_box;
+                let b = w.z_rate * rho - w.l_rate;
+                let mut rhs = w.u * QP.sigma - f + a + b;
+                for j in 0..MPC_N - 1 {
+                    rhs[j] -= b[j + 1];
+                }
+                w.u = self.k * rhs;
+                for i in 0..MPC_N {
+                    let mb = w.u[i];
+                    let zb = Self::clamp(mb + w.l_box[i] * inv_rho, QP.u_min, QP.u_max);
+                    w.l_box[i] += rho * (mb - zb);
+                    w.z_box[i] = zb;
+                    let (mr, lo, hi) = if i == 0 {
+                        (w.u[0], u_prev - QP.du_max, u_prev + QP.du_max)
+                    } else {
+                        (w.u[i] - w.u[i - 1], -QP.du_max, QP.du_max)
+                    };
+                    let zr = Self::clamp(mr + w.l_rate[i] * inv_rho, lo, hi);
+                    w.l_rate[i] += rho * (mr - zr);
+                    w.z_rate[i] = zr;
+                }
+            }
+            let u = Self::clamp(w.z_box[0], u_prev - QP.du_max, u_prev + QP.du_max);
+            let u = Self::clamp(u, QP.u_min, QP.u_max);
+            for v in [
+                &mut w.u,
+                &mut w.z_box,
+                &mut w.z_rate,
+                &mut w.l_box,
+                &mut w.l_rate,
+            ] {
+                for i in 0..MPC_N - 1 {
+                    v[i] = v[i + 1];
+                }
+            }
+            u
+        }
+    }
+}
+
 /// Reference step height: the first semihosting argument `r=<value>` (default 5).
 fn reference() -> f32 {
     let mut r = 5.0f32;
@@ -89,6 +179,10 @@ fn main() -> ! {
         SAMPLES,
         r
     );
+    let use_na = ferrosid_qemu::has_arg("nalgebra");
+    defmt::println!("SOLVER {=str}", if use_na { "nalgebra" } else { "loops" });
+    let mats = na::Mats::new();
+    let mut na_warm = na::Warm::default();
     let mut warm = MpcWarm::<MPC_N>::default();
     let mut x = [0.0f32; N_STATES];
     let mut u_prev = 0.0f32;
@@ -102,7 +196,11 @@ fn main() -> ! {
         }
         let mut u = 0.0f32;
         let ticks = ic.ticks_of(|| {
-            u = QP.step(black_box(&mut warm), black_box(&x), black_box(r), u_prev);
+            u = if use_na {
+                mats.step(black_box(&mut na_warm), black_box(&x), black_box(r), u_prev)
+            } else {
+                QP.step(black_box(&mut warm), black_box(&x), black_box(r), u_prev)
+            };
         });
         empty_max = empty_max.max(ic.ticks_of(|| black_box(())));
         sum_ticks += u64::from(ticks);
