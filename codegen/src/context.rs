@@ -183,6 +183,8 @@ pub(crate) struct Context {
     pub comp: crate::context_comp::CompLit,
     /// The state-space controller block (`c.sk`).
     pub sk: crate::context_sk::SkLit,
+    /// The MPC block (`c.mpc`).
+    pub mpc: crate::context_sk::MpcLit,
 }
 
 fn is_hex64(s: &str) -> bool {
@@ -582,10 +584,12 @@ pub(crate) fn build(
 
     let comp = crate::context_comp::comp_lit(input.compensation.as_ref(), ts);
     let sk = crate::context_sk::sk_lit(input.state_controller.as_ref(), ts)?;
+    let mpc = crate::context_sk::mpc_lit(input.state_controller.as_ref(), ts, dims.n)?;
 
     let ctx = Context {
         comp,
         sk,
+        mpc,
         u0_c,
         u0_rs,
         y0_c,

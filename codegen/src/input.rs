@@ -181,6 +181,41 @@ pub struct StateController {
     pub matrices: Matrices,
     /// Where it came from (documentation).
     pub note: String,
+    /// The condensed MPC (method `mpc`): then `matrices` is the prediction model whose state
+    /// the MPC feeds back (D = 0), not a controller u = K·e, and no K_* block is emitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc: Option<MpcController>,
+}
+
+/// The data of a condensed MPC for `ferrosid_firmware::mpc::MpcQp` (host design
+/// `ferrosid::synth::mpc`): QP ½UᵀHU + fᵀU over the input sequence U (horizon N) with
+/// f = G_x·x − g_r·r − 2ρ_Δ·e₁·u_prev, box u_min ≤ U ≤ u_max and |U_i − U_{i−1}| ≤ Δu_max,
+/// solved by ADMM with K = (H + σI + ρMᵀM)⁻¹ and a fixed iteration budget per sample.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MpcController {
+    /// Horizon N (samples).
+    pub horizon: usize,
+    /// K (N×N).
+    pub k: Vec<Vec<f64>>,
+    /// G_x = 2q·ΓᵀΦ (N×n): the prediction matrices Φ (free response) and Γ (forced
+    /// response) folded with the output weight.
+    pub gx: Vec<Vec<f64>>,
+    /// g_r = 2q·Γᵀ·1 (N).
+    pub gr: Vec<f64>,
+    /// 2ρ_Δ.
+    pub two_r_rate: f64,
+    /// ADMM proximal weight σ.
+    pub sigma: f64,
+    /// ADMM penalty ρ (> 0).
+    pub rho: f64,
+    /// Input box lower limit, input units.
+    pub u_min: f64,
+    /// Input box upper limit.
+    pub u_max: f64,
+    /// Largest |u_k − u_{k−1}| per sample (> 0).
+    pub du_max: f64,
+    /// ADMM iterations per control step (1..=65535).
+    pub iterations: u32,
 }
 
 /// The multiplicative uncertainty weight W_m(s) = num(s)/den(s), continuous, s in rad/s,

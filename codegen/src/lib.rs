@@ -89,8 +89,8 @@ pub use context::{snap_checks, CheckPoint, MAX_CHECKS};
 pub use error::{Error, Result};
 pub use input::{
     Biquad, CodegenInput, ContinuousModel, ContinuousPid, Dims, DiscreteModel, Matrices,
-    OperatingPointValues, PidGains, Provenance, ReceiptLine, SelfIdSettings, SourceDigest,
-    StateController, WeightCoefficients,
+    MpcController, OperatingPointValues, PidGains, Provenance, ReceiptLine, SelfIdSettings,
+    SourceDigest, StateController, WeightCoefficients,
 };
 pub use text::{c_float, comment_text, f32_literal, sanitize_prefix};
 

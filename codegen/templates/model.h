@@ -119,6 +119,117 @@ static inline float {{ c.p }}_k_step(float xi[{{ c.p }}_K_N_STATES], float e)
     }
     return u;
 }
+{% endif %}{% if c.mpc.has %}
+/* ---- Model predictive controller (condensed QP, ADMM; run instead of the PID) ------------
+ * QP in U (horizon MPC_N): 1/2 U'HU + f'U, f = MPC_GX x - MPC_GR r - MPC_TWO_R_RATE e1 u_prev,
+ * box MPC_U_MIN <= U <= MPC_U_MAX, |U_i - U_{i-1}| <= MPC_DU_MAX (U_{-1} = u_prev). Per sample
+ * MPC_ITERATIONS ADMM steps U <- MPC_K (sigma U - f + M'(rho z - lambda)),
+ * z <- clamp(M U + lambda/rho), lambda += rho (M U - z), from the shifted previous solution;
+ * the applied input is the clamped first entry (always inside the box and the rate limit).
+ * x is the state of the model above (A, B, C). The warm start starts at zero.
+{% for d in c.mpc.doc %} * {{ d }}
+{% endfor %} */
+#define {{ c.p }}_HAS_MPC 1
+#define {{ c.p }}_MPC_N {{ c.mpc.n }}
+#define {{ c.p }}_MPC_NX {{ c.mpc.nx }}
+#define {{ c.p }}_MPC_ITERATIONS {{ c.mpc.iterations }}
+static const float {{ c.p }}_MPC_K[{{ c.p }}_MPC_N][{{ c.p }}_MPC_N] = {
+{% for row in c.mpc.k.rows_c %}    { {{ row }} },
+{% endfor %}};
+static const float {{ c.p }}_MPC_GX[{{ c.p }}_MPC_N][{{ c.p }}_MPC_NX] = {
+{% for row in c.mpc.gx.rows_c %}    { {{ row }} },
+{% endfor %}};
+static const float {{ c.p }}_MPC_GR[{{ c.p }}_MPC_N] = { {% for row in c.mpc.gr.rows_c %}{{ row }}{% endfor %} };
+static const float {{ c.p }}_MPC_TWO_R_RATE = {{ c.mpc.two_r_rate.c }};
+static const float {{ c.p }}_MPC_SIGMA = {{ c.mpc.sigma.c }};
+static const float {{ c.p }}_MPC_RHO = {{ c.mpc.rho.c }};
+static const float {{ c.p }}_MPC_U_MIN = {{ c.mpc.u_min.c }};
+static const float {{ c.p }}_MPC_U_MAX = {{ c.mpc.u_max.c }};
+static const float {{ c.p }}_MPC_DU_MAX = {{ c.mpc.du_max.c }};
+
+/* ADMM iterate kept between samples (zero-initialise). */
+struct {{ c.p }}_mpc_warm {
+    float u[{{ c.p }}_MPC_N];
+    float z_box[{{ c.p }}_MPC_N];
+    float z_rate[{{ c.p }}_MPC_N];
+    float l_box[{{ c.p }}_MPC_N];
+    float l_rate[{{ c.p }}_MPC_N];
+};
+
+static inline float {{ c.p }}_mpc_clamp(float v, float lo, float hi)
+{
+    return v < lo ? lo : (v > hi ? hi : v);
+}
+
+/* One MPC step for state x, reference r and previous input u_prev: returns the input to
+ * apply and shifts the warm start one sample ahead. */
+static inline float {{ c.p }}_mpc_step(struct {{ c.p }}_mpc_warm *w, const float x[{{ c.p }}_MPC_NX],
+                                       float r, float u_prev)
+{
+    float f[{{ c.p }}_MPC_N];
+    float rhs[{{ c.p }}_MPC_N];
+    const float rho = {{ c.p }}_MPC_RHO;
+    const float inv_rho = 1.0f / {{ c.p }}_MPC_RHO;
+    float u;
+    int i;
+    int j;
+    int it;
+    for (i = 0; i < {{ c.p }}_MPC_N; ++i) {
+        float s = -{{ c.p }}_MPC_GR[i] * r;
+        for (j = 0; j < {{ c.p }}_MPC_NX; ++j) {
+            s += {{ c.p }}_MPC_GX[i][j] * x[j];
+        }
+        f[i] = s;
+    }
+    f[0] -= {{ c.p }}_MPC_TWO_R_RATE * u_prev;
+    for (it = 0; it < {{ c.p }}_MPC_ITERATIONS; ++it) {
+        for (j = 0; j < {{ c.p }}_MPC_N; ++j) {
+            float a = rho * w->z_box[j] - w->l_box[j];
+            float b = rho * w->z_rate[j] - w->l_rate[j];
+            float b_next = j + 1 < {{ c.p }}_MPC_N ? rho * w->z_rate[j + 1] - w->l_rate[j + 1] : 0.0f;
+            rhs[j] = {{ c.p }}_MPC_SIGMA * w->u[j] - f[j] + a + b - b_next;
+        }
+        for (i = 0; i < {{ c.p }}_MPC_N; ++i) {
+            float s = 0.0f;
+            for (j = 0; j < {{ c.p }}_MPC_N; ++j) {
+                s += {{ c.p }}_MPC_K[i][j] * rhs[j];
+            }
+            w->u[i] = s;
+        }
+        for (i = 0; i < {{ c.p }}_MPC_N; ++i) {
+            float mb = w->u[i];
+            float zb = {{ c.p }}_mpc_clamp(mb + w->l_box[i] * inv_rho, {{ c.p }}_MPC_U_MIN, {{ c.p }}_MPC_U_MAX);
+            float mr;
+            float lo;
+            float hi;
+            float zr;
+            w->l_box[i] += rho * (mb - zb);
+            w->z_box[i] = zb;
+            if (i == 0) {
+                mr = w->u[0];
+                lo = u_prev - {{ c.p }}_MPC_DU_MAX;
+                hi = u_prev + {{ c.p }}_MPC_DU_MAX;
+            } else {
+                mr = w->u[i] - w->u[i - 1];
+                lo = -{{ c.p }}_MPC_DU_MAX;
+                hi = {{ c.p }}_MPC_DU_MAX;
+            }
+            zr = {{ c.p }}_mpc_clamp(mr + w->l_rate[i] * inv_rho, lo, hi);
+            w->l_rate[i] += rho * (mr - zr);
+            w->z_rate[i] = zr;
+        }
+    }
+    u = {{ c.p }}_mpc_clamp(w->z_box[0], u_prev - {{ c.p }}_MPC_DU_MAX, u_prev + {{ c.p }}_MPC_DU_MAX);
+    u = {{ c.p }}_mpc_clamp(u, {{ c.p }}_MPC_U_MIN, {{ c.p }}_MPC_U_MAX);
+    for (i = 0; i + 1 < {{ c.p }}_MPC_N; ++i) {
+        w->u[i] = w->u[i + 1];
+        w->z_box[i] = w->z_box[i + 1];
+        w->z_rate[i] = w->z_rate[i + 1];
+        w->l_box[i] = w->l_box[i + 1];
+        w->l_rate[i] = w->l_rate[i + 1];
+    }
+    return u;
+}
 {% endif %}
 /* ---- Compensation of a diagnosed nonlinearity (all in plant INPUT units unless stated) ----
  * Applied after the PID each sample k (absent parts are the identity):

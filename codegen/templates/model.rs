@@ -152,6 +152,49 @@ pub fn k_step(xi: &mut [f32; K_N_STATES], e: f32) -> f32 {
     *xi = next;
     u
 }
+{% endif %}{% if c.mpc.has %}
+// ---- Model predictive controller (condensed QP, ADMM; run instead of the PID) ------------
+// QP in U (horizon MPC_N): ½ UᵀHU + fᵀU, f = MPC_GX·x − MPC_GR·r − MPC_TWO_R_RATE·e₁·u_prev,
+// box MPC_U_MIN ≤ U ≤ MPC_U_MAX, |U_i − U_{i−1}| ≤ MPC_DU_MAX (U_{−1} = u_prev). Per sample:
+// MPC_ITERATIONS ADMM steps U ← MPC_K(σU − f + Mᵀ(ρz − λ)), z ← clamp(MU + λ/ρ), λ += ρ(MU − z)
+// from the shifted previous solution; the applied input is the clamped first entry. x is the
+// state of the model above (A, B, C). Run it with `ferrosid_firmware::mpc::MpcQp`:
+//     MpcQp { k: MPC_K, gx: MPC_GX, gr: MPC_GR, two_r_rate: MPC_TWO_R_RATE,
+//             sigma: MPC_SIGMA, rho: MPC_RHO, u_min: MPC_U_MIN, u_max: MPC_U_MAX,
+//             du_max: MPC_DU_MAX, iterations: MPC_ITERATIONS }
+// (consts, so the struct can be a `static`).
+{% for d in c.mpc.doc %}// {{ d }}
+{% endfor %}/// MPC horizon N (samples).
+pub const MPC_N: usize = {{ c.mpc.n }};
+/// States of the MPC's prediction model (= N_STATES).
+pub const MPC_NX: usize = {{ c.mpc.nx }};
+/// K = (H + σI + ρMᵀM)⁻¹ (N×N).
+#[allow(clippy::approx_constant)]
+pub const MPC_K: [[f32; MPC_N]; MPC_N] = [
+{% for row in c.mpc.k.rows_rs %}    [{{ row }}],
+{% endfor %}];
+/// G_x = 2q·ΓᵀΦ (N×NX).
+#[allow(clippy::approx_constant)]
+pub const MPC_GX: [[f32; MPC_NX]; MPC_N] = [
+{% for row in c.mpc.gx.rows_rs %}    [{{ row }}],
+{% endfor %}];
+/// g_r = 2q·Γᵀ·1 (N).
+#[allow(clippy::approx_constant)]
+pub const MPC_GR: [f32; MPC_N] = [{% for row in c.mpc.gr.rows_rs %}{{ row }}{% endfor %}];
+/// 2ρ_Δ (input-rate weight, doubled).
+pub const MPC_TWO_R_RATE: f32 = {{ c.mpc.two_r_rate.rs }};
+/// ADMM proximal weight σ.
+pub const MPC_SIGMA: f32 = {{ c.mpc.sigma.rs }};
+/// ADMM penalty ρ.
+pub const MPC_RHO: f32 = {{ c.mpc.rho.rs }};
+/// Input box, lower limit (input units).
+pub const MPC_U_MIN: f32 = {{ c.mpc.u_min.rs }};
+/// Input box, upper limit.
+pub const MPC_U_MAX: f32 = {{ c.mpc.u_max.rs }};
+/// Largest input change per sample.
+pub const MPC_DU_MAX: f32 = {{ c.mpc.du_max.rs }};
+/// ADMM iterations per control step.
+pub const MPC_ITERATIONS: u16 = {{ c.mpc.iterations }};
 {% endif %}
 // ---- Compensation of a diagnosed nonlinearity (plant INPUT units unless stated) ----------
 // Applied after the PID each sample k (absent parts are the identity):

@@ -852,6 +852,7 @@ fn state_controller() -> StateController {
             d: vec![vec![0.002]],
         },
         note: "test controller".into(),
+        mpc: None,
     }
 }
 
@@ -942,4 +943,315 @@ fn bad_state_controller_is_an_error_naming_the_field() {
     input.state_controller = Some(k);
     let e = generate(&input).unwrap_err().to_string();
     assert!(e.contains("state_controller.a[1][0]"), "{e}");
+}
+
+// ---- MPC block -----------------------------------------------------------------------------
+
+/// Dense Gauss–Jordan inverse (test-only reference; the matrices here are small and SPD).
+fn inverse(m: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let n = m.len();
+    let mut a: Vec<Vec<f64>> = m
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let mut r = r.clone();
+            r.extend((0..n).map(|j| if i == j { 1.0 } else { 0.0 }));
+            r
+        })
+        .collect();
+    for c in 0..n {
+        let p = (c..n)
+            .max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))
+            .unwrap();
+        a.swap(c, p);
+        let d = a[c][c];
+        for v in a[c].iter_mut() {
+            *v /= d;
+        }
+        for r in 0..n {
+            if r != c {
+                let f = a[r][c];
+                let row_c = a[c].clone();
+                for (v, w) in a[r].iter_mut().zip(row_c) {
+                    *v -= f * w;
+                }
+            }
+        }
+    }
+    a.into_iter().map(|r| r[n..].to_vec()).collect()
+}
+
+/// The MPC of the full input's plant (horizon `n`), designed here in f64 from the formulas of
+/// `ferrosid::synth::mpc` (condensed Γ, Φ; H = 2(qΓᵀΓ + ρ_ΔDᵀD); K = (H + σI + ρMᵀM)⁻¹).
+fn mpc_of_full_input(n: usize) -> MpcController {
+    let m = full_input().model.matrices;
+    let nx = m.a.len();
+    let (q, r_rate, rho, sigma) = (1.0, 1e-2, 1.0, 1e-6);
+    let mut phi = vec![vec![0.0; nx]; n];
+    let mut markov = vec![0.0; n];
+    let mut c_ak = m.c[0].clone();
+    for k in 0..n {
+        markov[k] = (0..nx).map(|j| c_ak[j] * m.b[j][0]).sum();
+        c_ak = (0..nx)
+            .map(|j| (0..nx).map(|i| c_ak[i] * m.a[i][j]).sum())
+            .collect();
+        phi[k] = c_ak.clone();
+    }
+    let gamma = |k: usize, j: usize| if j <= k { markov[k - j] } else { 0.0 };
+    let dd = |i: usize, j: usize| {
+        if i == j {
+            1.0
+        } else if j + 1 == i {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let mut kk = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        for j in 0..n {
+            let gtg: f64 = (0..n).map(|k| gamma(k, i) * gamma(k, j)).sum();
+            let dtd: f64 = (0..n).map(|k| dd(k, i) * dd(k, j)).sum();
+            let mtm = if i == j { 1.0 } else { 0.0 } + dtd;
+            kk[i][j] =
+                2.0 * (q * gtg + r_rate * dtd) + if i == j { sigma } else { 0.0 } + rho * mtm;
+        }
+    }
+    MpcController {
+        horizon: n,
+        k: inverse(&kk),
+        gx: (0..n)
+            .map(|i| {
+                (0..nx)
+                    .map(|j| 2.0 * q * (0..n).map(|k| gamma(k, i) * phi[k][j]).sum::<f64>())
+                    .collect()
+            })
+            .collect(),
+        gr: (0..n)
+            .map(|i| 2.0 * q * (0..n).map(|k| gamma(k, i)).sum::<f64>())
+            .collect(),
+        two_r_rate: 2.0 * r_rate,
+        sigma,
+        rho,
+        u_min: -0.4,
+        u_max: 0.5,
+        du_max: 0.05,
+        iterations: 40,
+    }
+}
+
+fn mpc_block(n: usize) -> StateController {
+    StateController {
+        method: "mpc".into(),
+        ts_s: 1e-3,
+        matrices: full_input().model.matrices,
+        note: "test MPC".into(),
+        mpc: Some(mpc_of_full_input(n)),
+    }
+}
+
+/// f64 reference of the closed loop (plant = the model, state fed back) with the ADMM written
+/// on the dense M = [I; D] (not the O(N) structure the generated code uses): (y, u) per sample.
+fn mpc_reference(c: &MpcController, m: &Matrices, r: f64, samples: usize) -> Vec<(f64, f64)> {
+    let n = c.horizon;
+    let nx = m.a.len();
+    let mm = |i: usize, j: usize| -> f64 {
+        if i < n {
+            f64::from(u8::from(i == j))
+        } else if i - n == j {
+            1.0
+        } else if j + 1 == i - n {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let (mut u, mut z, mut l) = (vec![0.0; n], vec![0.0; 2 * n], vec![0.0; 2 * n]);
+    let mut x = vec![0.0; nx];
+    let mut u_prev = 0.0;
+    let mut out = Vec::new();
+    for _ in 0..samples {
+        let y: f64 = (0..nx).map(|j| m.c[0][j] * x[j]).sum();
+        let mut f: Vec<f64> = (0..n)
+            .map(|i| (0..nx).map(|j| c.gx[i][j] * x[j]).sum::<f64>() - c.gr[i] * r)
+            .collect();
+        f[0] -= c.two_r_rate * u_prev;
+        let (mut lo, mut hi) = (vec![c.u_min; 2 * n], vec![c.u_max; 2 * n]);
+        for i in n..2 * n {
+            lo[i] = -c.du_max;
+            hi[i] = c.du_max;
+        }
+        lo[n] += u_prev;
+        hi[n] += u_prev;
+        for _ in 0..c.iterations {
+            let rhs: Vec<f64> = (0..n)
+                .map(|j| {
+                    c.sigma * u[j] - f[j]
+                        + (0..2 * n)
+                            .map(|i| mm(i, j) * (c.rho * z[i] - l[i]))
+                            .sum::<f64>()
+                })
+                .collect();
+            u = (0..n)
+                .map(|i| (0..n).map(|j| c.k[i][j] * rhs[j]).sum())
+                .collect();
+            for i in 0..2 * n {
+                let mu: f64 = (0..n).map(|j| mm(i, j) * u[j]).sum();
+                z[i] = (mu + l[i] / c.rho).clamp(lo[i], hi[i]);
+                l[i] += c.rho * (mu - z[i]);
+            }
+        }
+        let un = z[0]
+            .clamp(u_prev - c.du_max, u_prev + c.du_max)
+            .clamp(c.u_min, c.u_max);
+        let shift = |v: &mut [f64]| {
+            v.rotate_left(1);
+            if n >= 2 {
+                v[n - 1] = v[n - 2];
+            }
+        };
+        shift(&mut u);
+        shift(&mut z[..n]);
+        shift(&mut z[n..]);
+        shift(&mut l[..n]);
+        shift(&mut l[n..]);
+        out.push((y, un));
+        x = (0..nx)
+            .map(|i| (0..nx).map(|j| m.a[i][j] * x[j]).sum::<f64>() + m.b[i][0] * un)
+            .collect();
+        u_prev = un;
+    }
+    out
+}
+
+fn parse_pairs(text: &str) -> Vec<(f64, f64)> {
+    text.lines()
+        .map(|l| {
+            // The printed f32 values, read back as f32 (exact), then widened.
+            let v: Vec<f64> = l
+                .split_whitespace()
+                .map(|t| f64::from(t.parse::<f32>().unwrap()))
+                .collect();
+            (v[0], v[1])
+        })
+        .collect()
+}
+
+fn check_mpc_trace(what: &str, got: &[(f64, f64)], reference: &[(f64, f64)], c: &MpcController) {
+    assert_eq!(got.len(), reference.len(), "{what}");
+    let y_peak = reference.iter().fold(0.0f64, |m, v| m.max(v.0.abs()));
+    let mut u_prev = 0.0;
+    let mut at_rail = 0;
+    for (k, ((y, u), (yr, ur))) in got.iter().zip(reference).enumerate() {
+        // The rails and the rate limit hold exactly in f32 (up to its rounding of u_prev ± Δu).
+        assert!(
+            *u >= c.u_min as f32 as f64 && *u <= c.u_max as f32 as f64,
+            "{what} u[{k}] {u}"
+        );
+        assert!(
+            (u - u_prev).abs() <= c.du_max * (1.0 + 1e-5),
+            "{what} Δu[{k}]"
+        );
+        // f32 against f64: 1e-3 of the output peak, 2e-3 of the box width for u.
+        assert!((y - yr).abs() <= 1e-3 * y_peak, "{what} y[{k}] {y} vs {yr}");
+        assert!(
+            (u - ur).abs() <= 2e-3 * (c.u_max - c.u_min),
+            "{what} u[{k}] {u} vs {ur}"
+        );
+        if *u >= c.u_max as f32 as f64 {
+            at_rail += 1;
+        }
+        u_prev = *u;
+    }
+    assert!(at_rail > 0, "{what}: the step must reach the rail");
+}
+
+#[test]
+fn mpc_block_compiles_in_c_and_no_std_rust_and_runs_like_an_f64_reference() {
+    let mut input = full_input();
+    input.state_controller = Some(mpc_block(8));
+    let g = generate(&input).unwrap();
+    assert!(!g.c_header.contains("HAS_STATE_CONTROLLER") && !g.rust_module.contains("k_step"));
+    let c = mpc_of_full_input(8);
+    let m = full_input().model.matrices;
+    let r = 4.0;
+    let reference = mpc_reference(&c, &m, r, 300);
+    // C: strict flags, closed loop with the header's model.
+    let dir = scratch("mpc-c");
+    std::fs::write(dir.join(&g.c_file_name), &g.c_header).unwrap();
+    let p = "GIMBAL_PITCH";
+    let main = format!(
+        "#include <stdio.h>\n#include \"{f}\"\nint main(void) {{\n    static struct {p}_mpc_warm w;\n    float x[{p}_N_STATES] = {{0}};\n    float u_prev = 0.0f;\n    int k, i, j;\n    for (k = 0; k < 300; ++k) {{\n        float y = 0.0f, u, nx[{p}_N_STATES];\n        for (j = 0; j < {p}_N_STATES; ++j) y += {p}_C[0][j] * x[j];\n        u = {p}_mpc_step(&w, x, {r:?}f, u_prev);\n        printf(\"%.9g %.9g\\n\", (double)y, (double)u);\n        for (i = 0; i < {p}_N_STATES; ++i) {{\n            nx[i] = {p}_B[i][0] * u;\n            for (j = 0; j < {p}_N_STATES; ++j) nx[i] += {p}_A[i][j] * x[j];\n        }}\n        for (i = 0; i < {p}_N_STATES; ++i) x[i] = nx[i];\n        u_prev = u;\n    }}\n    return 0;\n}}\n",
+        f = g.c_file_name
+    );
+    compile_c(&dir, &main, Some("mpc"));
+    let out = run(&mut Command::new(dir.join("mpc")), "mpc");
+    check_mpc_trace("C", &parse_pairs(&out), &reference, &c);
+    // Rust: no_std library (warnings, missing docs denied), then the firmware's solver
+    // (`ferrosid_firmware::mpc`, included by path) built from the module's MPC_* consts.
+    let (dir, module) = no_std_module("mpc-rs", &g.rs_file_name, &g.rust_module);
+    let fw = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/src/mpc/mod.rs");
+    let main = dir.join("main.rs");
+    std::fs::write(
+        &main,
+        format!(
+            "#[allow(dead_code)]\nmod flashed {{ include!({module:?}); }}\n#[allow(dead_code)]\n#[path = {fw:?}]\nmod mpc;\nuse flashed::*;\nstatic QP: mpc::MpcQp<MPC_N, MPC_NX> = mpc::MpcQp {{ k: MPC_K, gx: MPC_GX, gr: MPC_GR, two_r_rate: MPC_TWO_R_RATE, sigma: MPC_SIGMA, rho: MPC_RHO, u_min: MPC_U_MIN, u_max: MPC_U_MAX, du_max: MPC_DU_MAX, iterations: MPC_ITERATIONS }};\nfn main() {{\n    let mut w = mpc::MpcWarm::<MPC_N>::default();\n    let mut x = [0.0f32; N_STATES];\n    let mut u_prev = 0.0f32;\n    for _ in 0..300 {{\n        let y: f32 = C[0].iter().zip(x.iter()).map(|(c, v)| c * v).sum();\n        let u = QP.step(&mut w, &x, {r:?}, u_prev);\n        println!(\"{{y}} {{u}}\");\n        let mut nx = [0.0f32; N_STATES];\n        for i in 0..N_STATES {{\n            nx[i] = B[i][0] * u + A[i].iter().zip(x.iter()).map(|(a, v)| a * v).sum::<f32>();\n        }}\n        x = nx;\n        u_prev = u;\n    }}\n}}\n",
+            module = module.display().to_string(),
+            fw = fw.display().to_string()
+        ),
+    )
+    .unwrap();
+    run(
+        Command::new("rustc")
+            .args(["--edition", "2021", "-O", "-o"])
+            .arg(dir.join("mpcrs"))
+            .arg(&main),
+        "rustc (std program with the firmware's MPC)",
+    );
+    let out = run(&mut Command::new(dir.join("mpcrs")), "mpcrs");
+    check_mpc_trace("Rust", &parse_pairs(&out), &reference, &c);
+}
+
+#[test]
+fn bad_mpc_block_is_an_error_naming_the_field() {
+    let mut input = full_input();
+    let cases: Vec<(Box<dyn Fn(&mut StateController)>, &str)> = vec![
+        (
+            Box::new(|k| k.mpc.as_mut().unwrap().k[2].pop().map(|_| ()).unwrap()),
+            "state_controller.mpc.k[2]",
+        ),
+        (
+            Box::new(|k| k.mpc.as_mut().unwrap().gx[1][0] = f64::NAN),
+            "state_controller.mpc.gx[1][0]",
+        ),
+        (
+            Box::new(|k| k.mpc.as_mut().unwrap().gr.push(1.0)),
+            "state_controller.mpc.gr",
+        ),
+        (
+            Box::new(|k| k.mpc.as_mut().unwrap().u_max = -1.0),
+            "state_controller.mpc.u_max",
+        ),
+        (
+            Box::new(|k| k.mpc.as_mut().unwrap().du_max = 0.0),
+            "state_controller.mpc.du_max",
+        ),
+        (
+            Box::new(|k| k.mpc.as_mut().unwrap().iterations = 0),
+            "state_controller.mpc.iterations",
+        ),
+        (
+            Box::new(|k| k.mpc.as_mut().unwrap().horizon = 65),
+            "state_controller.mpc.horizon",
+        ),
+        (Box::new(|k| k.matrices.d[0][0] = 0.1), "state_controller.d"),
+        (Box::new(|k| k.ts_s = 2e-3), "state_controller.ts_s"),
+    ];
+    for (edit, field) in cases {
+        let mut k = mpc_block(4);
+        edit(&mut k);
+        input.state_controller = Some(k);
+        let e = generate(&input).unwrap_err().to_string();
+        assert!(e.contains(field), "{field}: {e}");
+    }
 }

@@ -144,3 +144,237 @@ fn firmware_terms_reproduce_the_linear_term() {
         );
     }
 }
+
+// ---- The pipeline's `[control] method = "mpc"` on the bundled example ---------------------
+
+mod pipeline {
+    use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun, ReceiptsDocument};
+    use ferrosid::synth::mpc::{MpcDesign, MpcSpec};
+    use std::path::{Path, PathBuf};
+
+    fn example_path() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/pipeline.toml")
+    }
+
+    /// The example without the gap, compensation and physical stages, with `extra` lines
+    /// appended to `[control]`.
+    fn example_text(extra: &str) -> String {
+        let t = std::fs::read_to_string(example_path()).unwrap();
+        let t = t.replace("[gap]\nrun = \"always\"", "[gap]\nrun = \"never\"");
+        let t = match t.find("[physical]") {
+            Some(i) => t[..i].to_string(),
+            None => t,
+        };
+        t.replace(
+            "reference_amplitude = 5.0   # rad/s speed step\n",
+            &format!("reference_amplitude = 5.0   # rad/s speed step\n{extra}"),
+        )
+    }
+
+    fn run(extra: &str) -> PipelineRun {
+        let cfg = LoadedConfig::from_text(&example_path(), &example_text(extra)).unwrap();
+        run_pipeline(&cfg, &|_| {}).unwrap()
+    }
+
+    #[test]
+    fn mpc_designs_with_its_receipts_report_and_codegen() {
+        let run = run("method = \"mpc\"\nmpc_horizon = 10\n");
+        let c = run.control.as_ref().expect("control block");
+        assert_eq!(c.status, "designed", "{:?}", c.error);
+        let model = run.model();
+        // The receipts that apply, merged into the top-level list; the frequency-domain loop
+        // receipts are absent there and listed with a reason.
+        let names = [
+            "controller_design",
+            "closed_loop_stable",
+            "step_actuator_demand",
+            "step_overshoot",
+            "step_settling_time",
+        ];
+        for n in names {
+            let r = c.receipts.get(n).unwrap_or_else(|| panic!("{n}"));
+            assert_eq!(run.receipts.get(n), Some(r), "{n} merged");
+            eprintln!(
+                "mpc: {n} = {} ({} {}) {}",
+                r.value_text,
+                r.comparison.symbol(),
+                r.limit,
+                r.pass
+            );
+        }
+        for n in [
+            "gain_margin",
+            "phase_margin",
+            "sensitivity_peak",
+            "complementary_sensitivity_peak",
+            "robust_stability",
+            "peak_control_effort",
+        ] {
+            assert!(run.receipts.get(n).is_none(), "{n} must not be claimed");
+            assert!(c.not_applicable.iter().any(|x| x.name == n), "{n} listed");
+            assert!(
+                c.replaced_pid_receipts.iter().any(|x| x.name == n),
+                "{n} kept"
+            );
+        }
+        // Independent re-simulation of the constrained step from the written settings: rails
+        // and rate limit hold, and it tracks.
+        let k = &run.config.control;
+        let spec = MpcSpec {
+            horizon: 10,
+            q: 1.0,
+            r_rate: 1e-2,
+            u_min: -k.actuator_limit,
+            u_max: k.actuator_limit,
+            du_max: k.actuator_limit / 6.0,
+            rho: 1.0,
+            iterations: 60,
+        };
+        let d = MpcDesign::new(model, spec).unwrap();
+        let step = c.step.as_ref().expect("step");
+        let mut st = d.initial_state();
+        let n = model.n_states();
+        let mut x = vec![0.0; n];
+        let mut u_prev = 0.0;
+        for kk in 0..step.t.len() {
+            let y: f64 = (0..n).map(|j| model.c[(0, j)] * x[j]).sum();
+            let u = d.step(&mut st, &x, k.reference_amplitude, u_prev);
+            assert!(u.abs() <= k.actuator_limit, "rail crossed: u = {u}");
+            assert!((u - u_prev).abs() <= spec.du_max * (1.0 + 1e-12) + 1e-15);
+            assert!(
+                (y - step.y[kk]).abs() <= 1e-9 * k.reference_amplitude,
+                "y[{kk}]"
+            );
+            assert!((u - step.u[kk]).abs() <= 1e-12, "u[{kk}]");
+            x = (0..n)
+                .map(|i| (0..n).map(|j| model.a[(i, j)] * x[j]).sum::<f64>() + model.b[(i, 0)] * u)
+                .collect();
+            u_prev = u;
+        }
+        assert!(step.samples_at_rail > 0, "a 5 rad/s step must use the rail");
+        assert!(
+            step.final_error.abs() < 0.02 * k.reference_amplitude,
+            "final error {}",
+            step.final_error
+        );
+        // The unconstrained law's closed loop (independent construction here): stable and
+        // unit DC gain from r to y on the model (the weights penalise y − r only).
+        let law = d.unconstrained_law().unwrap();
+        let cl = d.unconstrained_closed_loop(model).unwrap();
+        let dc = cl.freq_response_siso(1e-6).unwrap().norm();
+        assert!((dc - 1.0).abs() < 1e-3, "DC gain {dc}");
+        assert_eq!(law.kx.len(), n);
+        // JSON, report and codegen.
+        let doc: serde_json::Value =
+            serde_json::from_str(&ReceiptsDocument::from_run(&run).to_json().unwrap()).unwrap();
+        assert_eq!(doc["control"]["method"], "mpc");
+        assert_eq!(doc["control"]["design"]["kind"], "mpc");
+        assert!(doc["control"]["not_applicable"].as_array().unwrap().len() >= 6);
+        let figs = ferrosid::report::figures(&run).unwrap();
+        let html = ferrosid::report::render_html(&run, &figs).unwrap();
+        assert!(html.contains("Chosen controller: mpc"));
+        assert!(html.contains("id=\"fig-control_step\""));
+        assert!(html.contains("do not apply"));
+        let input = ferrosid::ops::codegen::codegen_input(
+            run.codegen_parts().unwrap(),
+            &ferrosid::ops::codegen::CodegenOptions {
+                prefix: "axis1".into(),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let sk = input.state_controller.as_ref().expect("mpc block");
+        let m = sk.mpc.as_ref().expect("mpc data");
+        assert_eq!(m.horizon, 10);
+        assert_eq!(m.k[3][7], d.k[(3, 7)]);
+        let files = ferrosid_codegen::generate(&input).unwrap();
+        assert!(files.c_header.contains("#define AXIS1_HAS_MPC 1"));
+        assert!(!files.c_header.contains("AXIS1_HAS_STATE_CONTROLLER"));
+        assert!(files.rust_module.contains("pub const MPC_N: usize = 10;"));
+    }
+
+    #[test]
+    fn bad_mpc_keys_name_file_line_and_key() {
+        let text = example_text("");
+        let line = text
+            .lines()
+            .position(|l| l.starts_with("reference_amplitude"))
+            .unwrap()
+            + 2;
+        for (extra, key, what) in [
+            (
+                "mpc_horizon = 10",
+                "control.mpc_horizon",
+                "only used with method = \"mpc\"",
+            ),
+            (
+                "method = \"mpc\"\nmpc_horizon = 0",
+                "control.mpc_horizon",
+                "must lie in [1, 64]",
+            ),
+            (
+                "method = \"mpc\"\nmpc_horizon = 65",
+                "control.mpc_horizon",
+                "must lie in [1, 64]",
+            ),
+            (
+                "method = \"mpc\"\nmpc_horizon = -3",
+                "control.mpc_horizon",
+                "",
+            ),
+            (
+                "method = \"mpc\"\nmpc_output_weight = 0",
+                "control.mpc_output_weight",
+                "> 0",
+            ),
+            (
+                "method = \"mpc\"\nmpc_output_weight = nan",
+                "control.mpc_output_weight",
+                "finite",
+            ),
+            (
+                "method = \"mpc\"\nmpc_rate_weight = -1",
+                "control.mpc_rate_weight",
+                ">= 0",
+            ),
+            (
+                "method = \"mpc\"\nmpc_rate_limit = 0",
+                "control.mpc_rate_limit",
+                "> 0",
+            ),
+            (
+                "method = \"mpc\"\nmpc_rate_limit = 0.7",
+                "control.mpc_rate_limit",
+                "rail-to-rail",
+            ),
+            (
+                "method = \"mpc\"\nmpc_rho = inf",
+                "control.mpc_rho",
+                "finite",
+            ),
+            (
+                "method = \"mpc\"\nmpc_iterations = 0",
+                "control.mpc_iterations",
+                "[1, 10000]",
+            ),
+            (
+                "method = \"hinf\"\nmpc_iterations = 5",
+                "control.mpc_iterations",
+                "only used with",
+            ),
+            (
+                "method = \"mpc\"\nmpc_horizn = 5",
+                "control.mpc_horizn",
+                "unknown field",
+            ),
+        ] {
+            let t = example_text(&format!("{extra}\n"));
+            let e = LoadedConfig::from_text(&example_path(), &t)
+                .unwrap_err()
+                .to_string();
+            let at = line + extra.matches('\n').count();
+            assert!(e.contains(&format!("pipeline.toml:{at}")), "{extra}: {e}");
+            assert!(e.contains(key) && e.contains(what), "{extra}: {e}");
+        }
+    }
+}

@@ -1,6 +1,9 @@
 //! Linker setup for the QEMU images, so no `.cargo/config.toml` is needed: the repository's
 //! `memory.x` (mps2-an386 map) goes on the linker search path, and cortex-m-rt's `link.x` and
 //! defmt's `defmt.x` are passed as linker scripts. Only applies to bare-metal ARM targets.
+//! With the `mpc` feature, the generated Rust module named by `FERROSID_MPC_MODEL` is copied to
+//! `$OUT_DIR/mpc_model.rs` for the `mpc` image (a `compile_error!` saying what to set when the
+//! variable is missing or unreadable).
 use std::env;
 use std::path::PathBuf;
 
@@ -16,5 +19,35 @@ fn main() {
         println!("cargo:rustc-link-arg=--nmagic");
         println!("cargo:rustc-link-arg=-Tlink.x");
         println!("cargo:rustc-link-arg=-Tdefmt.x");
+    }
+    if env::var_os("CARGO_FEATURE_MPC").is_some() {
+        const VAR: &str = "FERROSID_MPC_MODEL";
+        println!("cargo:rerun-if-env-changed={VAR}");
+        let text = match env::var_os(VAR) {
+            Some(path) => {
+                let path = PathBuf::from(path);
+                println!("cargo:rerun-if-changed={}", path.display());
+                std::fs::read_to_string(&path).unwrap_or_else(|e| {
+                    format!(
+                        "compile_error!({:?});\n",
+                        format!(
+                            "{VAR}={}: cannot read the generated module: {e}",
+                            path.display()
+                        )
+                    )
+                })
+            }
+            None => format!(
+                "compile_error!({:?});\n",
+                format!(
+                    "set {VAR} to the Rust module written by `ferrosid codegen` for a pipeline \
+                     run with [control] method = \"mpc\""
+                )
+            ),
+        };
+        let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default()).join("mpc_model.rs");
+        if std::fs::read_to_string(&out).ok().as_deref() != Some(text.as_str()) {
+            std::fs::write(&out, text).expect("write mpc_model.rs");
+        }
     }
 }

@@ -92,6 +92,8 @@ impl<const N: usize, const NX: usize> MpcQp<N, NX> {
     /// Runs the ADMM budget on the QP with linear term `f` from the warm start `w`.
     pub fn solve(&self, w: &mut MpcWarm<N>, f: &[f32; N], u_prev: f32, iterations: u16) {
         let rho = self.rho;
+        // One division per call: a VDIV.F32 takes 14 cycles on the M4F, a VMUL 1.
+        let inv_rho = 1.0 / rho;
         let mut rhs = [0.0f32; N];
         for _ in 0..iterations {
             // rhs = σU − f + Mᵀ(ρz − λ), Mᵀ[a; b] = a + Dᵀb, (Dᵀb)_j = b_j − b_{j+1}.
@@ -114,7 +116,7 @@ impl<const N: usize, const NX: usize> MpcQp<N, NX> {
             }
             for i in 0..N {
                 let mb = w.u[i];
-                let zb = clamp(mb + w.l_box[i] / rho, self.u_min, self.u_max);
+                let zb = clamp(mb + w.l_box[i] * inv_rho, self.u_min, self.u_max);
                 w.l_box[i] += rho * (mb - zb);
                 w.z_box[i] = zb;
                 // Rate row i: U_i − U_{i−1}; row 0 is U_0 with bounds shifted by u_prev.
@@ -123,7 +125,7 @@ impl<const N: usize, const NX: usize> MpcQp<N, NX> {
                 } else {
                     (w.u[i] - w.u[i - 1], -self.du_max, self.du_max)
                 };
-                let zr = clamp(mr + w.l_rate[i] / rho, lo, hi);
+                let zr = clamp(mr + w.l_rate[i] * inv_rho, lo, hi);
                 w.l_rate[i] += rho * (mr - zr);
                 w.z_rate[i] = zr;
             }

@@ -10,6 +10,14 @@
 //!   actuator limit and W_T = W_m; the bandwidth of W_S is the target crossover, lowered by
 //!   geometric bisection (down to `min_crossover_scale`) until γ ≤ 1. The controller is
 //!   discretised by Tustin prewarped at that bandwidth and runs at the model rate.
+//! - `mpc`: the condensed MPC of [`crate::synth::mpc`] on G0 (state feedback on the model's
+//!   state), box ±actuator_limit, rate limit `mpc_rate_limit` per sample, solved by ADMM with a
+//!   fixed budget per sample. Its receipts ([`mpc_receipts`]): `controller_design` (−3 dB
+//!   bandwidth of the unconstrained law's closed loop), `closed_loop_stable` (that loop's
+//!   poles), and the constrained step from the host simulation of the law as it runs on the
+//!   target (`step_actuator_demand`: rails and rate limit respected, `step_overshoot`,
+//!   `step_settling_time`). The frequency-domain loop receipts do not apply to a
+//!   state-feedback MPC; they are listed with the reason under `control.not_applicable`.
 //!
 //! For `loopshape` and `hinf` the PID is still tuned (it is the baseline the gained crossover
 //! is measured against, and the gap and compensation stages refer to it); then the chosen
@@ -20,6 +28,7 @@
 //! `control` block as `replaced_pid_receipts`). The model receipts (ETFE phase,
 //! cross-validation, audit) are unchanged.
 use super::config::{LoadedConfig, PipelineConfig};
+use super::control_mpc::{mpc_codegen_block, run_mpc, MAX_MPC_HORIZON, MAX_MPC_ITERATIONS};
 use super::{fmt_num, log_grid};
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
@@ -38,6 +47,7 @@ use crate::synth::hinf::{
     hinf_mixed_sensitivity, performance_weight, HinfDesign, HinfOptions, MixedSensitivityWeights,
 };
 use crate::synth::loopshape::{tune_pid_notch, Notch};
+use crate::synth::mpc::MpcDesign;
 use crate::synth::sim::{saturated_step_general, DiscreteLaw, SsFilter};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -54,6 +64,8 @@ pub enum ControlMethod {
     Loopshape,
     /// H∞ mixed sensitivity.
     Hinf,
+    /// Condensed MPC (input box and rate limit, ADMM with a fixed budget).
+    Mpc,
 }
 
 impl ControlMethod {
@@ -67,6 +79,7 @@ impl ControlMethod {
             Self::Pid => "pid",
             Self::Loopshape => "loopshape",
             Self::Hinf => "hinf",
+            Self::Mpc => "mpc",
         }
     }
 }
@@ -79,7 +92,6 @@ pub const DEFAULT_HINF_WS_FLOOR: f64 = 1e-3;
 pub const DEFAULT_HINF_BACKOFF: f64 = 0.01;
 /// Geometric bisection steps of the H∞ bandwidth search.
 const HINF_BANDWIDTH_STEPS: usize = 6;
-
 /// Checks the method-specific `[control]` keys: ranges, and no key of another method (it would
 /// be silently ignored).
 pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
@@ -104,6 +116,32 @@ pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
             "control.hinf_order",
             k.hinf_order.is_some(),
             ControlMethod::Hinf,
+        ),
+        (
+            "control.mpc_horizon",
+            k.mpc_horizon.is_some(),
+            ControlMethod::Mpc,
+        ),
+        (
+            "control.mpc_output_weight",
+            k.mpc_output_weight.is_some(),
+            ControlMethod::Mpc,
+        ),
+        (
+            "control.mpc_rate_weight",
+            k.mpc_rate_weight.is_some(),
+            ControlMethod::Mpc,
+        ),
+        (
+            "control.mpc_rate_limit",
+            k.mpc_rate_limit.is_some(),
+            ControlMethod::Mpc,
+        ),
+        ("control.mpc_rho", k.mpc_rho.is_some(), ControlMethod::Mpc),
+        (
+            "control.mpc_iterations",
+            k.mpc_iterations.is_some(),
+            ControlMethod::Mpc,
         ),
     ] {
         if given && k.method != method {
@@ -135,6 +173,54 @@ pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
     )?;
     range("control.hinf_ws_floor", k.hinf_ws_floor, 0.0, 0.5, false)?;
     range("control.hinf_backoff", k.hinf_backoff, 0.0, 1.0, true)?;
+    let positive = |key: &str, v: Option<f64>, zero_ok: bool| -> Result<()> {
+        match v {
+            Some(v) if !(v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0))) => Err(cfg
+                .key_error(
+                    key,
+                    format!(
+                        "must be finite and {}, got {v}",
+                        if zero_ok { ">= 0" } else { "> 0" }
+                    ),
+                )),
+            _ => Ok(()),
+        }
+    };
+    positive("control.mpc_output_weight", k.mpc_output_weight, false)?;
+    positive("control.mpc_rate_weight", k.mpc_rate_weight, true)?;
+    positive("control.mpc_rate_limit", k.mpc_rate_limit, false)?;
+    positive("control.mpc_rho", k.mpc_rho, false)?;
+    if let Some(n) = k.mpc_horizon {
+        if !(1..=MAX_MPC_HORIZON).contains(&n) {
+            return Err(cfg.key_error(
+                "control.mpc_horizon",
+                format!(
+                    "must lie in [1, {MAX_MPC_HORIZON}] samples (the firmware stores an N×N \
+                     f32 matrix), got {n}"
+                ),
+            ));
+        }
+    }
+    if let Some(n) = k.mpc_iterations {
+        if !(1..=MAX_MPC_ITERATIONS).contains(&n) {
+            return Err(cfg.key_error(
+                "control.mpc_iterations",
+                format!("must lie in [1, {MAX_MPC_ITERATIONS}] per control step, got {n}"),
+            ));
+        }
+    }
+    if let (Some(d), true) = (k.mpc_rate_limit, k.method == ControlMethod::Mpc) {
+        if d.is_finite() && d > 2.0 * k.actuator_limit {
+            return Err(cfg.key_error(
+                "control.mpc_rate_limit",
+                format!(
+                    "{d} per sample exceeds the full rail-to-rail swing 2·actuator_limit = {} \
+                     (the limit would never act)",
+                    2.0 * k.actuator_limit
+                ),
+            ));
+        }
+    }
     if k.hinf_order == Some(0) {
         return Err(cfg.key_error(
             "control.hinf_order",
@@ -190,6 +276,60 @@ pub enum DesignSummary {
         /// The balanced truncation to `hinf_order` (null without reduction).
         reduction: Option<Reduction>,
     },
+    /// Condensed MPC.
+    Mpc {
+        /// The settings (horizon, weights, box, rate limit, ρ, iterations).
+        spec: MpcSpecSummary,
+        /// ADMM proximal weight σ.
+        sigma: f64,
+        /// States of the prediction model (G0).
+        model_states: usize,
+        /// The unconstrained law u₀ = −k_x·x + k_r·r + k_u·u_prev.
+        unconstrained_kx: Vec<f64>,
+        /// See `unconstrained_kx`.
+        unconstrained_kr: f64,
+        /// See `unconstrained_kx`.
+        unconstrained_ku: f64,
+        /// Largest pole modulus of the unconstrained closed loop.
+        unconstrained_pole_modulus: f64,
+        /// −3 dB bandwidth of the unconstrained closed loop r → y, Hz (null: above Nyquist).
+        unconstrained_bandwidth_hz: Option<f64>,
+        /// Largest |Δu| applied in the step, input units.
+        step_max_abs_du: f64,
+        /// Largest distance of the raw ADMM iterate U₀ outside the box in the step (the
+        /// clamp of the applied input removes it).
+        step_max_raw_excess: f64,
+    },
+}
+
+/// The MPC settings as used (defaults filled in).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MpcSpecSummary {
+    /// Horizon N, samples.
+    pub horizon: usize,
+    /// Output weight q.
+    pub output_weight: f64,
+    /// Input-rate weight ρ_Δ.
+    pub rate_weight: f64,
+    /// Input box.
+    pub u_min: f64,
+    /// Input box.
+    pub u_max: f64,
+    /// Largest |Δu| per sample.
+    pub rate_limit: f64,
+    /// ADMM penalty ρ.
+    pub rho: f64,
+    /// ADMM iterations per step.
+    pub iterations: usize,
+}
+
+/// A loop receipt that does not apply to the chosen method, and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct NotApplicable {
+    /// Receipt name.
+    pub name: String,
+    /// Why it does not apply.
+    pub reason: String,
 }
 
 /// A balanced truncation of the continuous H∞ controller (before Tustin).
@@ -230,6 +370,10 @@ pub struct ControlOutcome {
     pub receipts: Receipts,
     /// The PID receipts the chosen ones replaced in the top-level list.
     pub replaced_pid_receipts: Vec<Receipt>,
+    /// Loop receipts that do not apply to the method (with the reason); the PID's of the same
+    /// name are in `replaced_pid_receipts`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_applicable: Vec<NotApplicable>,
     /// Margins of the chosen loop.
     pub margins: Option<Margins>,
     /// Loop curves for the report (not written to JSON).
@@ -241,6 +385,9 @@ pub struct ControlOutcome {
     /// The discrete controller (for codegen; not written twice).
     #[serde(skip)]
     pub controller_ss: Option<StateSpace>,
+    /// The MPC design and its prediction model (for codegen).
+    #[serde(skip)]
+    pub mpc: Option<(MpcDesign, StateSpace)>,
 }
 
 /// A designed controller: the discrete law that runs and its summary.
@@ -271,7 +418,7 @@ pub(super) fn pid_spec(c: &PipelineConfig, weight: Option<&UncertaintyWeight>) -
 }
 
 /// A design failure that is a finding (reported by `controller_design`), not an error.
-fn finding<T>(r: Result<T>) -> Result<std::result::Result<T, String>> {
+pub(super) fn finding<T>(r: Result<T>) -> Result<std::result::Result<T, String>> {
     match r {
         Ok(t) => Ok(Ok(t)),
         Err(Error::InvalidArgument(m)) | Err(Error::Numerical(m)) => Ok(Err(m)),
@@ -482,11 +629,6 @@ pub(super) fn run_control_stage(
     receipts: &mut Receipts,
 ) -> Result<Option<(ControlOutcome, f64)>> {
     let method = c.control.method;
-    let designed = match method {
-        ControlMethod::Pid => return Ok(None),
-        ControlMethod::Loopshape => design_loopshape(c, inp.model, inp.weight)?,
-        ControlMethod::Hinf => design_hinf(c, inp.model, inp.weight)?,
-    };
     let mut out = ControlOutcome {
         method,
         status: "failed",
@@ -497,10 +639,22 @@ pub(super) fn run_control_stage(
         baseline_pid_crossover_hz: inp.baseline.map(|t| t.design.crossover_hz),
         receipts: Receipts::default(),
         replaced_pid_receipts: Vec::new(),
+        not_applicable: Vec::new(),
         margins: None,
         curves: None,
         step: None,
         controller_ss: None,
+        mpc: None,
+    };
+    let designed = match method {
+        ControlMethod::Pid => return Ok(None),
+        ControlMethod::Loopshape => design_loopshape(c, inp.model, inp.weight)?,
+        ControlMethod::Hinf => design_hinf(c, inp.model, inp.weight)?,
+        ControlMethod::Mpc => {
+            let fc = run_mpc(c, &inp, &mut out)?;
+            out.replaced_pid_receipts = merge(receipts, &out.receipts);
+            return Ok(Some((out, fc)));
+        }
     };
     let fc = match designed {
         Err(e) => {
@@ -588,7 +742,7 @@ fn merge(main: &mut Receipts, chosen: &Receipts) -> Vec<Receipt> {
 
 /// `controller_design` for the chosen method: the achieved gain crossover against the smallest
 /// accepted one, with the PID baseline in the detail.
-fn design_receipt(
+pub(super) fn design_receipt(
     c: &PipelineConfig,
     method: ControlMethod,
     achieved: std::result::Result<f64, &str>,
@@ -604,6 +758,10 @@ fn design_receipt(
             ControlMethod::Loopshape => {
                 "lowest gain crossover of the PID + notch loop (highest PID crossover on the notched \
                  plant meeting M_s, ‖W_m T‖∞ < 1 and the actuator limit)"
+            }
+            ControlMethod::Mpc => {
+                "−3 dB bandwidth of the MPC's unconstrained closed loop r → y (the law the \
+                 constrained MPC follows away from the limits)"
             }
             _ => {
                 "lowest gain crossover of the H∞ mixed-sensitivity loop (highest W_S bandwidth with \
@@ -723,6 +881,9 @@ fn chosen_loop_receipts(
 
 /// The chosen controller as a codegen block (None for a failed design).
 pub fn codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateController> {
+    if c.mpc.is_some() {
+        return mpc_codegen_block(c);
+    }
     let k = c.controller_ss.as_ref()?;
     Some(ferrosid_codegen::StateController {
         method: c.method.name().to_string(),
@@ -736,5 +897,6 @@ pub fn codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateContro
             c.gain_crossover_hz.map_or("none".into(), fmt_num),
             c.baseline_pid_crossover_hz.map_or("n/a".into(), fmt_num)
         ),
+        mpc: None,
     })
 }

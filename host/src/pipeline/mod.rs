@@ -29,6 +29,7 @@
 pub mod arrays;
 pub mod compensation_stage;
 pub mod config;
+pub mod control_mpc;
 pub mod control_stage;
 pub mod document;
 pub mod gap_stage;

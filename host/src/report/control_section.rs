@@ -1,4 +1,5 @@
-//! The report's "Chosen controller" section for `[control] method = "loopshape" | "hinf"`
+//! The report's "Chosen controller" section for `[control] method = "loopshape" | "hinf" |
+//! "mpc"`
 //! ([`crate::pipeline::control_stage`]): the design (notches or H∞ levels and weights), a
 //! comparison table of the chosen loop against the PID baseline on the same plant, the Bode
 //! plot of L (figure `control_loop`), |S| and |T| against 1/|W_m| (`control_sensitivity`) and
@@ -164,6 +165,13 @@ pub(crate) fn render(h: &mut String, run: &PipelineRun, figs: &[Figure]) {
     if c.status == "designed" {
         comparison(h, c);
     }
+    if !c.not_applicable.is_empty() {
+        h.push_str("<p>Receipts that do not apply to this method:</p>\n<ul>\n");
+        for n in &c.not_applicable {
+            let _ = writeln!(h, "<li><b>{}</b>: {}</li>", esc(&n.name), esc(&n.reason));
+        }
+        h.push_str("</ul>\n");
+    }
     for name in ["control_loop", "control_sensitivity", "control_step"] {
         figure_html(h, figs, name);
     }
@@ -288,15 +296,82 @@ fn design_table(h: &mut String, d: &DesignSummary) {
                 );
             }
         }
+        DesignSummary::Mpc {
+            spec,
+            sigma,
+            model_states,
+            unconstrained_kx,
+            unconstrained_kr,
+            unconstrained_ku,
+            unconstrained_pole_modulus,
+            unconstrained_bandwidth_hz,
+            step_max_abs_du,
+            step_max_raw_excess,
+        } => {
+            row(
+                "QP",
+                format!(
+                    "horizon N = {}, output weight q {}, rate weight ρ_Δ {}, box [{}, {}], \
+                     |Δu| ≤ {} per sample; prediction model G0 ({model_states} states, state \
+                     feedback)",
+                    spec.horizon,
+                    fmt_num(spec.output_weight),
+                    fmt_num(spec.rate_weight),
+                    fmt_num(spec.u_min),
+                    fmt_num(spec.u_max),
+                    fmt_num(spec.rate_limit)
+                ),
+            );
+            row(
+                "solver",
+                format!(
+                    "ADMM, ρ {}, σ {:.1e}, {} iterations per sample from the shifted previous \
+                     solution (the firmware's budget)",
+                    fmt_num(spec.rho),
+                    sigma,
+                    spec.iterations
+                ),
+            );
+            row(
+                "unconstrained law",
+                format!(
+                    "u = −k_x·x + {}·r + {}·u_prev, k_x = [{}]; closed-loop pole modulus {}, \
+                     −3 dB bandwidth {}",
+                    fmt_num(*unconstrained_kr),
+                    fmt_num(*unconstrained_ku),
+                    unconstrained_kx
+                        .iter()
+                        .map(|v| fmt_num(*v))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    fmt_num(*unconstrained_pole_modulus),
+                    unconstrained_bandwidth_hz
+                        .map_or("above Nyquist".into(), |f| format!("{} Hz", fmt_num(f)))
+                ),
+            );
+            row(
+                "constrained step",
+                format!(
+                    "largest |Δu| {}; raw ADMM U₀ at most {} outside the box before the clamp",
+                    fmt_num(*step_max_abs_du),
+                    fmt_num(*step_max_raw_excess)
+                ),
+            );
+        }
     }
     h.push_str("</table>\n");
 }
 
 /// The chosen loop's receipts next to the PID baseline's.
 fn comparison(h: &mut String, c: &ControlOutcome) {
+    let what = if matches!(c.design, Some(DesignSummary::Mpc { .. })) {
+        "−3 dB bandwidth of the MPC's unconstrained closed loop"
+    } else {
+        "Lowest gain crossover"
+    };
     let _ = writeln!(
         h,
-        "<p>Lowest gain crossover {} Hz against the PID baseline's {} Hz on the same plant. \
+        "<p>{what} {} Hz against the PID baseline's crossover {} Hz on the same plant. \
          The chosen controller's receipts replace the PID's in the receipts table.</p>",
         c.gain_crossover_hz.map_or("none".into(), fmt_num),
         c.baseline_pid_crossover_hz.map_or("n/a".into(), fmt_num)

@@ -17,6 +17,7 @@
 //! the first entry of the clamped z (feasible by construction).
 use crate::error::{Error, Result};
 use crate::lti::{solve_square, StateSpace};
+use crate::robust::step::StepResponse;
 use faer::Mat;
 
 /// Weights, limits and solver settings of [`MpcDesign::new`].
@@ -195,14 +196,129 @@ impl MpcDesign {
     /// (feasible: inside the box and the rate limit). `st` is left shifted by one sample for
     /// the next call.
     pub fn step(&self, st: &mut MpcState, x0: &[f64], r: f64, u_prev: f64) -> f64 {
+        self.step_detailed(st, x0, r, u_prev).0
+    }
+
+    /// [`Self::step`], also returning the ADMM primal iterate U₀ before the clamps (how far
+    /// the fixed budget left the solution from the constraint set).
+    pub fn step_detailed(&self, st: &mut MpcState, x0: &[f64], r: f64, u_prev: f64) -> (f64, f64) {
         let (f, lo, hi) = self.qp_data(x0, r, u_prev);
         self.solve(st, &f, &lo, &hi, self.spec.iterations);
+        let raw = st.u[0];
         let du = self.spec.du_max;
         let u_now = st.z[0]
             .clamp(u_prev - du, u_prev + du)
             .clamp(self.spec.u_min, self.spec.u_max);
         shift(st, self.spec.horizon);
-        u_now
+        (u_now, raw)
+    }
+
+    /// The unconstrained law (the exact QP optimum when no constraint is active):
+    /// u₀ = −k_x·x + k_r·r + k_u·u_prev, from the first row of H⁻¹ (H is symmetric).
+    pub fn unconstrained_law(&self) -> Result<UnconstrainedLaw> {
+        let nh = self.spec.horizon;
+        let hinv = solve_square(
+            self.h.as_ref(),
+            Mat::<f64>::identity(nh, nh).as_ref(),
+            "MPC: Hessian",
+        )?;
+        let (gx, gr) = self.firmware_terms();
+        let n = gx.ncols();
+        let kx = (0..n)
+            .map(|j| (0..nh).map(|i| hinv[(0, i)] * gx[(i, j)]).sum())
+            .collect();
+        let kr = (0..nh).map(|i| hinv[(0, i)] * gr[i]).sum();
+        let ku = 2.0 * self.spec.r_rate * hinv[(0, 0)];
+        Ok(UnconstrainedLaw { kx, kr, ku })
+    }
+
+    /// The closed loop of `plant` (the design model) under [`Self::unconstrained_law`], state
+    /// [x; u_prev], input r, output y: x⁺ = (A − B k_x) x + B k_u u_prev + B k_r r,
+    /// u_prev⁺ = −k_x x + k_u u_prev + k_r r.
+    pub fn unconstrained_closed_loop(&self, plant: &StateSpace) -> Result<StateSpace> {
+        let law = self.unconstrained_law()?;
+        let n = plant.n_states();
+        if law.kx.len() != n {
+            return Err(Error::InvalidArgument(format!(
+                "MPC: the plant has {n} states, the design {}",
+                law.kx.len()
+            )));
+        }
+        let a = Mat::from_fn(n + 1, n + 1, |i, j| match (i < n, j < n) {
+            (true, true) => plant.a[(i, j)] - plant.b[(i, 0)] * law.kx[j],
+            (true, false) => plant.b[(i, 0)] * law.ku,
+            (false, true) => -law.kx[j],
+            (false, false) => law.ku,
+        });
+        let b = Mat::from_fn(n + 1, 1, |i, _| {
+            if i < n {
+                plant.b[(i, 0)] * law.kr
+            } else {
+                law.kr
+            }
+        });
+        let c = Mat::from_fn(1, n + 1, |_, j| if j < n { plant.c[(0, j)] } else { 0.0 });
+        StateSpace::new(a, b, c, Mat::zeros(1, 1), plant.ts)
+    }
+
+    /// Closed-loop step of the reference `r` on `plant` (the design model, its state fed back
+    /// exactly: a state-feedback MPC) for `samples` samples from rest, with the fixed ADMM
+    /// budget and warm start per sample as on the target.
+    pub fn closed_loop_step(
+        &self,
+        plant: &StateSpace,
+        r: f64,
+        samples: usize,
+        settle_band: f64,
+    ) -> Result<MpcStep> {
+        let n = plant.n_states();
+        if plant.d[(0, 0)] != 0.0 || self.phi.ncols() != n {
+            return Err(Error::InvalidArgument(
+                "MPC step: the plant must be the design model (same states, D = 0)".into(),
+            ));
+        }
+        if !(r.is_finite() && r != 0.0 && samples >= 2 && settle_band > 0.0 && settle_band < 1.0) {
+            return Err(Error::InvalidArgument(format!(
+                "MPC step: r = {r} must be finite and non-zero, samples {samples} >= 2, band                  {settle_band} in (0, 1)"
+            )));
+        }
+        let mut st = self.initial_state();
+        let mut x = vec![0.0; n];
+        let mut u_prev = 0.0;
+        let (mut t, mut y, mut u, mut raw) = (vec![], vec![], vec![], vec![]);
+        let mut max_du = 0.0f64;
+        for k in 0..samples {
+            let yk: f64 = (0..n).map(|j| plant.c[(0, j)] * x[j]).sum();
+            let (uk, rk) = self.step_detailed(&mut st, &x, r, u_prev);
+            if !(yk.is_finite() && rk.is_finite()) {
+                return Err(Error::Numerical(format!(
+                    "MPC step: the response diverged at sample {k}"
+                )));
+            }
+            max_du = max_du.max((uk - u_prev).abs());
+            let next: Vec<f64> = (0..n)
+                .map(|i| (0..n).map(|j| plant.a[(i, j)] * x[j]).sum::<f64>() + plant.b[(i, 0)] * uk)
+                .collect();
+            x = next;
+            t.push(k as f64 * plant.ts);
+            y.push(yk);
+            u.push(uk);
+            raw.push(rk);
+            u_prev = uk;
+        }
+        let s = self.spec;
+        let lim = s.u_max.abs().max(s.u_min.abs());
+        let step = summarise(plant.ts, r, lim, settle_band, t, y, u.clone(), u);
+        let max_raw_excess = raw
+            .iter()
+            .map(|v| (v - s.u_max).max(s.u_min - v).max(0.0))
+            .fold(0.0, f64::max);
+        Ok(MpcStep {
+            step,
+            max_abs_du: max_du,
+            max_raw_excess,
+            raw_u0: raw,
+        })
     }
 
     /// `iterations` ADMM steps on the QP (f, lo, hi) from `st`.
@@ -229,14 +345,89 @@ impl MpcDesign {
     }
 }
 
-/// Shifts a solution one sample ahead (the warm start for the next control step).
+/// The MPC's linear law when no constraint is active ([`MpcDesign::unconstrained_law`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnconstrainedLaw {
+    /// State gain k_x (n).
+    pub kx: Vec<f64>,
+    /// Reference gain k_r.
+    pub kr: f64,
+    /// Previous-input gain k_u.
+    pub ku: f64,
+}
+
+/// A simulated MPC step ([`MpcDesign::closed_loop_step`]).
+#[derive(Debug, Clone)]
+pub struct MpcStep {
+    /// The response (u_demand = u: the MPC's output is already constrained).
+    pub step: StepResponse,
+    /// Largest |u_k − u_{k−1}| applied.
+    pub max_abs_du: f64,
+    /// Largest distance of the raw ADMM iterate U₀ outside the box (0: inside).
+    pub max_raw_excess: f64,
+    /// The raw ADMM iterate U₀ per sample.
+    pub raw_u0: Vec<f64>,
+}
+
+/// The summary numbers of a step, defined as in [`crate::robust::step::StepResponse`] (the
+/// same definitions as `synth::sim`'s trace).
+#[allow(clippy::too_many_arguments)]
+fn summarise(
+    ts: f64,
+    r: f64,
+    lim: f64,
+    band_rel: f64,
+    t: Vec<f64>,
+    y: Vec<f64>,
+    u: Vec<f64>,
+    v: Vec<f64>,
+) -> StepResponse {
+    let (sgn, ar) = (r.signum(), r.abs());
+    let peak = y.iter().map(|y| y * sgn).fold(f64::NEG_INFINITY, f64::max);
+    let band = band_rel * ar;
+    let last_out = y.iter().rposition(|yk| (yk - r).abs() > band);
+    let settling_time_s = match last_out {
+        None => Some(0.0),
+        Some(k) if k + 1 < y.len() => Some(t[k + 1]),
+        Some(_) => None,
+    };
+    let t10 = y.iter().position(|yk| yk * sgn >= 0.1 * ar);
+    let t90 = y.iter().position(|yk| yk * sgn >= 0.9 * ar);
+    let rise_time_s = match (t10, t90) {
+        (Some(a), Some(b)) => Some(t[b] - t[a]),
+        _ => None,
+    };
+    let at_rail = v.iter().filter(|x| x.abs() >= lim).count();
+    StepResponse {
+        ts,
+        amplitude: r,
+        actuator_limit: lim,
+        hits_rail: at_rail > 0,
+        samples_at_rail: at_rail,
+        peak_demand_ratio: v.iter().map(|x| x.abs() / lim).fold(0.0, f64::max),
+        overshoot_pct: ((peak - ar) / ar * 100.0).max(0.0),
+        settling_time_s,
+        rise_time_s,
+        final_error: r - y.last().copied().unwrap_or(0.0),
+        t,
+        y,
+        u,
+        u_demand: v,
+    }
+}
+
+/// Shifts a solution one sample ahead (the warm start for the next control step), the last
+/// entry of each block repeated, exactly as the firmware (`ferrosid_firmware::mpc`) does.
 fn shift(st: &mut MpcState, nh: usize) {
-    st.u.rotate_left(1);
-    if nh >= 2 {
-        st.u[nh - 1] = st.u[nh - 2];
-    }
-    for v in [&mut st.z, &mut st.lambda] {
-        v[..nh].rotate_left(1);
-        v[nh..].rotate_left(1);
-    }
+    let shift_block = |v: &mut [f64]| {
+        v.rotate_left(1);
+        if nh >= 2 {
+            v[nh - 1] = v[nh - 2];
+        }
+    };
+    shift_block(&mut st.u);
+    shift_block(&mut st.z[..nh]);
+    shift_block(&mut st.z[nh..]);
+    shift_block(&mut st.lambda[..nh]);
+    shift_block(&mut st.lambda[nh..]);
 }

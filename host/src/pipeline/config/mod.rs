@@ -376,7 +376,8 @@ pub struct Control {
     #[serde(default = "yes")]
     pub limit_control_effort: bool,
     /// Controller structure: `pid` (default, the robust PID above), `loopshape` (alias
-    /// `pid-notch`: PID + notches) or `hinf` (H∞ mixed sensitivity); see
+    /// `pid-notch`: PID + notches), `hinf` (H∞ mixed sensitivity) or `mpc` (condensed MPC
+    /// with the actuator limit as its input box); see
     /// [`super::control_stage`]. Omitted from the settings echo when `pid`.
     #[serde(
         default,
@@ -397,6 +398,24 @@ pub struct Control {
     /// (default: no reduction; an order at or above the controller's keeps it whole).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hinf_order: Option<usize>,
+    /// `mpc`: prediction/control horizon N in samples (default 10).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_horizon: Option<usize>,
+    /// `mpc`: output tracking weight q per (output unit)² (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_output_weight: Option<f64>,
+    /// `mpc`: input-rate weight ρ_Δ per (input unit)² (default 0.01).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_rate_weight: Option<f64>,
+    /// `mpc`: largest input change per sample, input units (default actuator_limit / 6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_rate_limit: Option<f64>,
+    /// `mpc`: ADMM penalty ρ (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_rho: Option<f64>,
+    /// `mpc`: ADMM iterations per control step (default 60).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_iterations: Option<usize>,
 }
 
 fn default_ms() -> f64 {

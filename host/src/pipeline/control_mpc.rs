@@ -1,0 +1,352 @@
+//! `[control] method = "mpc"` (issue 14): the condensed MPC of [`crate::synth::mpc`] on G0,
+//! its receipts and its codegen block (see [`super::control_stage`] for the other methods).
+//!
+//! The MPC is a state-feedback law on the model's state with the input box ±actuator_limit
+//! and a rate limit, solved by ADMM with a fixed budget per sample (what the firmware runs).
+//! Receipts ([`mpc_receipts`]): `controller_design` (−3 dB bandwidth of the unconstrained
+//! law's closed loop r → y), `closed_loop_stable` (that loop's pole modulus), and the
+//! constrained step from the host simulation of the fixed-budget law: `step_actuator_demand`
+//! (rails and rate limit respected), `step_overshoot`, `step_settling_time`. The
+//! frequency-domain loop receipts need an LTI output-feedback controller and are listed in
+//! `control.not_applicable` with the reason.
+use super::config::PipelineConfig;
+use super::control_stage::{
+    design_receipt, finding, ControlMethod, ControlOutcome, ControlStageInputs, DesignSummary,
+    MpcSpecSummary, NotApplicable,
+};
+use super::{fmt_num, log_grid};
+use crate::error::Result;
+use crate::robust::receipts::{Comparison, Receipt, ReceiptKind, ReceiptLimits, Receipts};
+use crate::synth::mpc::{MpcDesign, MpcSpec, MpcStep, UnconstrainedLaw};
+
+/// Default of `control.mpc_horizon`.
+pub const DEFAULT_MPC_HORIZON: usize = 10;
+/// Largest `control.mpc_horizon` (the firmware's K is N² f32: 16 KiB at 64).
+pub const MAX_MPC_HORIZON: usize = 64;
+/// Default of `control.mpc_output_weight`.
+pub const DEFAULT_MPC_OUTPUT_WEIGHT: f64 = 1.0;
+/// Default of `control.mpc_rate_weight`.
+pub const DEFAULT_MPC_RATE_WEIGHT: f64 = 1e-2;
+/// Default of `control.mpc_rate_limit` as a fraction of the actuator limit.
+pub const DEFAULT_MPC_RATE_FRACTION: f64 = 1.0 / 6.0;
+/// Default of `control.mpc_rho`.
+pub const DEFAULT_MPC_RHO: f64 = 1.0;
+/// Default of `control.mpc_iterations`.
+pub const DEFAULT_MPC_ITERATIONS: usize = 60;
+/// Largest `control.mpc_iterations` (the firmware counts them in a u16).
+pub const MAX_MPC_ITERATIONS: usize = 10_000;
+
+/// The MPC's settings from `[control]` (defaults filled in): box ±actuator_limit.
+pub fn mpc_spec(c: &PipelineConfig) -> MpcSpec {
+    let k = &c.control;
+    MpcSpec {
+        horizon: k.mpc_horizon.unwrap_or(DEFAULT_MPC_HORIZON),
+        q: k.mpc_output_weight.unwrap_or(DEFAULT_MPC_OUTPUT_WEIGHT),
+        r_rate: k.mpc_rate_weight.unwrap_or(DEFAULT_MPC_RATE_WEIGHT),
+        u_min: -k.actuator_limit,
+        u_max: k.actuator_limit,
+        du_max: k
+            .mpc_rate_limit
+            .unwrap_or(DEFAULT_MPC_RATE_FRACTION * k.actuator_limit),
+        rho: k.mpc_rho.unwrap_or(DEFAULT_MPC_RHO),
+        iterations: k.mpc_iterations.unwrap_or(DEFAULT_MPC_ITERATIONS),
+    }
+}
+
+/// Why the frequency-domain loop receipts do not apply to the MPC.
+const MPC_NOT_APPLICABLE: [(ReceiptKind, &str); 7] = [
+    (ReceiptKind::GainMargin, "a gain margin of the output loop"),
+    (
+        ReceiptKind::PhaseMargin,
+        "a phase margin of the output loop",
+    ),
+    (ReceiptKind::SensitivityPeak, "S = 1/(1 + G·K)"),
+    (
+        ReceiptKind::ComplementarySensitivityPeak,
+        "T = G·K/(1 + G·K)",
+    ),
+    (
+        ReceiptKind::RobustStability,
+        "‖W_m T‖∞ on T of the output loop",
+    ),
+    (
+        ReceiptKind::DisturbanceRejectionBandwidth,
+        "the −3 dB frequency of |S|",
+    ),
+    (ReceiptKind::PeakControlEffort, "‖KS‖∞ of an LTI K"),
+];
+
+/// Designs the MPC on G0, simulates its constrained step and fills `out` (receipts, design,
+/// step, not-applicable list). Returns the crossover the receipt limits refer to (the target).
+pub(super) fn run_mpc(
+    c: &PipelineConfig,
+    inp: &ControlStageInputs<'_>,
+    out: &mut ControlOutcome,
+) -> Result<f64> {
+    let k = &c.control;
+    let fc = k.crossover_hz;
+    let spec = mpc_spec(c);
+    let d = match finding(MpcDesign::new(inp.model, spec))? {
+        Ok(d) => d,
+        Err(e) => {
+            let e = format!("MPC design: {e}");
+            out.receipts.push(design_receipt(
+                c,
+                ControlMethod::Mpc,
+                Err(&e),
+                out.baseline_pid_crossover_hz,
+            ));
+            out.error = Some(e);
+            return Ok(fc);
+        }
+    };
+    let limits = super::stages::receipt_limits(c, fc);
+    let r = mpc_receipts(c, inp, &d, &limits)?;
+    for x in r.receipts.receipts {
+        out.receipts.push(x);
+    }
+    out.not_applicable = MPC_NOT_APPLICABLE
+        .iter()
+        .map(|(kind, what)| NotApplicable {
+            name: kind.name().to_string(),
+            reason: format!(
+                "the MPC is a state-feedback law on the model's state (the host simulation \
+                 feeds back the model state exactly; no observer is designed) whose constrained \
+                 form is nonlinear: there is no LTI output-feedback controller K, so no {what}"
+            ),
+        })
+        .collect();
+    out.status = "designed";
+    out.gain_crossover_hz = r.bandwidth_hz;
+    out.step = r.step.as_ref().map(|s| s.step.clone());
+    out.design = Some(DesignSummary::Mpc {
+        spec: MpcSpecSummary {
+            horizon: spec.horizon,
+            output_weight: spec.q,
+            rate_weight: spec.r_rate,
+            u_min: spec.u_min,
+            u_max: spec.u_max,
+            rate_limit: spec.du_max,
+            rho: spec.rho,
+            iterations: spec.iterations,
+        },
+        sigma: d.sigma,
+        model_states: inp.model.n_states(),
+        unconstrained_kx: r.law.kx.clone(),
+        unconstrained_kr: r.law.kr,
+        unconstrained_ku: r.law.ku,
+        unconstrained_pole_modulus: r.pole_modulus,
+        unconstrained_bandwidth_hz: r.bandwidth_hz,
+        step_max_abs_du: r.step.as_ref().map_or(f64::NAN, |s| s.max_abs_du),
+        step_max_raw_excess: r.step.as_ref().map_or(f64::NAN, |s| s.max_raw_excess),
+    });
+    out.mpc = Some((d, inp.model.clone()));
+    Ok(fc)
+}
+
+/// The MPC's receipts and the numbers behind them.
+pub struct MpcReceipts {
+    /// `controller_design`, `closed_loop_stable`, `step_actuator_demand`, `step_overshoot`,
+    /// `step_settling_time`.
+    pub receipts: Receipts,
+    /// The unconstrained law.
+    pub law: UnconstrainedLaw,
+    /// Largest pole modulus of its closed loop.
+    pub pole_modulus: f64,
+    /// Its −3 dB bandwidth r → y, Hz (None: not below Nyquist).
+    pub bandwidth_hz: Option<f64>,
+    /// The constrained step (None: the simulation failed; its receipts say why).
+    pub step: Option<MpcStep>,
+}
+
+/// Receipts of the MPC `d` on G0 (module docs).
+pub(super) fn mpc_receipts(
+    c: &PipelineConfig,
+    inp: &ControlStageInputs<'_>,
+    d: &MpcDesign,
+    limits: &ReceiptLimits,
+) -> Result<MpcReceipts> {
+    let k = &c.control;
+    let fc = k.crossover_hz;
+    let ts = inp.model.ts;
+    let law = d.unconstrained_law()?;
+    let cl = d.unconstrained_closed_loop(inp.model)?;
+    let pole_modulus = cl.poles()?.iter().map(|z| z.norm()).fold(0.0, f64::max);
+    let nyq = 0.5 / ts;
+    let f_lo = fc / 100.0;
+    let t0 = cl.freq_response_siso(f_lo)?.norm();
+    let mut bandwidth_hz = None;
+    for f in log_grid(f_lo, nyq * 0.999, 2000) {
+        if cl.freq_response_siso(f)?.norm() < t0 / 2f64.sqrt() {
+            bandwidth_hz = Some(f);
+            break;
+        }
+    }
+    let mut rs = Receipts::default();
+    let base = out_base(inp);
+    rs.push(design_receipt(
+        c,
+        ControlMethod::Mpc,
+        Ok(bandwidth_hz.unwrap_or(nyq)),
+        base,
+    ));
+    rs.push(Receipt::new(
+        ReceiptKind::ClosedLoopStable,
+        "largest closed-loop pole modulus of the MPC's unconstrained law on G0 (stable when < 1)",
+        pole_modulus,
+        Comparison::LessThan,
+        1.0,
+        "1",
+        format!(
+            "{} poles (model states and u_prev), ts = {ts} s; |T(0)| = {}; the constrained \
+             law equals it while no limit is active",
+            inp.model.n_states() + 1,
+            fmt_num(t0)
+        ),
+    ));
+    let samples = ((limits.settling_time_s_max * 2.0).max(50.0 / fc) / ts).floor() as usize;
+    let step = match finding(d.closed_loop_step(inp.model, k.reference_amplitude, samples, 0.02))? {
+        Ok(s) => s,
+        Err(e) => {
+            for (kind, what, limit) in [
+                (
+                    ReceiptKind::StepActuatorDemand,
+                    "MPC step: rails and rate limit",
+                    1.0,
+                ),
+                (
+                    ReceiptKind::StepOvershoot,
+                    "MPC step overshoot",
+                    limits.overshoot_pct_max,
+                ),
+                (
+                    ReceiptKind::StepSettlingTime,
+                    "MPC step settling time",
+                    limits.settling_time_s_max,
+                ),
+            ] {
+                rs.push(Receipt::new(
+                    kind,
+                    what,
+                    f64::INFINITY,
+                    Comparison::AtMost,
+                    limit,
+                    "1",
+                    format!("simulation failed: {e}"),
+                ));
+            }
+            return Ok(MpcReceipts {
+                receipts: rs,
+                law,
+                pole_modulus,
+                bandwidth_hz,
+                step: None,
+            });
+        }
+    };
+    let s = &step.step;
+    let max_u = s.u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let ratio = (max_u / k.actuator_limit).max(step.max_abs_du / d.spec.du_max);
+    let unit = &c.signals.input_unit;
+    rs.push(Receipt::new(
+        ReceiptKind::StepActuatorDemand,
+        "largest of max|u|/actuator limit and max|Δu|/rate limit in the MPC's constrained step \
+         (≤ 1: the rails and the rate limit hold; 1 + 1e-9 allows the rounding of u_prev ± Δu)",
+        ratio,
+        Comparison::AtMost,
+        1.0 + 1e-9,
+        "1",
+        format!(
+            "step of {} to rails ±{} {unit}, rate limit {} {unit}/sample: max |u| {}, max |Δu| \
+             {}; {} samples at the rail; raw ADMM U₀ at most {} {unit} outside the box before \
+             the clamp; host simulation of the fixed-budget law ({} ADMM iterations, N = {}), \
+             ts = {ts} s",
+            fmt_num(k.reference_amplitude),
+            fmt_num(k.actuator_limit),
+            fmt_num(d.spec.du_max),
+            fmt_num(max_u),
+            fmt_num(step.max_abs_du),
+            s.samples_at_rail,
+            fmt_num(step.max_raw_excess),
+            d.spec.iterations,
+            d.spec.horizon
+        ),
+    ));
+    rs.push(Receipt::new(
+        ReceiptKind::StepOvershoot,
+        "overshoot of the MPC's constrained closed-loop step",
+        s.overshoot_pct,
+        Comparison::AtMost,
+        limits.overshoot_pct_max,
+        "%",
+        format!("rise time 10–90 %: {:?} s", s.rise_time_s),
+    ));
+    rs.push(Receipt::new(
+        ReceiptKind::StepSettlingTime,
+        "2 % settling time of the MPC's constrained closed-loop step (tracking)",
+        s.settling_time_s.unwrap_or(f64::INFINITY),
+        Comparison::AtMost,
+        limits.settling_time_s_max,
+        "s",
+        format!(
+            "simulated {} s; final error {} (no integral action: offset-free only on the \
+             model itself)",
+            fmt_num(s.t.last().copied().unwrap_or(0.0)),
+            fmt_num(s.final_error)
+        ),
+    ));
+    Ok(MpcReceipts {
+        receipts: rs,
+        law,
+        pole_modulus,
+        bandwidth_hz,
+        step: Some(step),
+    })
+}
+
+fn out_base(inp: &ControlStageInputs<'_>) -> Option<f64> {
+    inp.baseline.map(|t| t.design.crossover_hz)
+}
+
+/// The MPC as a codegen block (None unless an MPC was designed): the prediction model's
+/// matrices and the firmware QP data.
+pub fn mpc_codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateController> {
+    let (d, model) = c.mpc.as_ref()?;
+    let (gx, gr) = d.firmware_terms();
+    let rows = |m: &faer::Mat<f64>| -> Vec<Vec<f64>> {
+        (0..m.nrows())
+            .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+            .collect()
+    };
+    let s = d.spec;
+    Some(ferrosid_codegen::StateController {
+        method: "mpc".into(),
+        ts_s: model.ts,
+        matrices: crate::ops::codegen::matrices(model),
+        note: format!(
+            "condensed MPC, N = {}, q = {}, ρ_Δ = {}, box ±{}, |Δu| ≤ {} per sample, ADMM ρ = {}, \
+             {} iterations per step; state feedback on the model state; receipts as in \
+             receipts.json",
+            s.horizon,
+            fmt_num(s.q),
+            fmt_num(s.r_rate),
+            fmt_num(s.u_max),
+            fmt_num(s.du_max),
+            fmt_num(s.rho),
+            s.iterations
+        ),
+        mpc: Some(ferrosid_codegen::MpcController {
+            horizon: s.horizon,
+            k: rows(&d.k),
+            gx: rows(&gx),
+            gr,
+            two_r_rate: 2.0 * s.r_rate,
+            sigma: d.sigma,
+            rho: s.rho,
+            u_min: s.u_min,
+            u_max: s.u_max,
+            du_max: s.du_max,
+            iterations: s.iterations as u32,
+        }),
+    })
+}
