@@ -28,9 +28,7 @@ use super::config::{
     AuditSettings, Control, EtfeSettings, LoadedConfig, LogEntry, PipelineConfig, Preprocess,
     UncertaintySettings,
 };
-use super::document::{
-    weight_high_gain, weight_low_gain, AuditSummary, ControllerSummary, WeightSummary,
-};
+use super::document::{AuditSummary, ControllerSummary, WeightSummary};
 use super::{rms, stages, LogData};
 use crate::data::{Log, OperatingPoint};
 use crate::error::{Error, Result};
@@ -299,27 +297,7 @@ pub fn fit_weight(
             msg: note.unwrap_or_else(|| "no uncertainty weight could be formed".into()),
         });
     };
-    // The fields `ReceiptsDocument::from_run` copies into `uncertainty_weight`.
-    let summary = WeightSummary {
-        order: w.order,
-        num: w.num.clone(),
-        den: w.den.clone(),
-        zeros: w.zeros.clone(),
-        poles: w.poles.clone(),
-        low_frequency_gain: weight_low_gain(&w.num, &w.den),
-        high_frequency_gain: weight_high_gain(&w.num, &w.den),
-        worst_overbound_ratio: w.worst_overbound_ratio,
-        min_overbound_ratio: w.min_overbound_ratio,
-        mean_overbound_db: w.mean_overbound_db,
-        family: e.family.clone(),
-        below_band_points: e.below,
-        below_band_level: e.level.first().copied().unwrap_or(f64::NAN),
-        measured_bins: e.measured,
-        measured_band_bottom_hz: e.freq_hz.get(e.below).copied().unwrap_or(f64::NAN),
-        beyond_band_points: e.beyond(),
-        measured_band_top_hz: e.f_top_hz,
-        objective: w.objective.clone(),
-    };
+    let summary = WeightSummary::new(&w, &e);
     Ok((summary, w))
 }
 

@@ -6,12 +6,13 @@
 //! are `null`, and nothing depends on the clock or on hash ordering: the same inputs give a
 //! byte-identical file. The top-level `receipts` array has the same element shape as
 //! [`crate::robust::receipts::Receipt`], so `ferrosid codegen --receipts` reads it directly.
-use super::{fmt_num, InputFile, Mode, PipelineConfig, PipelineRun};
+use super::{fmt_num, EnvelopeData, InputFile, Mode, PipelineConfig, PipelineRun};
 use crate::error::Result;
 use crate::preprocess::Preprocessing;
 use crate::robust::audit::{CoherenceDrop, ShiftBand, Verdict, WorstShift};
 use crate::robust::pid::{DiscretePid, Pid, PidDesignPoint};
 use crate::robust::receipts::Receipt;
+use crate::robust::uncertainty::UncertaintyWeight;
 use crate::validate::ResidualKind;
 use serde::Serialize;
 
@@ -250,6 +251,33 @@ pub struct ReceiptsDocument {
     pub control: Option<super::control_stage::ControlOutcome>,
 }
 
+impl WeightSummary {
+    /// The summary of the fitted weight `w` over its envelope `e` (what receipts.json and the
+    /// Python `fit_wm` report).
+    pub fn new(w: &UncertaintyWeight, e: &EnvelopeData) -> Self {
+        Self {
+            order: w.order,
+            num: w.num.clone(),
+            den: w.den.clone(),
+            zeros: w.zeros.clone(),
+            poles: w.poles.clone(),
+            low_frequency_gain: weight_low_gain(&w.num, &w.den),
+            high_frequency_gain: weight_high_gain(&w.num, &w.den),
+            worst_overbound_ratio: w.worst_overbound_ratio,
+            min_overbound_ratio: w.min_overbound_ratio,
+            mean_overbound_db: w.mean_overbound_db,
+            family: e.family.clone(),
+            below_band_points: e.below,
+            below_band_level: e.level.first().copied().unwrap_or(f64::NAN),
+            measured_bins: e.measured,
+            measured_band_bottom_hz: e.freq_hz.get(e.below).copied().unwrap_or(f64::NAN),
+            beyond_band_points: e.beyond(),
+            measured_band_top_hz: e.f_top_hz,
+            objective: w.objective.clone(),
+        }
+    }
+}
+
 impl ReceiptsDocument {
     /// Builds the document of a run.
     pub fn from_run(run: &PipelineRun) -> Self {
@@ -299,26 +327,7 @@ impl ReceiptsDocument {
             coherence_drops: a.coherence_drops.clone(),
         });
         let uncertainty_weight = match (&run.weight, &run.envelope) {
-            (Some(w), Some(e)) => Some(WeightSummary {
-                order: w.order,
-                num: w.num.clone(),
-                den: w.den.clone(),
-                zeros: w.zeros.clone(),
-                poles: w.poles.clone(),
-                low_frequency_gain: weight_low_gain(&w.num, &w.den),
-                high_frequency_gain: weight_high_gain(&w.num, &w.den),
-                worst_overbound_ratio: w.worst_overbound_ratio,
-                min_overbound_ratio: w.min_overbound_ratio,
-                mean_overbound_db: w.mean_overbound_db,
-                family: e.family.clone(),
-                below_band_points: e.below,
-                below_band_level: e.level.first().copied().unwrap_or(f64::NAN),
-                measured_bins: e.measured,
-                measured_band_bottom_hz: e.freq_hz.get(e.below).copied().unwrap_or(f64::NAN),
-                beyond_band_points: e.beyond(),
-                measured_band_top_hz: e.f_top_hz,
-                objective: w.objective.clone(),
-            }),
+            (Some(w), Some(e)) => Some(WeightSummary::new(w, e)),
             _ => None,
         };
         let controller = run.tuned.as_ref().map(|t| ControllerSummary {
