@@ -60,7 +60,7 @@ fn main() {
                     })
                     .collect();
                 println!(
-                    "{:<44} {:<5} y_rms low/high/val {:.3e} {:.3e} {:.3e} (means {:.1e} {:.1e} {:.1e}) floor {:.4} steps {:>6} {:>6} {:>6} events {:>5} {:>5} {:>5} {:.2} s  {}",
+                    "{:<44} {:<5} y_rms low/high/val {:.3e} {:.3e} {:.3e} (means {:.1e} {:.1e} {:.1e}) floor {:.4} steps {:>6} {:>6} {:>6} events {:>5} {:>5} {:>5} band-held {} {} {} {:.2} s  {}",
                     c.id,
                     if c.periodic { "per" } else { "noise" },
                     rms(d.train[0].y()),
@@ -76,6 +76,9 @@ fn main() {
                     d.stats[0].events,
                     d.stats[1].events,
                     d.stats[2].events,
+                    d.stats[0].band_held_samples,
+                    d.stats[1].band_held_samples,
+                    d.stats[2].band_held_samples,
                     t0.elapsed().as_secs_f64(),
                     truth.join(" + ")
                 );

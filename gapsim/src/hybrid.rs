@@ -231,6 +231,18 @@ impl Machine {
         }
     }
 
+    /// Whether the stick-band friction body is held only by the band: stuck, with a required
+    /// force above the Coulomb level (Coulomb friction would let it slide here). Samples
+    /// where this holds are the only ones in which a stick band differs from Coulomb friction.
+    pub fn held_by_stick_band(&self, x: &State) -> bool {
+        match self.friction_velocity() {
+            Some((law, _)) if law.has_stick_mode() && self.slide == Slide::Stick => {
+                self.required_force(x).abs() > law.coulomb()
+            }
+            _ => false,
+        }
+    }
+
     /// Unclamped derivative of the limited state.
     fn limited_rate(&self, x: &State) -> f64 {
         match self.fx.state_limit {

@@ -25,6 +25,9 @@ pub struct RunStats {
     pub rejected: usize,
     /// Located events.
     pub events: usize,
+    /// Output samples at which a stick-band friction body was held only by the band
+    /// ([`Machine::held_by_stick_band`]): zero means the run is that of Coulomb friction.
+    pub band_held_samples: usize,
 }
 
 /// The held drive command for `u` after the static maps; `play_state` is the play operator's
@@ -63,6 +66,7 @@ pub fn simulate(
     let mut t = 0.0;
     let (mut j, mut k) = (0usize, 0usize);
     let mut play_state = 0.0;
+    let mut band_held = 0usize;
     m.settle(&mut x);
     while k < n {
         let next_in = if j < n {
@@ -78,6 +82,7 @@ pub fn simulate(
         }
         if next_out <= t {
             y.push(if next_out < 0.0 { 0.0 } else { m.output(&x) });
+            band_held += usize::from(m.held_by_stick_band(&x));
             k += 1;
         } else {
             m.command = drive_command(fx, u[j], &mut play_state);
@@ -91,6 +96,7 @@ pub fn simulate(
             steps: integ.steps,
             rejected: integ.rejected,
             events: integ.events,
+            band_held_samples: band_held,
         },
     ))
 }

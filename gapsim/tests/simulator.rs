@@ -87,6 +87,26 @@ fn karnopp_stick_band_sticks_exactly() {
     let tail = &y[2000..];
     assert!(tail.iter().all(|&v| v == 0.0), "sticks again at zero drive");
     assert!(stats.events >= 2, "break-away and stop are events");
+    // Held by the band (drive between Coulomb and breakaway at rest): samples 300..600 only,
+    // less the armature current's rise (L/R) at the step; Coulomb friction alone never is.
+    eprintln!("band-held samples: {}", stats.band_held_samples);
+    assert!(
+        (290..=300).contains(&stats.band_held_samples),
+        "band-held samples {}",
+        stats.band_held_samples
+    );
+    let coulomb = Effects {
+        friction: Some((
+            FrictionLaw::Karnopp {
+                coulomb: fc_in * fpi,
+                breakaway: fc_in * fpi,
+            },
+            Body::Motor,
+        )),
+        ..Effects::default()
+    };
+    let (_, st_c) = simulate(plant, &coulomb, &u, TS, 1.0, 10.0).unwrap();
+    assert_eq!(st_c.band_held_samples, 0);
 }
 
 /// In steady sliding, LuGre friction equals the Stribeck curve g(v) + σ2·v with
