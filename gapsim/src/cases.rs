@@ -28,9 +28,11 @@
 //! Drive play → `backlash {gap}` (input units) at `drive`; shaft backlash → `backlash {gap}` at
 //! `drivetrain` (gap in rad of shaft twist); dead band, saturation → `deadzone {width}`,
 //! `saturation {limit}` at `drive` (input units); slew-rate limit → `slew_rate {rate}` at `drive`
-//! (input units/s); state limit → `state_limit {limit}` at `state`, the limit expressed as the
-//! constant input that holds the limited state at its limit in steady state (current limit of the
-//! motor: R·I_max volts; velocity limit of the axis: c·v_max newtons); sensor clip →
+//! (input units/s); velocity limit of the axis → `state_limit {limit}` at `state`, the limit
+//! expressed as the constant input that holds the limited state at its limit in steady state
+//! (c·v_max newtons); current limit of the motor → `current_limit {limit}` at `state`, R·I_max
+//! volts (a clamp of the armature current state, with its inductance, in continuous time: a
+//! law no candidate shares); sensor clip →
 //! `saturation {limit}` at `sensor` (output units); quantization → `quantization {step}` at
 //! `sensor` (output units); delays → `time_delay {seconds}` at `drive` (input) or `sensor`
 //! (output); modes → `resonance {freq_hz, damping}` at `drive` (actuator) or `sensor`.
@@ -530,7 +532,7 @@ pub fn resolve(setup: &Setup, specs: &[Spec], y_sd: f64) -> (Effects, Vec<TruthE
                     let imax = r * a / p.r;
                     fx.state_limit = Some((0, imax));
                     te(
-                        "state_limit",
+                        "current_limit",
                         "state",
                         vec![("limit", imax * p.r)],
                         true,

@@ -165,6 +165,7 @@ pub fn parse_verdict(
             EffectKind::Quantization => Effect::Quantization { step: p("step")? },
             EffectKind::SlewRate => Effect::SlewRate { rate: p("rate")? },
             EffectKind::StateLimit => Effect::StateLimit { limit: p("limit")? },
+            EffectKind::CurrentLimit => Effect::CurrentLimit { limit: p("limit")? },
         };
         effect.validate()?;
         out.push(PlacedEffect { effect, place });

@@ -15,6 +15,7 @@
 //! | `quantization` | `step` (output units) | sensor rounding y = step·round(y/step) |
 //! | `slew_rate` | `rate` (input units per second) | rate limit on the command: w changes by at most `rate`·ts per sample |
 //! | `state_limit` | `limit` (input units) | a level that saturates inside the plant: the state of the linear part's slowest stable real mode (the body's velocity behind an integrator, a body's speed) is held within the level a constant input `limit` settles it at; while it is held, every mode sees the input that holds it there (see [`crate::gap::state_limit::state_clamp`]) |
+//! | `current_limit` | `limit` (input units) | the drive's current (torque) limit: the input may exceed the one that holds the slowest stable real mode's present state by at most `limit`, which bounds that mode's change per sample (an acceleration limit; for a voltage-driven motor `limit` = R·I_max, see [`crate::gap::state_limit::rate_clamp`]) |
 //!
 //! The same kind may act at several places ([`crate::gap::place`]): `saturation` at the sensor
 //! clips the output (`limit` then in output units), `backlash` in the drivetrain of a two-mass
@@ -51,11 +52,14 @@ pub enum EffectKind {
     SlewRate,
     /// Saturating level inside the plant.
     StateLimit,
+    /// Limit on how hard the drive may push the body beyond what holds its speed (a voltage
+    /// drive's current limit: the current follows voltage − back-EMF).
+    CurrentLimit,
 }
 
 impl EffectKind {
     /// Every kind, in report order.
-    pub const ALL: [EffectKind; 10] = [
+    pub const ALL: [EffectKind; 11] = [
         EffectKind::CoulombFriction,
         EffectKind::Stiction,
         EffectKind::Backlash,
@@ -66,6 +70,7 @@ impl EffectKind {
         EffectKind::Quantization,
         EffectKind::SlewRate,
         EffectKind::StateLimit,
+        EffectKind::CurrentLimit,
     ];
 
     /// The name used in reports and JSON (`coulomb_friction`, ...).
@@ -81,12 +86,19 @@ impl EffectKind {
             EffectKind::Quantization => "quantization",
             EffectKind::SlewRate => "slew_rate",
             EffectKind::StateLimit => "state_limit",
+            EffectKind::CurrentLimit => "current_limit",
         }
     }
 
     /// Parses a report name back into a kind.
     pub fn from_name(s: &str) -> Option<Self> {
         Self::ALL.iter().copied().find(|k| k.name() == s)
+    }
+
+    /// Whether the kind clamps a state of the linear part's body mode (its level: a state
+    /// limit; its rate: a current limit), realised on the drive input every mode sees.
+    pub fn is_state_clamp(self) -> bool {
+        matches!(self, EffectKind::StateLimit | EffectKind::CurrentLimit)
     }
 
     /// Whether the kind is friction (Coulomb or stiction).
@@ -166,6 +178,12 @@ pub enum Effect {
         /// Level, input units: the constant input that settles the limited state at it.
         limit: f64,
     },
+    /// Current (torque) limit of the drive.
+    CurrentLimit {
+        /// Largest excess of the input over the one that holds the body's present speed,
+        /// input units (for a voltage-driven motor, R·I_max volts).
+        limit: f64,
+    },
 }
 
 impl Effect {
@@ -182,6 +200,7 @@ impl Effect {
             Effect::Quantization { .. } => EffectKind::Quantization,
             Effect::SlewRate { .. } => EffectKind::SlewRate,
             Effect::StateLimit { .. } => EffectKind::StateLimit,
+            Effect::CurrentLimit { .. } => EffectKind::CurrentLimit,
         }
     }
 
@@ -201,7 +220,9 @@ impl Effect {
             }
             Effect::Quantization { step } => vec![("step", step)],
             Effect::SlewRate { rate } => vec![("rate", rate)],
-            Effect::StateLimit { limit } => vec![("limit", limit)],
+            Effect::StateLimit { limit } | Effect::CurrentLimit { limit } => {
+                vec![("limit", limit)]
+            }
         }
     }
 
@@ -228,7 +249,9 @@ impl Effect {
             }
             Effect::Quantization { step } if step <= 0.0 => bad("step must be > 0"),
             Effect::SlewRate { rate } if rate <= 0.0 => bad("rate must be > 0"),
-            Effect::StateLimit { limit } if limit <= 0.0 => bad("limit must be > 0"),
+            Effect::StateLimit { limit } | Effect::CurrentLimit { limit } if limit <= 0.0 => {
+                bad("limit must be > 0")
+            }
             _ => Ok(()),
         }
     }

@@ -88,7 +88,7 @@ pub fn default_place(kind: EffectKind) -> Place {
     match kind {
         EffectKind::CoulombFriction | EffectKind::Stiction => Place::Motor,
         EffectKind::Quantization => Place::Sensor,
-        EffectKind::StateLimit => Place::State,
+        EffectKind::StateLimit | EffectKind::CurrentLimit => Place::State,
         _ => Place::Drive,
     }
 }
@@ -101,7 +101,7 @@ pub fn allowed(kind: EffectKind, place: Place) -> bool {
         K::Backlash => matches!(place, Place::Drive | Place::Drivetrain),
         K::Saturation => matches!(place, Place::Drive | Place::Sensor),
         K::Quantization => place == Place::Sensor,
-        K::StateLimit => place == Place::State,
+        K::StateLimit | K::CurrentLimit => place == Place::State,
         K::Deadzone | K::TimeDelay | K::Resonance | K::SlewRate => place == Place::Drive,
     }
 }

@@ -75,7 +75,7 @@ impl Nonlinearity {
     /// `backlash` at `drive` → drive; `quantization`, `saturation` at `sensor` → sensor.
     /// Errors (naming the effect) for non-finite or out-of-range parameters, for effects that
     /// are linear (`time_delay`, `resonance`: they belong in the plant model), and for effects
-    /// without a describing function here (`slew_rate`, `state_limit`, backlash in the
+    /// without a describing function here (`slew_rate`, `state_limit`, `current_limit`, backlash in the
     /// drivetrain or friction on the load of a two-mass structure, which act inside the plant).
     pub fn from_placed(pe: &PlacedEffect) -> Result<Self> {
         pe.effect.validate()?;

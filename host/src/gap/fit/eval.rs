@@ -4,7 +4,7 @@ use super::model::{sensor_transform, AugmentedModel, VelocitySource};
 use super::FRICTION_SUBSTEPS;
 use crate::error::Result;
 use crate::gap::drift::scored_sse;
-use crate::gap::effect::{Effect, EffectKind};
+use crate::gap::effect::Effect;
 use crate::gap::friction_port::fit_linear_params_body;
 use crate::gap::modal::{FitSet, ModalModel};
 use crate::gap::place::{Place, PlacedEffect};
@@ -124,7 +124,7 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
     });
     let only_drive = effects
         .iter()
-        .all(|p| p.place == Place::Drive || p.effect.kind() == EffectKind::StateLimit);
+        .all(|p| p.place == Place::Drive || p.effect.kind().is_state_clamp());
     let mask: Option<Vec<Vec<bool>>> = clip.map(|limit| {
         td.base
             .y

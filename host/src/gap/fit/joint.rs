@@ -22,7 +22,7 @@ pub(super) fn effect_to_coords(e: &Effect, ts: f64) -> Vec<f64> {
         Effect::Resonance { freq_hz, damping } => vec![freq_hz.ln(), damping.ln()],
         Effect::Quantization { step } => vec![step.ln()],
         Effect::SlewRate { rate } => vec![rate.ln()],
-        Effect::StateLimit { limit } => vec![limit.ln()],
+        Effect::StateLimit { limit } | Effect::CurrentLimit { limit } => vec![limit.ln()],
     }
 }
 
@@ -58,6 +58,7 @@ pub(super) fn effect_from_coords(kind: EffectKind, c: &[f64], ts: f64) -> Option
         EffectKind::Quantization => Effect::Quantization { step: c[0].exp() },
         EffectKind::SlewRate => Effect::SlewRate { rate: c[0].exp() },
         EffectKind::StateLimit => Effect::StateLimit { limit: c[0].exp() },
+        EffectKind::CurrentLimit => Effect::CurrentLimit { limit: c[0].exp() },
     };
     e.validate().ok().map(|_| e)
 }
@@ -102,7 +103,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
     let projectable = list0.iter().all(|p| {
         p.place == Place::Drive
             || (p.place == Place::Sensor && p.effect.kind() == EffectKind::Quantization)
-            || p.effect.kind() == EffectKind::StateLimit
+            || p.effect.kind().is_state_clamp()
     });
     let mut theta0 = lin0.pole_params();
     let mut steps: Vec<f64> = theta0.iter().map(|t| 1e-6 * t.abs().max(1.0)).collect();

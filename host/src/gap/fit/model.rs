@@ -10,7 +10,7 @@ use crate::gap::effect::{
 use crate::gap::friction_port::{slowest_mode, FrictionPort};
 use crate::gap::modal::{FitSet, ModalModel};
 use crate::gap::place::{Place, PlacedEffect};
-use crate::gap::state_limit::{limited_mode, state_clamp};
+use crate::gap::state_limit::{limited_mode, rate_clamp, state_clamp};
 use crate::gap::structure::TwoMassModel;
 
 /// Which signal of the linear model stands for the velocity that friction opposes.
@@ -197,8 +197,8 @@ impl AugmentedModel {
         Ok(self.simulate_with_input(u)?.0)
     }
 
-    /// The input after every drive-side effect and a state limit ([`state_clamp`] on the
-    /// mode of [`limited_mode`]).
+    /// The input after every drive-side effect and a state or current limit ([`state_clamp`]
+    /// or [`rate_clamp`] on the mode of [`limited_mode`]).
     pub fn drive_input(&self, u: &[f64]) -> Result<Vec<f64>> {
         let mut w = u.to_vec();
         for pe in self.effects() {
@@ -209,7 +209,7 @@ impl AugmentedModel {
             }
         }
         for pe in self.effects() {
-            if let Effect::StateLimit { limit } = pe.effect {
+            if let Effect::StateLimit { limit } | Effect::CurrentLimit { limit } = pe.effect {
                 if self.two_mass.is_some() {
                     return Err(Error::InvalidArgument(format!(
                         "{}: a state limit is not realised on a two-mass plant",
@@ -219,7 +219,10 @@ impl AugmentedModel {
                 // Without a limitable mode (e.g. a stand-in pole next to the integrator) the
                 // level holds the drive itself (p = 0: an input saturation).
                 let p = limited_mode(&self.linear).map_or(0.0, |b| self.linear.real[b]);
-                w = state_clamp(&w, p, limit);
+                w = match pe.effect {
+                    Effect::CurrentLimit { .. } => rate_clamp(&w, p, limit),
+                    _ => state_clamp(&w, p, limit),
+                };
             }
         }
         Ok(w)

@@ -175,7 +175,7 @@ pub fn fit_placed(
     };
     let fitted = if kind == EffectKind::Resonance && base0.effect.is_none() {
         relabel_resonance(td, fitted, sim_poles)
-    } else if kind == EffectKind::StateLimit {
+    } else if kind.is_state_clamp() {
         // Scored by its free run (the guard below compares like with like).
         let train_cost = fitted.model.cost(&td.base, &td.u);
         Fitted {
@@ -223,6 +223,9 @@ pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Eff
             step: 1e-12 * y_peak,
         },
         EffectKind::StateLimit => Effect::StateLimit {
+            limit: 1e12 * td.u_peak.max(s),
+        },
+        EffectKind::CurrentLimit => Effect::CurrentLimit {
             limit: 1e12 * td.u_peak.max(s),
         },
         EffectKind::Resonance => Effect::Resonance {

@@ -120,14 +120,17 @@ pub(super) fn initial_search(
             }
             all
         }
-        EffectKind::StateLimit => {
-            // The grid spans the levels the limited mode's state reaches on the training
-            // inputs (in input units: state·(1 − p)), from a tenth of its RMS to its peak: a
-            // slow mode low-passes the input, so its level can sit far below the input's.
+        EffectKind::StateLimit | EffectKind::CurrentLimit => {
+            // The grid spans the values the clamped quantity takes on the training inputs (in
+            // input units), from a tenth of its RMS to its peak: for a state limit the limited
+            // mode's level, state·(1 − p) (a slow mode low-passes the input, so its level can
+            // sit far below the input's); for a current limit the input's excess over the one
+            // that holds the mode, w − (1 − p)·state.
             let Some(b) = limited_mode(&base.linear) else {
                 return Vec::new();
             };
             let p = base.linear.real[b];
+            let rate = cand.kind == EffectKind::CurrentLimit;
             let (mut sum2, mut count, mut peak) = (0.0, 0usize, 0.0f64);
             for u in &td.u {
                 let Ok(w) = base.drive_input(u) else {
@@ -135,8 +138,9 @@ pub(super) fn initial_search(
                 };
                 let mut x = 0.0;
                 for wk in w {
+                    let excess = wk - (1.0 - p) * x;
                     x = p * x + wk;
-                    let v = x * (1.0 - p);
+                    let v = if rate { excess } else { x * (1.0 - p) };
                     sum2 += v * v;
                     count += 1;
                     peak = peak.max(v.abs());
@@ -146,8 +150,12 @@ pub(super) fn initial_search(
             if !(rms > 0.0 && peak.is_finite()) {
                 return Vec::new();
             }
-            on_grid(&log_grid(0.1 * rms, peak, 16), &|p| Effect::StateLimit {
-                limit: p,
+            on_grid(&log_grid(0.1 * rms, peak, 16), &|v| {
+                if rate {
+                    Effect::CurrentLimit { limit: v }
+                } else {
+                    Effect::StateLimit { limit: v }
+                }
             })
         }
         EffectKind::Stiction | EffectKind::Quantization => Vec::new(),

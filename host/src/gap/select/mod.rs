@@ -124,6 +124,7 @@ pub fn default_candidates(two_mass: bool) -> Vec<Candidate> {
         Candidate::new(K::Quantization, Place::Sensor),
         Candidate::new(K::SlewRate, Place::Drive),
         Candidate::new(K::StateLimit, Place::State),
+        Candidate::new(K::CurrentLimit, Place::State),
     ];
     if two_mass {
         v.push(Candidate::new(K::Backlash, Place::Drivetrain));
