@@ -44,15 +44,15 @@
 #![no_std]
 #![no_main]
 
-use core::f64::consts::PI;
-
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 use ferrosid_firmware::control::{ControlConfig, ControlLaw, ControlState, PidConfig};
 use ferrosid_firmware::excitation::{Line, Multisine, MultisineScratch, MultisineSpec, Phases};
 use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
 use ferrosid_powerup::plant::{Axis, AxisParams};
-use ferrosid_powerup::{check_bin, model_response, weight_magnitude, CheckResult, Overall, C32};
+use ferrosid_powerup::{
+    evaluate, h1_random_error, CheckConfig, Measured, Model, Overall, Verdict, Weight, C32,
+};
 
 /// The generated model module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
 #[allow(dead_code)]
@@ -340,35 +340,38 @@ fn main() -> ! {
     welch.flush();
 
     // The receipt.
-    let mut results = [CheckResult {
-        bin: 0,
-        hz: 0.0,
-        coherence: 0.0,
-        g0: C32::default(),
-        g_meas: C32::default(),
-        rel_error: 0.0,
-        wm: 0.0,
-        sigma: 0.0,
-        verdict: ferrosid_powerup::Verdict::Undefined,
-    }; flashed::CHECK_COUNT];
-    for (i, r) in results.iter_mut().enumerate() {
-        let bin = flashed::CHECK_BIN[i];
-        let k = usize::from(bin);
-        let z = C32::unit_circle(u32::from(bin), N as u32);
-        let g0 = model_response(&flashed::A, &flashed::B, &flashed::C, &flashed::D, z, 0, 0);
-        let w = (2.0 * PI * f64::from(bin) * f64::from(flashed::FS_HZ) / N as f64) as f32;
-        let wm = weight_magnitude(&flashed::WM_NUM, &flashed::WM_DEN, w);
-        let h1 = welch.h1(k).map(|(re, im)| C32::new(re, im));
-        *r = check_bin(
-            bin,
-            flashed::CHECK_HZ[i],
-            welch.coherence(k),
-            welch.averages(),
-            flashed::COHERENCE_GATE,
-            h1,
-            g0,
-            wm,
-        );
+    let check_cfg = CheckConfig {
+        fs_hz: flashed::FS_HZ,
+        n: N,
+        bins: &flashed::CHECK_BIN,
+        hz: &flashed::CHECK_HZ,
+        gate: flashed::COHERENCE_GATE,
+        min_checked: flashed::MIN_CHECKED,
+    };
+    if let Err(e) = check_cfg.validate() {
+        defmt::println!("ERROR check setting out of range: {=str}", e.field());
+        exit(EXIT_SETUP)
+    }
+    let model = Model {
+        a: &flashed::A,
+        b: &flashed::B,
+        c: &flashed::C,
+        d: &flashed::D,
+    };
+    let weight = Weight {
+        num: &flashed::WM_NUM,
+        den: &flashed::WM_DEN,
+    };
+    let averages = welch.averages();
+    let results = evaluate(&check_cfg, &model, &weight, |k| {
+        let coherence = welch.coherence(k);
+        Measured {
+            coherence,
+            sigma: h1_random_error(coherence, averages),
+            g: welch.h1(k).map(|(re, im)| C32::new(re, im)),
+        }
+    });
+    for r in &results {
         defmt::println!(
             "RECEIPT {=u16} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=str}",
             r.bin,
@@ -413,10 +416,7 @@ fn main() -> ! {
     let mut failed = [0.0f32; flashed::CHECK_COUNT];
     let mut n_failed = 0;
     for r in &results {
-        if matches!(
-            r.verdict,
-            ferrosid_powerup::Verdict::Fail | ferrosid_powerup::Verdict::Undefined
-        ) {
+        if matches!(r.verdict, Verdict::Fail | Verdict::Undefined) {
             if let Some(slot) = failed.get_mut(n_failed) {
                 *slot = r.hz;
                 n_failed += 1;
