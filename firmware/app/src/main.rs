@@ -47,11 +47,12 @@
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 use ferrosid_firmware::control::{ControlConfig, ControlLaw, ControlState, PidConfig};
-use ferrosid_firmware::excitation::{Line, Multisine, MultisineScratch, MultisineSpec, Phases};
+use ferrosid_firmware::excitation::{Multisine, MultisineScratch, MultisineSpec, Phases};
 use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
 use ferrosid_powerup::plant::{Axis, AxisParams};
 use ferrosid_powerup::{
-    evaluate, h1_random_error, CheckConfig, Measured, Model, Overall, Verdict, Weight, C32,
+    evaluate, flat_lines, h1_random_error, CheckConfig, Measured, Model, Overall, Verdict, Weight,
+    C32,
 };
 
 /// The generated model module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
@@ -243,17 +244,10 @@ fn main() -> ! {
     };
 
     // Excitation: flat multisine on bins 1..=LINES with total RMS EXCITATION_RMS.
-    let amplitude = flashed::EXCITATION_RMS * libm::sqrtf(2.0 / LINES as f32);
-    let mut lines = [Line {
-        bin: 0,
-        amplitude: 0.0,
-    }; LINES];
-    for (i, l) in lines.iter_mut().enumerate() {
-        *l = Line {
-            bin: i + 1,
-            amplitude,
-        };
-    }
+    let Ok(lines) = flat_lines::<LINES>(flashed::EXCITATION_RMS) else {
+        defmt::println!("ERROR check setting out of range: excitation_rms");
+        exit(EXIT_SETUP)
+    };
     let spec = MultisineSpec {
         lines: &lines,
         phases: Phases::Schroeder,

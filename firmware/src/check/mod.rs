@@ -35,6 +35,8 @@ pub use verdict::{
 
 use core::fmt;
 
+use crate::excitation::Line;
+
 /// A rejected check setting (the field is named in [`fmt::Display`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CheckError {
@@ -189,6 +191,29 @@ pub fn evaluate<const C: usize, const NS: usize, const M: usize, const P: usize>
         *r = judge(bin, hz, m.coherence, m.sigma, cfg.gate, m.g, g0, wm);
     }
     out
+}
+
+/// The check's excitation lines: bins `1..=L` with a flat amplitude `rms·√(2/L)`, so the
+/// multisine's RMS is `rms` (a sine of amplitude a has RMS a/√2).
+///
+/// # Errors
+/// [`CheckError::ExcitationRms`] for a non-finite or non-positive `rms`, or `L = 0`.
+pub fn flat_lines<const L: usize>(rms: f32) -> Result<[Line; L], CheckError> {
+    if L == 0 || !(rms.is_finite() && rms > 0.0) {
+        return Err(CheckError::ExcitationRms);
+    }
+    let amplitude = rms * libm::sqrtf(2.0 / L as f32);
+    let mut lines = [Line {
+        bin: 0,
+        amplitude: 0.0,
+    }; L];
+    for (i, l) in lines.iter_mut().enumerate() {
+        *l = Line {
+            bin: i + 1,
+            amplitude,
+        };
+    }
+    Ok(lines)
 }
 
 #[cfg(test)]
