@@ -31,7 +31,8 @@
 //!   CLOSED_LOOP_REFERENCE_RMS in output units) is added to the reference `r`; SETTLE_PERIODS
 //!   periods settle, AVERAGES periods feed the estimator with (excitation, the PID's command,
 //!   y); at every check bin `G = S_ry / S_ru` is compared with the flashed model ± |W_m| as
-//!   the open-loop check does. `seconds` and the kick are not used. Logs
+//!   the open-loop check does (`check_rms=` overrides the RMS, for exploring the amplitude on a
+//!   bench). `seconds` and the kick are not used. Logs
 //!   `CLCHECK n=.. averages=.. settle=.. reference_rms=.. comp=..`, one `C <r> <u> <y>` per
 //!   averaged sample (the first [`TAIL`]), `RECEIPT ..` lines in the power-up image's format
 //!   (coherence: the smaller of γ²_ry and γ²_ru; σ: their summed normalised random errors),
@@ -59,6 +60,7 @@ use ferrosid_firmware::control::{
     FrictionFeedforward, PidConfig,
 };
 use ferrosid_firmware::excitation::{Multisine, MultisineScratch, MultisineSpec, Phases};
+use ferrosid_firmware::Excitation;
 use ferrosid_powerup::plant::{Axis, AxisParams};
 use ferrosid_powerup::{
     evaluate, flat_lines, CheckConfig, ClosedLoopEstimator, Model, Overall, Verdict, Weight,
@@ -140,6 +142,8 @@ struct Settings {
     lag: f32,
     /// `check=on`: run the closed-loop check instead of the free run.
     check: bool,
+    /// `check_rms=`: overrides the module's CLOSED_LOOP_REFERENCE_RMS (bench exploration).
+    check_rms: Option<f32>,
 }
 
 fn parse_f32(key: &'static str, v: &str) -> Result<f32, &'static str> {
@@ -172,6 +176,7 @@ fn parse_args() -> Result<Settings, &'static str> {
         floor: 1e-3,
         lag: 0.0,
         check: false,
+        check_rms: None,
     };
     let args = semihosting::experimental::env::args::<1024>().map_err(|_| "command line")?;
     for (i, a) in (&args).enumerate() {
@@ -210,6 +215,7 @@ fn parse_args() -> Result<Settings, &'static str> {
             "seconds" => s.seconds = parse_f32("seconds", v)?,
             "floor" => s.floor = parse_f32("floor", v)?,
             "lag" => s.lag = parse_f32("lag", v)?,
+            "check_rms" => s.check_rms = Some(parse_f32("check_rms", v)?),
             "check" => {
                 s.check = match v {
                     "on" => true,
@@ -385,6 +391,7 @@ const _: () = assert!(LINES >= 1 && LINES < N / 2);
 
 /// SysTick instruction counter under `qemu -icount` (shared with the QEMU bench images).
 #[path = "../../../tests/qemu/src/icount.rs"]
+#[allow(dead_code)] // `free` and the held SYST are for the bench images
 mod icount;
 /// Stack high-water mark by painting (the painter the power-up image and the QEMU probe use).
 #[path = "../../../tests/qemu/src/stack.rs"]
@@ -416,7 +423,7 @@ fn run_check(law: &ControlLaw, axis: &mut Axis, s: &Settings) -> ! {
     } else {
         0.0
     };
-    let Some(rms) = flashed::CLOSED_LOOP_REFERENCE_RMS else {
+    let Some(rms) = s.check_rms.or(flashed::CLOSED_LOOP_REFERENCE_RMS) else {
         setup_error("check=on, but the flashed module has no closed-loop check settings")
     };
     let cfg = CheckConfig {

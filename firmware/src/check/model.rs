@@ -46,8 +46,8 @@ pub fn model_response<const N: usize, const M: usize, const P: usize>(
         if !(best > tiny) {
             return None;
         }
-        m.swap(k, p);
-        x.swap(k, p);
+        swap_checked(&mut m, k, p)?;
+        swap_checked(&mut x, k, p)?;
         let piv = m[k][k];
         let xk = x[k];
         let (top, bottom) = m.split_at_mut_checked(k + 1)?;
@@ -73,6 +73,16 @@ pub fn model_response<const N: usize, const M: usize, const P: usize>(
         g = g + x[j].scale(c[output][j]);
     }
     (g.re.is_finite() && g.im.is_finite()).then_some(g)
+}
+
+/// Swaps `s[k]` and `s[p]` for `k <= p` without a bounds-check panic path (`None` when out of
+/// range; the pivot search guarantees `k <= p < len`).
+fn swap_checked<T>(s: &mut [T], k: usize, p: usize) -> Option<()> {
+    if p != k {
+        let (lo, hi) = s.split_at_mut_checked(p)?;
+        core::mem::swap(lo.get_mut(k)?, hi.first_mut()?);
+    }
+    Some(())
 }
 
 /// Evaluates a polynomial with real coefficients (descending powers) at `s` (Horner).
