@@ -446,3 +446,47 @@ fn bad_closed_loop_settings_are_errors_naming_the_field() {
         .to_string();
     assert!(e.contains("unknown field `rms`"), "{e}");
 }
+
+/// How the verdict depends on the excitation's amplitude (`check_rms=` overrides the module's
+/// 0.2 rad). At 0.01 rad the uncompensated loop's own cycle (0.16 rad half peak-to-peak)
+/// swamps the excitation: the coherence gate rejects the lines and the check cannot conclude —
+/// it does not pass. At 1 rad the friction is small next to the inertial force of the
+/// excitation and the uncompensated loop passes too: the check sees friction only at
+/// amplitudes where it matters, which is why the amplitude is a generated setting.
+#[test]
+fn verdict_depends_on_the_excitation_amplitude() {
+    let w = words();
+    let mut table = Vec::new();
+    for rms in ["0.01", "0.05", "0.2", "0.5", "1.0"] {
+        let a = format!("check_rms={rms}");
+        for comp in ["comp=off", "comp=ff"] {
+            let r = run_check(elf(), &[&w[0], &w[1], &w[2], comp, &a], false).unwrap();
+            let worst = r
+                .rows
+                .iter()
+                .filter(|x| x.rel_error.is_finite())
+                .map(|x| x.rel_error / x.wm)
+                .fold(0.0, f64::max);
+            println!(
+                "rms {rms} rad, {comp}: {:?}, failed at {:?} Hz, worst |G−G0|/(|G0||W_m|) {worst:.2}, \
+                 coherences {:?}",
+                r.verdict,
+                r.failed_hz,
+                r.rows.iter().map(|x| (x.coherence * 1000.0).round() / 1000.0).collect::<Vec<_>>()
+            );
+            table.push((rms, comp, r.verdict.clone()));
+        }
+    }
+    let verdict = |rms: &str, comp: &str| {
+        table
+            .iter()
+            .find(|t| t.0 == rms && t.1 == comp)
+            .and_then(|t| t.2.clone())
+    };
+    assert_ne!(verdict("0.01", "comp=off").as_deref(), Some("PASS"));
+    assert_eq!(verdict("0.05", "comp=off").as_deref(), Some("FAIL"));
+    assert_eq!(verdict("0.05", "comp=ff").as_deref(), Some("PASS"));
+    assert_eq!(verdict("0.2", "comp=off").as_deref(), Some("FAIL"));
+    assert_eq!(verdict("0.2", "comp=ff").as_deref(), Some("PASS"));
+    assert_eq!(verdict("1.0", "comp=off").as_deref(), Some("PASS"));
+}
