@@ -322,28 +322,9 @@ pub fn check_codegen_input(
     input
 }
 
-/// One `RECEIPT` line of the target (the power-up image's format).
-#[derive(Debug, Clone, PartialEq)]
-pub struct CheckRow {
-    /// Welch bin.
-    pub bin: usize,
-    /// Frequency, Hz.
-    pub hz: f64,
-    /// Coherence the gate saw (closed loop: min of γ²_ry, γ²_ru).
-    pub coherence: f64,
-    /// The model's response on target.
-    pub g0: Complex64,
-    /// The target's estimate.
-    pub g_meas: Complex64,
-    /// |G_meas − G0| / |G0|.
-    pub rel_error: f64,
-    /// |W_m| on target.
-    pub wm: f64,
-    /// Normalised random error bound.
-    pub sigma: f64,
-    /// PASS, FAIL, SKIP, UNRESOLVED, UNDEFINED.
-    pub verdict: String,
-}
+/// One `RECEIPT` line of the target: the power-up image's format (`ferrosid_frame::RECEIPT_FIELDS`),
+/// read into the host's row type (closed loop: the coherence is the smaller of γ²_ry, γ²_ru).
+pub type CheckRow = ferrosid::target_frame::ReceiptRow;
 
 /// A run of the closed-loop check.
 #[derive(Debug, Clone)]
