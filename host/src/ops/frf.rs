@@ -442,3 +442,4 @@ pub fn estimate(logs: &[Log], opts: &FrfOptions, progress: &dyn Progress) -> Res
         normalisation: NORMALISATION_NOTE,
     })
 }
+
