@@ -8,7 +8,8 @@
 //! * Hardware-free: everything here builds and is tested on the host with `cargo test`.
 //!
 //! Modules: [`check`] (the power-up check: flashed model vs measured response within |W_m|,
-//! open-loop H1 and closed-loop indirect estimate), [`control`] (discrete PID with roll-off, friction feedforward, dead-zone and
+//! open-loop H1 and closed-loop indirect estimate),
+//! [`control`] (discrete PID with roll-off, friction feedforward, dead-zone and
 //! backlash inverses, back-calculation anti-windup; limit-cycle detector), [`excitation`] (PRBS, chirp, multisine), [`welch`] (streaming cross/auto spectra,
 //! H1, coherence, [`CoherenceGate`]), [`window`] (flash window tables), [`trig`] (const and fast
 //! sine), [`fft`] (microfft dispatch), [`rng`] (seeded SplitMix64), [`decimal`] (small decimal
@@ -52,8 +53,8 @@ pub mod decimal;
 mod error;
 pub mod excitation;
 pub mod fft;
-mod gate;
 pub mod mpc;
+mod gate;
 pub mod rng;
 pub mod trig;
 pub mod welch;

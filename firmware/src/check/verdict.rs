@@ -117,7 +117,7 @@ pub fn check_bin(
 /// below the coherence `gate` [`Verdict::Skipped`]; `RESOLUTION_SIGMAS·σ > |W_m|`
 /// [`Verdict::Unresolved`]; otherwise `|G_meas − G0|/|G0| <= |W_m|` decides. Shared by the
 /// open-loop check (σ of H1) and the closed-loop check (σ of the ratio of two H1 estimates,
-/// [`super::closed_loop`]).
+/// [`super::ClosedLoopEstimator`]).
 #[allow(clippy::too_many_arguments)]
 pub fn judge(
     bin: u16,
