@@ -62,9 +62,7 @@ use ferrosid_firmware::control::{
 use ferrosid_firmware::excitation::{Multisine, MultisineScratch, MultisineSpec, Phases};
 use ferrosid_firmware::Excitation;
 use ferrosid_powerup::plant::{Axis, AxisParams};
-use ferrosid_powerup::{
-    evaluate, flat_lines, CheckConfig, ClosedLoopEstimator, Model, Overall, Verdict, Weight,
-};
+use ferrosid_powerup::{evaluate, flat_lines, CheckConfig, ClosedLoopEstimator, Model, Weight};
 
 /// The generated module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
 #[allow(dead_code)]
@@ -75,6 +73,10 @@ mod flashed {
 /// The generated compensation block in the firmware's form (shared with `powerup`).
 #[path = "flashed_comp.rs"]
 mod flashed_comp;
+
+/// The receipt's log lines (shared with the other image).
+#[path = "receipt_log.rs"]
+mod receipt_log;
 use flashed_comp::compensation_config;
 
 /// Samples kept for the analysis and the log (4.096 s at 1 kHz).
@@ -522,22 +524,7 @@ fn run_check(law: &ControlLaw, axis: &mut Axis, s: &Settings) -> ! {
             defmt::println!("C {=f32} {=f32} {=f32}", *a, *b, *c);
         }
     }
-    for r in &results {
-        defmt::println!(
-            "RECEIPT {=u16} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=str}",
-            r.bin,
-            r.hz,
-            r.coherence,
-            r.g0.re,
-            r.g0.im,
-            r.g_meas.re,
-            r.g_meas.im,
-            r.rel_error,
-            r.wm,
-            r.sigma,
-            r.verdict.as_str()
-        );
-    }
+    receipt_log::rows(&results);
     let empty = f64::from(empty_max);
     let mean = if pushes > 0 {
         (sum_ticks as f64 / pushes as f64 - 2.0 * empty) * ipt
@@ -552,25 +539,7 @@ fn run_check(law: &ControlLaw, axis: &mut Axis, s: &Settings) -> ! {
         ipt,
         est.dropped_segments()
     );
-    let overall = Overall::from_checks(&results, flashed::MIN_CHECKED);
-    let mut failed = [0.0f32; flashed::CHECK_COUNT];
-    let mut n_failed = 0;
-    for r in &results {
-        if matches!(r.verdict, Verdict::Fail | Verdict::Undefined) {
-            if let Some(slot) = failed.get_mut(n_failed) {
-                *slot = r.hz;
-                n_failed += 1;
-            }
-        }
-    }
-    let checked = results.iter().filter(|r| r.verdict.counts()).count();
     defmt::println!("STACK {=usize}", painted.high_water());
-    defmt::println!(
-        "VERDICT {=str} checked={=usize}/{=usize} failed_hz={=[?]}",
-        overall.as_str(),
-        checked,
-        flashed::CHECK_COUNT,
-        failed.get(..n_failed).unwrap_or(&[])
-    );
+    let overall = receipt_log::verdict(&results, flashed::MIN_CHECKED);
     exit(overall.exit_code())
 }

@@ -51,8 +51,7 @@ use ferrosid_firmware::excitation::{Multisine, MultisineScratch, MultisineSpec, 
 use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
 use ferrosid_powerup::plant::{Axis, AxisParams};
 use ferrosid_powerup::{
-    evaluate, flat_lines, h1_random_error, CheckConfig, Measured, Model, Overall, Verdict, Weight,
-    C32,
+    evaluate, flat_lines, h1_random_error, CheckConfig, Measured, Model, Weight, C32,
 };
 
 /// The generated model module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
@@ -64,6 +63,10 @@ mod flashed {
 /// The generated compensation block in the firmware's form (shared with `closedloop`).
 #[path = "flashed_comp.rs"]
 mod flashed_comp;
+
+/// The receipt's log lines (shared with the other image).
+#[path = "receipt_log.rs"]
+mod receipt_log;
 
 /// Welch segment length and multisine period.
 const N: usize = flashed::WELCH_N;
@@ -365,22 +368,7 @@ fn main() -> ! {
             g: welch.h1(k).map(|(re, im)| C32::new(re, im)),
         }
     });
-    for r in &results {
-        defmt::println!(
-            "RECEIPT {=u16} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=str}",
-            r.bin,
-            r.hz,
-            r.coherence,
-            r.g0.re,
-            r.g0.im,
-            r.g_meas.re,
-            r.g_meas.im,
-            r.rel_error,
-            r.wm,
-            r.sigma,
-            r.verdict.as_str()
-        );
-    }
+    receipt_log::rows(&results);
 
     // The spectra frame, for the host to re-identify from.
     defmt::println!(
@@ -406,25 +394,7 @@ fn main() -> ! {
     }
     defmt::println!("FRAME_END bins={=usize}", welch.bins());
 
-    let overall = Overall::from_checks(&results, flashed::MIN_CHECKED);
-    let mut failed = [0.0f32; flashed::CHECK_COUNT];
-    let mut n_failed = 0;
-    for r in &results {
-        if matches!(r.verdict, Verdict::Fail | Verdict::Undefined) {
-            if let Some(slot) = failed.get_mut(n_failed) {
-                *slot = r.hz;
-                n_failed += 1;
-            }
-        }
-    }
-    let checked = results.iter().filter(|r| r.verdict.counts()).count();
     defmt::println!("STACK {=usize}", painted.high_water());
-    defmt::println!(
-        "VERDICT {=str} checked={=usize}/{=usize} failed_hz={=[?]}",
-        overall.as_str(),
-        checked,
-        flashed::CHECK_COUNT,
-        failed.get(..n_failed).unwrap_or(&[])
-    );
+    let overall = receipt_log::verdict(&results, flashed::MIN_CHECKED);
     exit(overall.exit_code())
 }
