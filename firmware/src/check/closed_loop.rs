@@ -17,8 +17,10 @@
 //! noise reaches `u` through the controller, so the open-loop H1 `S_uy / S_uu` is biased
 //! towards `−1/C` where the noise matters (at the limit, it measures the controller's inverse).
 //! `r` is uncorrelated with `v`, so `S_ry = S_rr·S·G·C` and `S_ru = S_rr·S·C`, and
-//! `G = S_ry / S_ru` at the excited lines (Söderström & Stoica, *System Identification*,
-//! Sec. 10.5; Pintelon & Schoukens, *System Identification*, 2nd ed., Sec. 8.3). The two
+//! `G = S_ry / S_ru` at the excited lines (the indirect, or joint input-output, spectral
+//! estimate of closed-loop identification with an external excitation: Wellstead, Automatica
+//! 17(1), 1981; Pintelon & Schoukens, *System Identification: A Frequency Domain Approach*,
+//! on identification in feedback). The two
 //! cross-spectra are two streaming [`Welch`] estimators fed `(r, y)` and `(r, u)`, rectangular
 //! window, no overlap, one multisine period per segment (period-synchronous: no leakage at the
 //! excited lines), so `G = H1_ry / H1_ru` through the public `Welch` API.
