@@ -181,6 +181,8 @@ pub(crate) struct Context {
     pub op_note: String,
     /// The compensation block (`c.comp`).
     pub comp: crate::context_comp::CompLit,
+    /// The closed-loop check settings (`c.clcheck`).
+    pub clcheck: crate::context_check::ClCheckLit,
     /// The state-space controller block (`c.sk`).
     pub sk: crate::context_sk::SkLit,
     /// The MPC block (`c.mpc`).
@@ -583,11 +585,13 @@ pub(crate) fn build(
     let (y0_c, y0_rs) = vec_lit(&y0);
 
     let comp = crate::context_comp::comp_lit(input.compensation.as_ref(), ts);
+    let clcheck = crate::context_check::clcheck_lit(input)?;
     let sk = crate::context_sk::sk_lit(input.state_controller.as_ref(), ts)?;
     let mpc = crate::context_sk::mpc_lit(input.state_controller.as_ref(), ts, dims.n)?;
 
     let ctx = Context {
         comp,
+        clcheck,
         sk,
         mpc,
         u0_c,

@@ -251,6 +251,11 @@ pub struct SelfIdSettings {
     pub excitation_max_hz: f64,
     /// Fewest check frequencies that must pass the coherence gate for a verdict.
     pub min_checked: usize,
+    /// The closed-loop check's settings (the multisine at the reference of the generated
+    /// controller's loop), see [`crate::ClosedLoopCheck`]. None: no closed-loop check (and the
+    /// digest of an input without one is unchanged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub closed_loop: Option<crate::ClosedLoopCheck>,
 }
 
 /// SHA-256 digest of one source file (a log, a settings file).

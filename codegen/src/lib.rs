@@ -51,6 +51,7 @@
 //!     self_id: SelfIdSettings {
 //!         welch_n: 256, check_hz: vec![10.0, 50.0], coherence_gate: 0.9, averages: 4,
 //!         settle_periods: 1, excitation_rms: 1.0, excitation_max_hz: 100.0, min_checked: 1,
+//!         closed_loop: None,
 //!     },
 //!     provenance: Provenance {
 //!         tool: "example".into(), sources: vec![], receipts: vec![], notes: vec![],
@@ -69,6 +70,7 @@
 
 mod compensation;
 mod context;
+mod context_check;
 mod context_comp;
 mod context_sk;
 mod error;
@@ -86,6 +88,7 @@ pub use compensation::{
     MAX_HORIZON_LAGS, MIN_COMPENSATION_BAND,
 };
 pub use context::{snap_checks, CheckPoint, MAX_CHECKS};
+pub use context_check::ClosedLoopCheck;
 pub use error::{Error, Result};
 pub use input::{
     Biquad, CodegenInput, ContinuousModel, ContinuousPid, Dims, DiscreteModel, Matrices,

@@ -311,7 +311,12 @@ static const float {{ c.p }}_COHERENCE_GATE = {{ c.coherence_gate.c }};
 static const float {{ c.p }}_EXCITATION_RMS = {{ c.excitation_rms.c }};
 static const uint16_t {{ c.p }}_CHECK_BIN[{{ c.p }}_CHECK_COUNT] = { {{ c.check_bins }} };
 static const float {{ c.p }}_CHECK_HZ[{{ c.p }}_CHECK_COUNT] = { {{ c.check_hz_c }} };
-
+/* Closed-loop check: 1 when configured; then the same multisine, with RMS
+ * CLOSED_LOOP_REFERENCE_RMS (plant output units), is added to the loop's reference while the
+ * generated controller runs, and the plant is estimated as S_ry / S_ru at the check bins. */
+#define {{ c.p }}_CLOSED_LOOP_CHECK {{ c.clcheck.has_c }}
+{% if c.clcheck.has %}static const float {{ c.p }}_CLOSED_LOOP_REFERENCE_RMS = {{ c.clcheck.reference_rms.c }};
+{% endif %}
 /* ---- Provenance ------------------------------------------------------------------------- */
 static const char {{ c.p }}_INPUTS_SHA256[] = "{{ c.inputs_sha256 }}";
 #define {{ c.p }}_SOURCE_COUNT {{ c.source_count }}

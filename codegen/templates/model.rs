@@ -385,6 +385,11 @@ pub const CHECK_COUNT: usize = {{ c.check_count }};
 pub static CHECK_BIN: [u16; CHECK_COUNT] = [{{ c.check_bins }}];
 /// Check frequencies, Hz (bin·FS_HZ/WELCH_N).
 pub static CHECK_HZ: [f32; CHECK_COUNT] = [{{ c.check_hz_rs }}];
+/// Closed-loop check: RMS of the same multisine added to the loop's reference (plant output
+/// units); the generated controller closes the loop and the plant is estimated as
+/// S_ry / S_ru at the check bins (ferrosid_firmware::check::ClosedLoopEstimator). None: no
+/// closed-loop check configured.
+pub const CLOSED_LOOP_REFERENCE_RMS: Option<f32> = {{ c.clcheck.reference_rms_rs }};
 
 /// SHA-256 of the canonical generator input (all numbers, settings and source digests).
 pub const INPUTS_SHA256: &str = "{{ c.inputs_sha256 }}";

@@ -85,6 +85,7 @@ fn full_input() -> CodegenInput {
             excitation_rms: 0.5,
             excitation_max_hz: 250.0,
             min_checked: 3,
+            closed_loop: None,
         },
         provenance: Provenance {
             tool: "ferrosid-codegen tests".into(),

@@ -7,7 +7,9 @@
 //!   returning `Result`, and non-finite samples are counted and quarantined, never propagated.
 //! * Hardware-free: everything here builds and is tested on the host with `cargo test`.
 //!
-//! Modules: [`control`] (discrete PID with roll-off, friction feedforward, dead-zone and
+//! Modules: [`check`] (the power-up check: flashed model vs measured response within |W_m|,
+//! open-loop H1 and closed-loop indirect estimate),
+//! [`control`] (discrete PID with roll-off, friction feedforward, dead-zone and
 //! backlash inverses, back-calculation anti-windup; limit-cycle detector), [`excitation`] (PRBS, chirp, multisine), [`welch`] (streaming cross/auto spectra,
 //! H1, coherence, [`CoherenceGate`]), [`window`] (flash window tables), [`trig`] (const and fast
 //! sine), [`fft`] (microfft dispatch), [`rng`] (seeded SplitMix64), [`decimal`] (small decimal
@@ -45,6 +47,7 @@
 //! ```
 #![cfg_attr(not(test), no_std)]
 
+pub mod check;
 pub mod control;
 pub mod decimal;
 mod error;

@@ -26,6 +26,7 @@ use faer::Mat;
 use ferrosid::lti::StateSpace;
 use ferrosid::robust::pid::{DiscretePid, Pid};
 use ferrosid_codegen as cg;
+use num_complex::Complex64;
 
 use crate::e2e::{build_app_image, write_if_changed};
 use crate::{decode_defmt, repo_root, run_qemu, Error, LogLine, RunOptions};
@@ -151,6 +152,7 @@ pub fn codegen_input_for(
             excitation_rms: 0.1,
             excitation_max_hz: 100.0,
             min_checked: 1,
+            closed_loop: None,
         },
         provenance: cg::Provenance {
             tool: "ferrosid-tests closedloop".into(),
@@ -276,4 +278,231 @@ pub fn first_harmonic(x: &[f64], ts: f64, freq_hz: f64) -> f64 {
         im -= (v - mean) * s;
     }
     2.0 * (re * re + im * im).sqrt() / n as f64
+}
+
+// ---------------------------------------------------------------------------------------------
+// The closed-loop power-up check (`closedloop` image, `check=on`).
+
+/// [`codegen_input_for`] with the closed-loop check configured: `welch_n`-sample periods,
+/// lines up to `max_hz`, the check frequencies `check_hz`, `averages` periods after
+/// `settle` periods, the multisine's RMS `reference_rms` (rad, at the reference), the
+/// uncertainty weight `weight` (`(num, den)`, s in rad/s) and the coherence gate 0.9.
+#[allow(clippy::too_many_arguments)]
+pub fn check_codegen_input(
+    prefix: &str,
+    plant: &StateSpace,
+    pid: &Pid,
+    compensation: Option<cg::Compensation>,
+    welch_n: usize,
+    check_hz: &[f64],
+    max_hz: f64,
+    averages: u32,
+    settle: u32,
+    reference_rms: f64,
+    weight: (Vec<f64>, Vec<f64>),
+) -> cg::CodegenInput {
+    let mut input = codegen_input_for(prefix, plant, pid, compensation);
+    input.weight = cg::WeightCoefficients {
+        num: weight.0,
+        den: weight.1,
+        note: "closed-loop check weight (tests/src/closedloop.rs)".into(),
+    };
+    input.self_id = cg::SelfIdSettings {
+        welch_n,
+        check_hz: check_hz.to_vec(),
+        coherence_gate: 0.9,
+        averages,
+        settle_periods: settle,
+        // The open-loop excitation is not used by the closed-loop image; a valid value.
+        excitation_rms: 0.1,
+        excitation_max_hz: max_hz,
+        min_checked: check_hz.len().div_ceil(2),
+        closed_loop: Some(cg::ClosedLoopCheck { reference_rms }),
+    };
+    input
+}
+
+/// One `RECEIPT` line of the target: the power-up image's format (`ferrosid_frame::RECEIPT_FIELDS`),
+/// read into the host's row type (closed loop: the coherence is the smaller of γ²_ry, γ²_ru).
+pub type CheckRow = ferrosid::target_frame::ReceiptRow;
+
+/// A run of the closed-loop check.
+#[derive(Debug, Clone)]
+pub struct CheckRun {
+    /// Exit status: 0 pass, 1 fail, 2 inconclusive, 3 set-up error.
+    pub exit_code: i32,
+    /// Decoded lines without the `C` trace lines.
+    pub lines: Vec<LogLine>,
+    /// The averaged samples (excitation r, PID command u, output y), first 4096.
+    pub trace: Vec<(f64, f64, f64)>,
+    /// The receipt.
+    pub rows: Vec<CheckRow>,
+    /// PASS, FAIL or INCONCLUSIVE.
+    pub verdict: Option<String>,
+    /// Frequencies listed as failed, Hz.
+    pub failed_hz: Vec<f64>,
+    /// Mean and max instructions per sample of excitation + estimator push, instructions of
+    /// the final evaluation (valid under `-icount`).
+    pub icount: Option<(f64, f64, f64)>,
+    /// Stack high-water mark, bytes.
+    pub stack: Option<usize>,
+}
+
+fn parse_row(text: &str) -> Option<CheckRow> {
+    let w: Vec<&str> = text.strip_prefix("RECEIPT ")?.split_whitespace().collect();
+    if w.len() != 11 {
+        return None;
+    }
+    let f = |i: usize| w[i].parse::<f64>().ok();
+    Some(CheckRow {
+        bin: w[0].parse().ok()?,
+        hz: f(1)?,
+        coherence: f(2)?,
+        g0: Complex64::new(f(3)?, f(4)?),
+        g_meas: Complex64::new(f(5)?, f(6)?),
+        rel_error: f(7)?,
+        wm: f(8)?,
+        sigma: f(9)?,
+        verdict: w[10].to_string(),
+    })
+}
+
+/// Runs the image with `check=on` and the words `args` (with `-icount shift=0` when `icount`).
+pub fn run_check(elf: &Path, args: &[&str], icount: bool) -> Result<CheckRun, Error> {
+    let mut words: Vec<String> = vec!["check=on".into()];
+    words.extend(args.iter().map(|s| s.to_string()));
+    let opts = RunOptions {
+        args: words,
+        timeout: std::time::Duration::from_secs(120),
+        icount,
+    };
+    let q = run_qemu(elf, &opts)?;
+    let all = decode_defmt(elf, &q.stdout)?;
+    let mut trace = Vec::new();
+    let mut lines = Vec::new();
+    for l in all {
+        if let Some(rest) = l.text.strip_prefix("C ") {
+            let v: Vec<f64> = rest
+                .split_whitespace()
+                .filter_map(|t| t.parse().ok())
+                .collect();
+            if let [r, u, y] = v[..] {
+                trace.push((r, u, y));
+            }
+        } else {
+            lines.push(l);
+        }
+    }
+    let rows = lines.iter().filter_map(|l| parse_row(&l.text)).collect();
+    let verdict = lines.iter().find_map(|l| {
+        l.text
+            .strip_prefix("VERDICT ")
+            .and_then(|r| r.split_whitespace().next())
+            .map(str::to_string)
+    });
+    let failed_hz = lines
+        .iter()
+        .find_map(|l| l.text.split_once("failed_hz=["))
+        .map(|(_, rest)| {
+            rest.trim_end_matches(']')
+                .split(',')
+                .filter_map(|t| t.trim().parse::<f64>().ok())
+                .collect()
+        })
+        .unwrap_or_default();
+    let icount = lines
+        .iter()
+        .find(|l| l.text.starts_with("ICOUNT "))
+        .and_then(|l| {
+            Some((
+                field(&l.text, "push_mean")?.parse().ok()?,
+                field(&l.text, "push_max")?.parse().ok()?,
+                field(&l.text, "evaluate")?.parse().ok()?,
+            ))
+        });
+    let stack = lines.iter().find_map(|l| {
+        l.text
+            .strip_prefix("STACK ")
+            .and_then(|s| s.trim().parse().ok())
+    });
+    Ok(CheckRun {
+        exit_code: q.exit_code,
+        lines,
+        trace,
+        rows,
+        verdict,
+        failed_hz,
+        icount,
+        stack,
+    })
+}
+
+/// The f64 reference of the closed-loop estimate, a second implementation: over every whole
+/// `n`-sample period of the records, the DFT at `bin` of r, u and y (direct sums in f64, mean
+/// of the period removed as the target's Welch does — it does not change a bin ≥ 1), then
+/// `G = Σ conj(R)·Y / Σ conj(R)·U` (the indirect estimate) and the naive open-loop
+/// `H1 = Σ conj(U)·Y / Σ |U|²`.
+pub fn reference_estimate(
+    r: &[f64],
+    u: &[f64],
+    y: &[f64],
+    n: usize,
+    bin: usize,
+) -> (Complex64, Complex64) {
+    let periods = r.len().min(u.len()).min(y.len()) / n;
+    let (mut ry, mut ru, mut uy, mut uu) = (
+        Complex64::default(),
+        Complex64::default(),
+        Complex64::default(),
+        0.0,
+    );
+    let dft = |x: &[f64]| -> Complex64 {
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        x.iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let ph = -2.0 * std::f64::consts::PI * ((bin * i) % n) as f64 / n as f64;
+                Complex64::from_polar(v - mean, ph)
+            })
+            .sum()
+    };
+    for p in 0..periods {
+        let s = p * n..(p + 1) * n;
+        let (rk, uk, yk) = (dft(&r[s.clone()]), dft(&u[s.clone()]), dft(&y[s]));
+        ry += rk.conj() * yk;
+        ru += rk.conj() * uk;
+        uy += uk.conj() * yk;
+        uu += uk.norm_sqr();
+    }
+    (ry / ru, uy / uu)
+}
+
+/// Coulomb friction level of the loop behind the torque lag, N·m (= input units, gain 1).
+pub const LAG_COULOMB: f64 = 0.1;
+
+/// The friction feedforward for Coulomb friction [`LAG_COULOMB`] at the motor behind the
+/// [`LAG`] torque lag, in its lag-aware form (`cg::LagAwareFriction`: velocity from the
+/// filtered output difference at 200 Hz predicted one sample ahead, ramp band 0.05 rad/s,
+/// stuck branch over ±1e-4 N·m of the lagged PID command, the lag's deadbeat inverse),
+/// designed by `ferrosid::compensation::design_from` at the true level and lag. The image runs
+/// it as designed (`comp=ff`) or as the plain feedforward with the same numbers
+/// (`comp=ffplain`).
+pub fn lag_aware_feedforward() -> cg::Compensation {
+    use ferrosid::compensation::design::{design_from, DesignOptions};
+    use ferrosid::gap::report::VerdictEffect;
+    let mut opts = DesignOptions::new("tests/tests/e2e_closedloop.rs (true level)", 0.05, 0.02);
+    opts.velocity = cg::VelocitySource::OutputDifference { filter_hz: 200.0 };
+    opts.lag_aware = Some(cg::LagAwareFriction {
+        lag_s: LAG,
+        horizon_s: TS,
+        stick_band: 1e-4,
+    });
+    let effect = VerdictEffect {
+        effect: "coulomb_friction".into(),
+        place: "motor".into(),
+        params: [("level".to_string(), LAG_COULOMB)].into_iter().collect(),
+        share: 1.0,
+    };
+    design_from("coulomb_friction", &[effect], f64::NAN, f64::NAN, &opts)
+        .expect("compensation design")
 }

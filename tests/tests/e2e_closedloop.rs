@@ -25,8 +25,9 @@ use ferrosid::limit_cycle::{
 };
 use ferrosid_codegen as cg;
 use ferrosid_tests::closedloop::{
-    build_image, codegen_input, codegen_input_for, discrete_pid, first_harmonic, lag_pid,
-    lag_plant_continuous, plant_continuous, run, ClosedLoopRun, INERTIA, LAG, TS,
+    build_image, codegen_input, codegen_input_for, discrete_pid, first_harmonic,
+    lag_aware_feedforward, lag_pid, lag_plant_continuous, plant_continuous, run, ClosedLoopRun,
+    INERTIA, LAG, TS,
 };
 use ferrosid_tests::{panic_sites, repo_root};
 
@@ -102,28 +103,10 @@ fn elf() -> &'static Path {
     }
 }
 
-/// The friction feedforward for Coulomb friction 0.1 N·m at the motor behind the 3 ms torque
-/// lag, in its lag-aware form (`cg::LagAwareFriction`: velocity from the filtered output
-/// difference at 200 Hz predicted one sample ahead, ramp band 0.05 rad/s, stuck branch over
-/// ±1e-4 N·m of the lagged PID command, the lag's deadbeat inverse), designed by
-/// `ferrosid::compensation::design_from` at the true level and lag. The image runs it as
-/// designed (`comp=ff`) or as the plain feedforward with the same numbers (`comp=ffplain`).
+/// The lag-aware friction feedforward of this loop (shared with the closed-loop check's test):
+/// [`ferrosid_tests::closedloop::lag_aware_feedforward`].
 fn coulomb_feedforward() -> cg::Compensation {
-    let mut opts = DesignOptions::new("tests/tests/e2e_closedloop.rs (true level)", 0.05, 0.02);
-    opts.velocity = cg::VelocitySource::OutputDifference { filter_hz: 200.0 };
-    opts.lag_aware = Some(cg::LagAwareFriction {
-        lag_s: LAG,
-        horizon_s: TS,
-        stick_band: 1e-4,
-    });
-    let effect = VerdictEffect {
-        effect: "coulomb_friction".into(),
-        place: "motor".into(),
-        params: [("level".to_string(), COULOMB)].into_iter().collect(),
-        share: 1.0,
-    };
-    design_from("coulomb_friction", &[effect], f64::NAN, f64::NAN, &opts)
-        .expect("compensation design")
+    lag_aware_feedforward()
 }
 
 /// [`coulomb_feedforward`] without its lag-aware form: what `comp=ffplain` runs.
@@ -542,6 +525,7 @@ fn closedloop_code_has_no_panic_path() {
             loc.contains("firmware/app/src")
                 || loc.contains("flashed_model.rs")
                 || loc.contains("firmware/src/control")
+                || loc.contains("firmware/src/check")
         })
         .map(|s| s.to_string())
         .collect();

@@ -25,13 +25,30 @@
 //!   amplitude of y (rad) that counts as an oscillation (default 1e-3, the bench's sensor
 //!   noise: a smaller cycle is not observable).
 //!
+//! * `check=on` — instead of the free run: the closed-loop power-up check
+//!   (`ferrosid_firmware::check::ClosedLoopEstimator`). The self-identification multisine of
+//!   the module (bins 1..=EXCITATION_MAX_BIN of a WELCH_N period, RMS
+//!   CLOSED_LOOP_REFERENCE_RMS in output units) is added to the reference `r`; SETTLE_PERIODS
+//!   periods settle, AVERAGES periods feed the estimator with (excitation, the PID's command,
+//!   y); at every check bin `G = S_ry / S_ru` is compared with the flashed model ± |W_m| as
+//!   the open-loop check does (`check_rms=` overrides the RMS, for exploring the amplitude on a
+//!   bench). `seconds` and the kick are not used. Logs
+//!   `CLCHECK n=.. averages=.. settle=.. reference_rms=.. comp=..`, one `C <r> <u> <y>` per
+//!   averaged sample (the first [`TAIL`]), `RECEIPT ..` lines in the power-up image's format
+//!   (coherence: the smaller of γ²_ry and γ²_ru; σ: their summed normalised random errors),
+//!   `ICOUNT push_mean=.. push_max=.. evaluate=.. ipt=..` (instructions per sample for the
+//!   excitation sample + estimator push, and for the final evaluation, under
+//!   `qemu -icount shift=0`; meaningless without it), `STACK <bytes>` and
+//!   `VERDICT <PASS|FAIL|INCONCLUSIVE> checked=<c>/<total> failed_hz=[..]`; exit status 0 pass,
+//!   1 fail, 2 inconclusive.
+//!
 //! Log lines (decoded defmt):
 //! * `CLOSEDLOOP sha256=<digest> comp=<on|off|ff|ffplain|dz|bl|aw> samples=<n> ts=<s> J=.. b=.. k=.. gain=.. coulomb=.. breakaway=.. deadzone=.. lag=..`
 //! * `T <y> <u> <omega>` for each of the last [`TAIL`] samples, oldest first;
 //! * `CYCLE <y|u|omega> freq_hz=<f> amplitude=<a> mean=<m> crossings=<c> oscillating=<bool>`;
 //! * `END`.
 //!
-//! Exit status 0, 3 for a bad command line or set-up error, 101 panic.
+//! Exit status 0 (free run), 0/1/2 (check), 3 for a bad command line or set-up error, 101 panic.
 #![no_std]
 #![no_main]
 
@@ -42,7 +59,10 @@ use ferrosid_firmware::control::{
     analyse_oscillation, Biquad, CompensationConfig, ControlConfig, ControlLaw, ControlState,
     FrictionFeedforward, PidConfig,
 };
+use ferrosid_firmware::excitation::{Multisine, MultisineScratch, MultisineSpec, Phases};
+use ferrosid_firmware::Excitation;
 use ferrosid_powerup::plant::{Axis, AxisParams};
+use ferrosid_powerup::{evaluate, flat_lines, CheckConfig, ClosedLoopEstimator, Model, Weight};
 
 /// The generated module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
 #[allow(dead_code)]
@@ -53,6 +73,10 @@ mod flashed {
 /// The generated compensation block in the firmware's form (shared with `powerup`).
 #[path = "flashed_comp.rs"]
 mod flashed_comp;
+
+/// The receipt's log lines (shared with the other image).
+#[path = "receipt_log.rs"]
+mod receipt_log;
 use flashed_comp::compensation_config;
 
 /// Samples kept for the analysis and the log (4.096 s at 1 kHz).
@@ -118,6 +142,10 @@ struct Settings {
     seconds: f32,
     floor: f32,
     lag: f32,
+    /// `check=on`: run the closed-loop check instead of the free run.
+    check: bool,
+    /// `check_rms=`: overrides the module's CLOSED_LOOP_REFERENCE_RMS (bench exploration).
+    check_rms: Option<f32>,
 }
 
 fn parse_f32(key: &'static str, v: &str) -> Result<f32, &'static str> {
@@ -149,6 +177,8 @@ fn parse_args() -> Result<Settings, &'static str> {
         seconds: 8.0,
         floor: 1e-3,
         lag: 0.0,
+        check: false,
+        check_rms: None,
     };
     let args = semihosting::experimental::env::args::<1024>().map_err(|_| "command line")?;
     for (i, a) in (&args).enumerate() {
@@ -187,6 +217,14 @@ fn parse_args() -> Result<Settings, &'static str> {
             "seconds" => s.seconds = parse_f32("seconds", v)?,
             "floor" => s.floor = parse_f32("floor", v)?,
             "lag" => s.lag = parse_f32("lag", v)?,
+            "check_rms" => s.check_rms = Some(parse_f32("check_rms", v)?),
+            "check" => {
+                s.check = match v {
+                    "on" => true,
+                    "off" => false,
+                    _ => return Err("check (on|off)"),
+                }
+            }
             _ => return Err("unknown key"),
         }
     }
@@ -270,6 +308,9 @@ fn main() -> ! {
             exit(EXIT_SETUP)
         }
     };
+    if s.check {
+        run_check(&law, &mut axis, &s)
+    }
     let samples = (s.seconds / flashed::TS_S) as usize;
     defmt::println!(
         "CLOSEDLOOP sha256={=str} comp={=str} samples={=usize} ts={=f32} J={=f32} b={=f32} k={=f32} gain={=f32} coulomb={=f32} breakaway={=f32} deadzone={=f32} lag={=f32}",
@@ -342,4 +383,163 @@ fn main() -> ! {
     }
     defmt::println!("END");
     exit(0)
+}
+
+/// Welch segment length and multisine period of the check.
+const N: usize = flashed::WELCH_N;
+/// Excited lines.
+const LINES: usize = flashed::EXCITATION_MAX_BIN;
+const _: () = assert!(LINES >= 1 && LINES < N / 2);
+
+/// SysTick instruction counter under `qemu -icount` (shared with the QEMU bench images).
+#[path = "../../../tests/qemu/src/icount.rs"]
+#[allow(dead_code)] // `free` and the held SYST are for the bench images
+mod icount;
+/// Stack high-water mark by painting (the painter the power-up image and the QEMU probe use).
+#[path = "../../../tests/qemu/src/stack.rs"]
+mod stack;
+
+/// The closed-loop estimator (48·N bytes) in .bss.
+static mut ESTIMATOR: ClosedLoopEstimator<N> = ClosedLoopEstimator::unconfigured();
+
+/// The multisine design with its 8·N-byte scratch on this frame only.
+#[inline(never)]
+fn design_excitation(spec: &MultisineSpec<'_>) -> Option<Multisine<N>> {
+    let mut scratch = MultisineScratch::<N>::new();
+    Multisine::design(spec, &mut scratch).ok()
+}
+
+/// The closed-loop check (`check=on`, see the crate docs); exits with its verdict.
+fn run_check(law: &ControlLaw, axis: &mut Axis, s: &Settings) -> ! {
+    let painted = stack::paint(32 * 1024);
+    let Some(p) = cortex_m::Peripherals::take() else {
+        setup_error("peripherals already taken")
+    };
+    let mut ic = icount::InstructionCounter::new(p.SYST);
+    let (i1, t1) = ic.calibrate(100_000);
+    let (i2, t2) = ic.calibrate(300_000);
+    // Instructions per SysTick tick (0 without -icount: the counts are then not reported as
+    // meaningful, ipt=0).
+    let ipt = if t2 > t1 {
+        (i2 - i1) as f64 / (t2 - t1) as f64
+    } else {
+        0.0
+    };
+    let Some(rms) = s.check_rms.or(flashed::CLOSED_LOOP_REFERENCE_RMS) else {
+        setup_error("check=on, but the flashed module has no closed-loop check settings")
+    };
+    let cfg = CheckConfig {
+        fs_hz: flashed::FS_HZ,
+        n: N,
+        bins: &flashed::CHECK_BIN,
+        hz: &flashed::CHECK_HZ,
+        gate: flashed::COHERENCE_GATE,
+        min_checked: flashed::MIN_CHECKED,
+    };
+    if let Err(e) = cfg.validate() {
+        defmt::println!("ERROR check setting out of range: {=str}", e.field());
+        exit(EXIT_SETUP)
+    }
+    let Ok(lines) = flat_lines::<LINES>(rms) else {
+        setup_error("check setting out of range: reference_rms")
+    };
+    let spec = MultisineSpec {
+        lines: &lines,
+        phases: Phases::Schroeder,
+        crest_iterations: 100,
+    };
+    let Some(ms) = cortex_m::singleton!(: Multisine<N> = match design_excitation(&spec) {
+        Some(m) => m,
+        None => setup_error("multisine design rejected the line set"),
+    }) else {
+        exit(EXIT_SETUP)
+    };
+    // SAFETY: `run_check` runs once (it never returns) and this is the only reference ever
+    // taken to ESTIMATOR, so it is unique.
+    let est: &'static mut ClosedLoopEstimator<N> =
+        unsafe { &mut *core::ptr::addr_of_mut!(ESTIMATOR) };
+    if let Err(e) = est.configure(flashed::FS_HZ) {
+        defmt::println!("ERROR check setting out of range: {=str}", e.field());
+        exit(EXIT_SETUP)
+    }
+    // SAFETY: as in `main` (which does not use the buffers on this path): unique references.
+    let (tr, tu, ty) = unsafe {
+        (
+            &mut *core::ptr::addr_of_mut!(TAIL_W),
+            &mut *core::ptr::addr_of_mut!(TAIL_U),
+            &mut *core::ptr::addr_of_mut!(TAIL_Y),
+        )
+    };
+    let settle = flashed::SETTLE_PERIODS as usize * N;
+    let total = settle + flashed::AVERAGES as usize * N;
+    defmt::println!(
+        "CLCHECK sha256={=str} n={=usize} averages={=u32} settle={=u32} reference_rms={=f32} comp={=str} lag={=f32} coulomb={=f32}",
+        flashed::INPUTS_SHA256,
+        N,
+        flashed::AVERAGES,
+        flashed::SETTLE_PERIODS,
+        rms,
+        s.comp.as_str(),
+        s.lag,
+        axis.params().coulomb
+    );
+    let mut st = ControlState::new();
+    let (mut sum_ticks, mut max_ticks, mut empty_max, mut pushes) = (0u64, 0u32, 0u32, 0u64);
+    for k in 0..total {
+        let y = axis.measure();
+        let mut r = 0.0f32;
+        let t_exc = ic.ticks_of(|| r = ms.next_sample());
+        let out = law.step(&mut st, s.r + r, y);
+        if let Some(j) = k.checked_sub(settle) {
+            let t_push = ic.ticks_of(|| est.push(r, out.u_pid, y));
+            empty_max = empty_max.max(ic.ticks_of(|| ()));
+            let t = t_exc.saturating_add(t_push);
+            sum_ticks += u64::from(t);
+            max_ticks = max_ticks.max(t);
+            pushes += 1;
+            if let (Some(a), Some(b), Some(c)) = (tr.get_mut(j), tu.get_mut(j), ty.get_mut(j)) {
+                *a = r;
+                *b = out.u_pid;
+                *c = y;
+            }
+        }
+        axis.advance(out.u);
+    }
+    est.flush();
+    let model = Model {
+        a: &flashed::A,
+        b: &flashed::B,
+        c: &flashed::C,
+        d: &flashed::D,
+    };
+    let weight = Weight {
+        num: &flashed::WM_NUM,
+        den: &flashed::WM_DEN,
+    };
+    let mut results = [ferrosid_powerup::CheckResult::EMPTY; flashed::CHECK_COUNT];
+    let t_eval = ic.ticks_of(|| results = evaluate(&cfg, &model, &weight, |k| est.measured(k)));
+    let kept = (total - settle).min(TAIL);
+    for j in 0..kept {
+        if let (Some(a), Some(b), Some(c)) = (tr.get(j), tu.get(j), ty.get(j)) {
+            defmt::println!("C {=f32} {=f32} {=f32}", *a, *b, *c);
+        }
+    }
+    receipt_log::rows(&results);
+    let empty = f64::from(empty_max);
+    let mean = if pushes > 0 {
+        (sum_ticks as f64 / pushes as f64 - 2.0 * empty) * ipt
+    } else {
+        0.0
+    };
+    defmt::println!(
+        "ICOUNT push_mean={=f64} push_max={=f64} evaluate={=f64} ipt={=f64} dropped={=u32}",
+        mean,
+        (f64::from(max_ticks) - 2.0 * empty) * ipt,
+        (f64::from(t_eval) - empty) * ipt,
+        ipt,
+        est.dropped_segments()
+    );
+    defmt::println!("STACK {=usize}", painted.high_water());
+    let overall = receipt_log::verdict(&results, flashed::MIN_CHECKED);
+    exit(overall.exit_code())
 }

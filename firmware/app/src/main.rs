@@ -44,15 +44,15 @@
 #![no_std]
 #![no_main]
 
-use core::f64::consts::PI;
-
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 use ferrosid_firmware::control::{ControlConfig, ControlLaw, ControlState, PidConfig};
-use ferrosid_firmware::excitation::{Line, Multisine, MultisineScratch, MultisineSpec, Phases};
+use ferrosid_firmware::excitation::{Multisine, MultisineScratch, MultisineSpec, Phases};
 use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
 use ferrosid_powerup::plant::{Axis, AxisParams};
-use ferrosid_powerup::{check_bin, model_response, weight_magnitude, CheckResult, Overall, C32};
+use ferrosid_powerup::{
+    evaluate, flat_lines, h1_random_error, CheckConfig, Measured, Model, Weight, C32,
+};
 
 /// The generated model module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
 #[allow(dead_code)]
@@ -63,6 +63,10 @@ mod flashed {
 /// The generated compensation block in the firmware's form (shared with `closedloop`).
 #[path = "flashed_comp.rs"]
 mod flashed_comp;
+
+/// The receipt's log lines (shared with the other image).
+#[path = "receipt_log.rs"]
+mod receipt_log;
 
 /// Welch segment length and multisine period.
 const N: usize = flashed::WELCH_N;
@@ -243,17 +247,10 @@ fn main() -> ! {
     };
 
     // Excitation: flat multisine on bins 1..=LINES with total RMS EXCITATION_RMS.
-    let amplitude = flashed::EXCITATION_RMS * libm::sqrtf(2.0 / LINES as f32);
-    let mut lines = [Line {
-        bin: 0,
-        amplitude: 0.0,
-    }; LINES];
-    for (i, l) in lines.iter_mut().enumerate() {
-        *l = Line {
-            bin: i + 1,
-            amplitude,
-        };
-    }
+    let Ok(lines) = flat_lines::<LINES>(flashed::EXCITATION_RMS) else {
+        defmt::println!("ERROR check setting out of range: excitation_rms");
+        exit(EXIT_SETUP)
+    };
     let spec = MultisineSpec {
         lines: &lines,
         phases: Phases::Schroeder,
@@ -340,50 +337,38 @@ fn main() -> ! {
     welch.flush();
 
     // The receipt.
-    let mut results = [CheckResult {
-        bin: 0,
-        hz: 0.0,
-        coherence: 0.0,
-        g0: C32::default(),
-        g_meas: C32::default(),
-        rel_error: 0.0,
-        wm: 0.0,
-        sigma: 0.0,
-        verdict: ferrosid_powerup::Verdict::Undefined,
-    }; flashed::CHECK_COUNT];
-    for (i, r) in results.iter_mut().enumerate() {
-        let bin = flashed::CHECK_BIN[i];
-        let k = usize::from(bin);
-        let z = C32::unit_circle(u32::from(bin), N as u32);
-        let g0 = model_response(&flashed::A, &flashed::B, &flashed::C, &flashed::D, z, 0, 0);
-        let w = (2.0 * PI * f64::from(bin) * f64::from(flashed::FS_HZ) / N as f64) as f32;
-        let wm = weight_magnitude(&flashed::WM_NUM, &flashed::WM_DEN, w);
-        let h1 = welch.h1(k).map(|(re, im)| C32::new(re, im));
-        *r = check_bin(
-            bin,
-            flashed::CHECK_HZ[i],
-            welch.coherence(k),
-            welch.averages(),
-            flashed::COHERENCE_GATE,
-            h1,
-            g0,
-            wm,
-        );
-        defmt::println!(
-            "RECEIPT {=u16} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=f32} {=str}",
-            r.bin,
-            r.hz,
-            r.coherence,
-            r.g0.re,
-            r.g0.im,
-            r.g_meas.re,
-            r.g_meas.im,
-            r.rel_error,
-            r.wm,
-            r.sigma,
-            r.verdict.as_str()
-        );
+    let check_cfg = CheckConfig {
+        fs_hz: flashed::FS_HZ,
+        n: N,
+        bins: &flashed::CHECK_BIN,
+        hz: &flashed::CHECK_HZ,
+        gate: flashed::COHERENCE_GATE,
+        min_checked: flashed::MIN_CHECKED,
+    };
+    if let Err(e) = check_cfg.validate() {
+        defmt::println!("ERROR check setting out of range: {=str}", e.field());
+        exit(EXIT_SETUP)
     }
+    let model = Model {
+        a: &flashed::A,
+        b: &flashed::B,
+        c: &flashed::C,
+        d: &flashed::D,
+    };
+    let weight = Weight {
+        num: &flashed::WM_NUM,
+        den: &flashed::WM_DEN,
+    };
+    let averages = welch.averages();
+    let results = evaluate(&check_cfg, &model, &weight, |k| {
+        let coherence = welch.coherence(k);
+        Measured {
+            coherence,
+            sigma: h1_random_error(coherence, averages),
+            g: welch.h1(k).map(|(re, im)| C32::new(re, im)),
+        }
+    });
+    receipt_log::rows(&results);
 
     // The spectra frame, for the host to re-identify from.
     defmt::println!(
@@ -409,28 +394,7 @@ fn main() -> ! {
     }
     defmt::println!("FRAME_END bins={=usize}", welch.bins());
 
-    let overall = Overall::from_checks(&results, flashed::MIN_CHECKED);
-    let mut failed = [0.0f32; flashed::CHECK_COUNT];
-    let mut n_failed = 0;
-    for r in &results {
-        if matches!(
-            r.verdict,
-            ferrosid_powerup::Verdict::Fail | ferrosid_powerup::Verdict::Undefined
-        ) {
-            if let Some(slot) = failed.get_mut(n_failed) {
-                *slot = r.hz;
-                n_failed += 1;
-            }
-        }
-    }
-    let checked = results.iter().filter(|r| r.verdict.counts()).count();
     defmt::println!("STACK {=usize}", painted.high_water());
-    defmt::println!(
-        "VERDICT {=str} checked={=usize}/{=usize} failed_hz={=[?]}",
-        overall.as_str(),
-        checked,
-        flashed::CHECK_COUNT,
-        failed.get(..n_failed).unwrap_or(&[])
-    );
+    let overall = receipt_log::verdict(&results, flashed::MIN_CHECKED);
     exit(overall.exit_code())
 }

@@ -382,6 +382,7 @@ pub fn codegen_input(parts: CodegenParts, opts: &CodegenOptions) -> Result<cg::C
             excitation_rms: opts.excitation_rms,
             excitation_max_hz: f_max,
             min_checked,
+            closed_loop: None,
         },
         provenance: cg::Provenance {
             tool: format!("ferrosid {}", env!("CARGO_PKG_VERSION")),
