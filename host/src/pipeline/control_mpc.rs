@@ -348,5 +348,7 @@ pub fn mpc_codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateCo
             du_max: s.du_max,
             iterations: s.iterations as u32,
         }),
+        saturation: None,
+        pid_notch: None,
     })
 }
