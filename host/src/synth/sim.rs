@@ -140,8 +140,9 @@ impl DiscreteLaw {
         }
     }
 
-    /// Demand for error `e`; the state advances.
-    fn step(&mut self, e: f64, limit: f64) -> f64 {
+    /// Demand v for error `e` against the rails ±`limit` (the caller applies clamp(v)); the
+    /// state advances, with the law's anti-windup.
+    pub fn step(&mut self, e: f64, limit: f64) -> f64 {
         match self {
             Self::StateSpace(f) => f.step_saturated(e, limit),
             Self::PidThenFilter {
