@@ -96,6 +96,104 @@ fn field(text: &str, key: &str) -> f64 {
         .unwrap_or_else(|| panic!("no {key}= in {text:?}"))
 }
 
+/// What one run of the image gave.
+struct TargetRun {
+    trace: Vec<(f64, f64)>,
+    head: String,
+    icount: String,
+    stack: String,
+}
+
+fn run_target(elf: &Path, r: f64, samples: usize, law: &str) -> TargetRun {
+    let q = run_qemu(
+        elf,
+        &RunOptions {
+            args: vec![format!("r={r}"), format!("samples={samples}")],
+            icount: true,
+            timeout: std::time::Duration::from_secs(600),
+        },
+    )
+    .unwrap();
+    let lines = decode_defmt(elf, &q.stdout).unwrap();
+    let text = |p: &str| {
+        lines
+            .iter()
+            .find(|l| l.text.starts_with(p))
+            .unwrap_or_else(|| panic!("no {p} line: {:?} {}", q.exit_code, q.stderr))
+            .text
+            .clone()
+    };
+    let head = text("CTL ");
+    let rails = text("RAILS ");
+    assert_eq!(q.exit_code, 0, "image verdict: {head} {rails}");
+    assert!(head.contains(&format!("law={law}")), "{head}");
+    let mut trace = Vec::new();
+    for l in &lines {
+        if let Some(rest) = l.text.strip_prefix("T ") {
+            let v: Vec<f64> = rest
+                .split_whitespace()
+                .map(|t| t.parse().unwrap())
+                .collect();
+            trace.push((v[1], v[2]));
+        }
+    }
+    assert_eq!(trace.len(), samples);
+    TargetRun {
+        trace,
+        head,
+        icount: text("ICOUNT "),
+        stack: text("STACK "),
+    }
+}
+
+/// Compares a target run with the host's step `host` (y and applied u per sample); returns
+/// (max |Δy|, max |Δu|, target samples at the rail).
+fn compare(
+    name: &str,
+    t: &TargetRun,
+    host: &ferrosid::robust::step::StepResponse,
+    r: f64,
+    lim: f64,
+) -> (f64, f64, usize) {
+    let (mut ey, mut eu, mut at_rail) = (0.0f64, 0.0f64, 0usize);
+    for (i, &(y, u)) in t.trace.iter().enumerate() {
+        assert!(
+            u.abs() <= lim * (1.0 + 1e-7),
+            "sample {i}: u = {u} beyond ±{lim}"
+        );
+        if u.abs() >= lim * (1.0 - 1e-6) {
+            at_rail += 1;
+        }
+        ey = ey.max((y - host.y[i]).abs());
+        eu = eu.max((u - host.u[i]).abs());
+    }
+    eprintln!(
+        "{name}, r = {r}: {}; target vs host max |Δy| {ey:.3e} ({:.3e} of r), max |Δu| \
+         {eu:.3e} ({:.3e} of the limit); samples at the rail target {at_rail} host {}; \
+         overshoot host {:.2} %; y(end) target {:.4} host {:.4}; {}; {}",
+        t.head,
+        ey / r.abs(),
+        eu / lim,
+        host.samples_at_rail,
+        host.overshoot_pct,
+        t.trace.last().unwrap().0,
+        host.y.last().unwrap(),
+        t.icount,
+        t.stack
+    );
+    assert!(
+        ey <= TOL_Y * r.abs(),
+        "{name}, r = {r}: y differs from the host by {ey}"
+    );
+    assert!(
+        eu <= TOL_U * lim,
+        "{name}, r = {r}: u differs from the host by {eu}"
+    );
+    let (mean, max) = (field(&t.icount, "mean"), field(&t.icount, "max"));
+    assert!(mean > 0.0 && max >= mean, "{}", t.icount);
+    (ey, eu, at_rail)
+}
+
 fn check(name: &str, extra: &str, law: &str) {
     let run = run(extra);
     let c = run.control.as_ref().expect("control block");
@@ -126,92 +224,52 @@ fn check(name: &str, extra: &str, law: &str) {
         ),
     }
     let files = ferrosid_codegen::generate(&input).unwrap();
-    let dir = repo_root().join("target").join(format!("qemu-ctl-{name}"));
+    // One cargo target directory for both images (the module differs; build.rs reruns on it).
+    let target = repo_root().join("target").join("qemu-ctl");
+    let dir = target.join(name);
     std::fs::create_dir_all(&dir).unwrap();
     let module = dir.join(&files.rs_file_name);
     if std::fs::read_to_string(&module).ok().as_deref() != Some(files.rust_module.as_str()) {
         std::fs::write(&module, &files.rust_module).unwrap();
     }
-    let elf = build_image(&module, &dir);
-    let samples = host.y.len().min(20_000);
-    let q = run_qemu(
-        &elf,
-        &RunOptions {
-            args: vec![format!("r={r}"), format!("samples={samples}")],
-            icount: true,
-            timeout: std::time::Duration::from_secs(600),
-        },
-    )
-    .unwrap();
-    let lines = decode_defmt(&elf, &q.stdout).unwrap();
-    let text = |p: &str| {
-        lines
-            .iter()
-            .find(|l| l.text.starts_with(p))
-            .unwrap_or_else(|| panic!("no {p} line: {:?} {}", q.exit_code, q.stderr))
-            .text
-            .clone()
-    };
-    let head = text("CTL ");
-    let rails = text("RAILS ");
-    let icount = text("ICOUNT ");
-    let stack = text("STACK ");
-    assert_eq!(q.exit_code, 0, "image verdict: {head} {rails}");
-    assert!(head.contains(&format!("law={law}")), "{head}");
-    let mut trace = Vec::new();
-    for l in &lines {
-        if let Some(rest) = l.text.strip_prefix("T ") {
-            let v: Vec<f64> = rest
-                .split_whitespace()
-                .map(|t| t.parse().unwrap())
-                .collect();
-            trace.push((v[1], v[2]));
-        }
-    }
-    assert_eq!(trace.len(), samples);
-    let (mut ey, mut eu, mut at_rail) = (0.0f64, 0.0f64, 0usize);
-    for (i, &(y, u)) in trace.iter().enumerate() {
-        assert!(
-            u.abs() <= lim * (1.0 + 1e-7),
-            "sample {i}: u = {u} beyond ±{lim}"
-        );
-        if u.abs() >= lim * (1.0 - 1e-6) {
-            at_rail += 1;
-        }
-        ey = ey.max((y - host.y[i]).abs());
-        eu = eu.max((u - host.u[i]).abs());
-    }
+    let elf = build_image(&module, &target);
     let size = image_size(&elf).unwrap();
     eprintln!(
-        "{name}: {head}; target vs host max |Δy| {ey:.3e} ({:.3e} of r), max |Δu| {eu:.3e} \
-         ({:.3e} of the limit); samples at the rail target {at_rail} host {}; overshoot host \
-         {:.2} %; y(end) target {:.4} host {:.4}; {icount}; {stack}; flash {} B, static RAM {} B \
-         (text {}, data {}, bss {})",
-        ey / r,
-        eu / lim,
-        host.samples_at_rail,
-        host.overshoot_pct,
-        trace.last().unwrap().0,
-        host.y.last().unwrap(),
+        "{name}: flash {} B, static RAM {} B (text {}, data {}, bss {})",
         size.flash(),
         size.ram(),
         size.text,
         size.data,
         size.bss
     );
+    // 1. The pipeline's own step (its receipts' prediction), at the design amplitude.
+    let samples = host.y.len().min(20_000);
+    let t = run_target(&elf, r, samples, law);
+    compare(name, &t, &host, r, lim);
+    // 2. A step three times as high, deep into saturation (the anti-windup acts), against the
+    // host's f64 simulation of the same law (`synth::sim::saturated_step_general`).
+    let r3 = 3.0 * r;
+    let model = run.model();
+    let host_law = ferrosid::pipeline::control_stage::chosen_law(c, model.ts)
+        .unwrap()
+        .expect("the chosen law");
+    let spec = ferrosid::robust::step::StepSpec {
+        amplitude: r3,
+        actuator_limit: lim,
+        duration_s: (samples as f64 + 0.5) * model.ts,
+        anti_windup: k.anti_windup,
+        settle_band: 0.02,
+    };
+    let host3 = ferrosid::synth::sim::saturated_step_general(model, host_law, &spec).unwrap();
+    assert_eq!(host3.y.len(), samples);
+    let t3 = run_target(&elf, r3, samples, law);
+    let (_, _, at_rail) = compare(name, &t3, &host3, r3, lim);
     assert!(
-        host.samples_at_rail > 0 && at_rail > 0,
-        "the step must reach the rail (anti-windup exercised)"
+        host3.samples_at_rail > 10 && at_rail > 10,
+        "the {r3} step must saturate (anti-windup exercised): target {at_rail}, host {}",
+        host3.samples_at_rail
     );
-    assert!(
-        ey <= TOL_Y * r.abs(),
-        "{name}: y differs from the host by {ey}"
-    );
-    assert!(eu <= TOL_U * lim, "{name}: u differs from the host by {eu}");
-    let (mean, max) = (field(&icount, "mean"), field(&icount, "max"));
-    assert!(mean > 0.0 && max >= mean, "{icount}");
 }
-
 #[test]
 fn pid_notch_on_target_matches_the_host_step() {
     check("pid-notch", "method = \"pid-notch\"", "kn");

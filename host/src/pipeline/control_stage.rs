@@ -928,14 +928,12 @@ pub fn codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateContro
 }
 
 /// The actuator rails of the chosen loop's step (±`control.actuator_limit`).
-fn rails(c: &ControlOutcome) -> Option<(f64, f64)> {
-    c.step
-        .as_ref()
-        .map(|s| (-s.actuator_limit, s.actuator_limit))
+fn rails(c: &ControlOutcome) -> Option<f64> {
+    c.step.as_ref().map(|s| s.actuator_limit)
 }
 
-/// Rails and back-calculation gain of an H∞ controller (None for other methods, or without
-/// anti-windup and a step to take the rails from).
+/// Rails and back-calculation gain of an H∞ controller (None for other methods, or without a
+/// step to take the rails from).
 fn codegen_saturation(c: &ControlOutcome) -> Option<ferrosid_codegen::StateSaturation> {
     let Some(DesignSummary::Hinf {
         anti_windup_gain, ..
@@ -943,17 +941,25 @@ fn codegen_saturation(c: &ControlOutcome) -> Option<ferrosid_codegen::StateSatur
     else {
         return None;
     };
-    let (u_min, u_max) = rails(c)?;
     let n = c.controller_ss.as_ref()?.n_states();
-    Some(ferrosid_codegen::StateSaturation {
-        l: anti_windup_gain.clone().unwrap_or_else(|| vec![0.0; n]),
-        u_min,
-        u_max,
-    })
+    Some(saturation_block(anti_windup_gain.as_deref(), n, rails(c)?))
 }
 
-/// The PID + notch form of a `loopshape` design at sample time `ts` (the PID discretised as
-/// the design simulation does, prewarped at its crossover; each notch as its biquad).
+/// The codegen rails ±`limit` with the back-calculation gain `gain` (None: zero, plain
+/// clamping) of an `n`-state controller.
+pub fn saturation_block(
+    gain: Option<&[f64]>,
+    n: usize,
+    limit: f64,
+) -> ferrosid_codegen::StateSaturation {
+    ferrosid_codegen::StateSaturation {
+        l: gain.map_or_else(|| vec![0.0; n], <[f64]>::to_vec),
+        u_min: -limit,
+        u_max: limit,
+    }
+}
+
+/// The PID + notch form of a `loopshape` design at sample time `ts`.
 fn codegen_pid_notch(c: &ControlOutcome, ts: f64) -> Option<ferrosid_codegen::PidNotchController> {
     let Some(DesignSummary::Loopshape {
         pid,
@@ -965,25 +971,82 @@ fn codegen_pid_notch(c: &ControlOutcome, ts: f64) -> Option<ferrosid_codegen::Pi
     else {
         return None;
     };
-    let (u_min, u_max) = rails(c)?;
-    let dp = pid.discretize(ts, Some(design.crossover_hz)).ok()?;
+    pid_notch_block(
+        pid,
+        design.crossover_hz,
+        notches,
+        ts,
+        rails(c)?,
+        *anti_windup,
+    )
+    .ok()?
+}
+
+/// The PID + notch codegen block of a `loopshape` design: the PID discretised at `ts` as the
+/// design simulation does (Tustin prewarped at its crossover), each notch as its biquad
+/// ([`Notch::biquad`]), rails ±`limit`. Ok(None) without a notch (the PID block is then the
+/// whole controller; a C array cannot be empty).
+pub fn pid_notch_block(
+    pid: &Pid,
+    crossover_hz: f64,
+    notches: &[Notch],
+    ts: f64,
+    limit: f64,
+    anti_windup: bool,
+) -> Result<Option<ferrosid_codegen::PidNotchController>> {
+    if notches.is_empty() {
+        return Ok(None);
+    }
+    let dp = pid.discretize(ts, Some(crossover_hz))?;
     let sections = notches
         .iter()
-        .map(|n| {
-            n.biquad(ts)
-                .ok()
-                .map(|(b, a)| ferrosid_codegen::Biquad { b, a })
-        })
-        .collect::<Option<Vec<_>>>()?;
-    // Without a notch the PID block is the whole controller (a C array cannot be empty).
-    if sections.is_empty() {
-        return None;
-    }
-    Some(ferrosid_codegen::PidNotchController {
+        .map(|n| n.biquad(ts).map(|(b, a)| ferrosid_codegen::Biquad { b, a }))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Some(ferrosid_codegen::PidNotchController {
         pid: crate::ops::codegen::pid_gains(&dp, Some(pid)),
         sections,
-        u_min,
-        u_max,
-        anti_windup: *anti_windup,
-    })
+        u_min: -limit,
+        u_max: limit,
+        anti_windup,
+    }))
+}
+
+/// The discrete law the control stage simulated for its saturated step (`loopshape`: the
+/// PID's conditional integration then the notches; `hinf`: the state-space controller with
+/// its back-calculation gain), rebuilt from the outcome at sample time `ts`; None for other
+/// methods or a failed design. For checks of the same law elsewhere (the target, other steps).
+pub fn chosen_law(c: &ControlOutcome, ts: f64) -> Result<Option<DiscreteLaw>> {
+    match &c.design {
+        Some(DesignSummary::Loopshape {
+            pid,
+            design,
+            notches,
+            anti_windup,
+            ..
+        }) => {
+            let mut notch = StateSpace::identity(1, ts)?;
+            for n in notches {
+                notch = n.in_domain(Some(ts))?.series(&notch)?;
+            }
+            Ok(Some(DiscreteLaw::PidThenFilter {
+                pid: pid.discretize(ts, Some(design.crossover_hz))?,
+                state: Default::default(),
+                filter: SsFilter::new(&notch)?,
+                anti_windup: *anti_windup,
+            }))
+        }
+        Some(DesignSummary::Hinf {
+            anti_windup_gain, ..
+        }) => {
+            let Some(k) = c.controller_ss.as_ref() else {
+                return Ok(None);
+            };
+            let f = SsFilter::new(k)?;
+            Ok(Some(DiscreteLaw::StateSpace(match anti_windup_gain {
+                Some(l) => f.with_anti_windup(l)?,
+                None => f,
+            })))
+        }
+        _ => Ok(None),
+    }
 }
