@@ -291,24 +291,28 @@ struct ControlRecord {
     design: Option<DesignRecord>,
 }
 
+/// The `design` object of the record: the fields codegen needs per `kind` (`loopshape`:
+/// pid, design, notches, anti_windup; `hinf`: anti_windup_gain; `mpc`: model_states,
+/// unconstrained_kx). A plain struct, not an internally tagged enum: serde buffers a tagged
+/// enum's content, and with serde_json's arbitrary-precision numbers a buffered float no
+/// longer reads as an f64.
 #[derive(serde::Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-enum DesignRecord {
-    Loopshape {
-        pid: Pid,
-        design: crate::robust::pid::PidDesignPoint,
-        notches: Vec<crate::synth::loopshape::Notch>,
-        #[serde(default)]
-        anti_windup: Option<bool>,
-    },
-    Hinf {
-        #[serde(default)]
-        anti_windup_gain: Option<Vec<f64>>,
-    },
-    Mpc {
-        model_states: usize,
-        unconstrained_kx: Vec<f64>,
-    },
+struct DesignRecord {
+    kind: String,
+    #[serde(default)]
+    pid: Option<Pid>,
+    #[serde(default)]
+    design: Option<crate::robust::pid::PidDesignPoint>,
+    #[serde(default)]
+    notches: Option<Vec<crate::synth::loopshape::Notch>>,
+    #[serde(default)]
+    anti_windup: Option<bool>,
+    #[serde(default)]
+    anti_windup_gain: Option<Vec<f64>>,
+    #[serde(default)]
+    model_states: Option<usize>,
+    #[serde(default)]
+    unconstrained_kx: Option<Vec<f64>>,
 }
 
 /// Reads the chosen controller of a pipeline run from its `receipts.json` (module docs) for
@@ -380,19 +384,36 @@ pub fn read_control(path: &Path, model: &StateSpace) -> Result<Option<cg::StateC
         saturation: None,
         pid_notch: None,
     };
-    match (c.method, c.design) {
-        (ControlMethod::Pid, _) => Ok(None),
-        (
-            ControlMethod::Loopshape,
-            Some(DesignRecord::Loopshape {
-                pid,
-                design,
-                notches,
-                anti_windup,
-            }),
-        ) => {
+    let missing = |what: &str| {
+        data_err(
+            path,
+            format!(
+                "the {} record's \"design\" has no \"{what}\"",
+                c.method.name()
+            ),
+        )
+    };
+    let d = match (&c.method, c.design) {
+        (ControlMethod::Pid, _) => return Ok(None),
+        (m, Some(d)) if d.kind == kind_of(*m) => d,
+        (m, d) => {
+            return Err(data_err(
+                path,
+                format!(
+                    "the {} record has no matching \"design\" block (kind {:?})",
+                    m.name(),
+                    d.map(|d| d.kind)
+                ),
+            ))
+        }
+    };
+    match c.method {
+        ControlMethod::Loopshape => {
             let k = controller("pid-notch")?;
-            let aw = anti_windup.unwrap_or(settings.control.anti_windup);
+            let pid = d.pid.ok_or_else(|| missing("pid"))?;
+            let design = d.design.ok_or_else(|| missing("design"))?;
+            let notches = d.notches.ok_or_else(|| missing("notches"))?;
+            let aw = d.anti_windup.unwrap_or(settings.control.anti_windup);
             let kn =
                 pid_notch_block(&pid, design.crossover_hz, &notches, ts, limit, aw).map_err(err)?;
             Ok(Some(cg::StateController {
@@ -400,10 +421,10 @@ pub fn read_control(path: &Path, model: &StateSpace) -> Result<Option<cg::StateC
                 ..block(&k)
             }))
         }
-        (ControlMethod::Hinf, Some(DesignRecord::Hinf { anti_windup_gain })) => {
+        ControlMethod::Hinf => {
             let k = controller("hinf")?;
             // A record written before the gain was recorded: the same deterministic design.
-            let gain = match (anti_windup_gain, settings.control.anti_windup) {
+            let gain = match (d.anti_windup_gain, settings.control.anti_windup) {
                 (Some(g), _) => Some(g),
                 (None, true) => Some(crate::synth::sim::anti_windup_gain(&k).map_err(err)?),
                 (None, false) => None,
@@ -413,13 +434,11 @@ pub fn read_control(path: &Path, model: &StateSpace) -> Result<Option<cg::StateC
                 ..block(&k)
             }))
         }
-        (
-            ControlMethod::Mpc,
-            Some(DesignRecord::Mpc {
-                model_states,
-                unconstrained_kx,
-            }),
-        ) => {
+        ControlMethod::Mpc => {
+            let model_states = d.model_states.ok_or_else(|| missing("model_states"))?;
+            let unconstrained_kx = d
+                .unconstrained_kx
+                .ok_or_else(|| missing("unconstrained_kx"))?;
             let spec = crate::pipeline::control_mpc::mpc_spec(&settings);
             let d = crate::synth::mpc::MpcDesign::new(model, spec).map_err(err)?;
             let kx = d.unconstrained_law().map_err(err)?.kx;
@@ -448,10 +467,18 @@ pub fn read_control(path: &Path, model: &StateSpace) -> Result<Option<cg::StateC
                 &d, model,
             )))
         }
-        (m, _) => Err(data_err(
-            path,
-            format!("the {} record has no matching \"design\" block", m.name()),
-        )),
+        ControlMethod::Pid => Ok(None),
+    }
+}
+
+/// The `kind` of a method's design summary.
+fn kind_of(m: crate::pipeline::control_stage::ControlMethod) -> &'static str {
+    use crate::pipeline::control_stage::ControlMethod;
+    match m {
+        ControlMethod::Pid => "pid",
+        ControlMethod::Loopshape => "loopshape",
+        ControlMethod::Hinf => "hinf",
+        ControlMethod::Mpc => "mpc",
     }
 }
 
