@@ -187,6 +187,8 @@ pub(crate) struct Context {
     pub sk: crate::context_sk::SkLit,
     /// The MPC block (`c.mpc`).
     pub mpc: crate::context_sk::MpcLit,
+    /// PID + notch form of the chosen controller (`pid-notch`).
+    pub kn: crate::context_sk::KnLit,
 }
 
 fn is_hex64(s: &str) -> bool {
@@ -588,12 +590,14 @@ pub(crate) fn build(
     let clcheck = crate::context_check::clcheck_lit(input)?;
     let sk = crate::context_sk::sk_lit(input.state_controller.as_ref(), ts)?;
     let mpc = crate::context_sk::mpc_lit(input.state_controller.as_ref(), ts, dims.n)?;
+    let kn = crate::context_sk::kn_lit(input.state_controller.as_ref(), ts)?;
 
     let ctx = Context {
         comp,
         clcheck,
         sk,
         mpc,
+        kn,
         u0_c,
         u0_rs,
         y0_c,

@@ -185,6 +185,44 @@ pub struct StateController {
     /// the MPC feeds back (D = 0), not a controller u = K·e, and no K_* block is emitted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mpc: Option<MpcController>,
+    /// The rails and the back-calculation gain of the state-space law (observer form,
+    /// `ferrosid_firmware::control::StateSpaceLaw`): `v = C ξ + D e`, `u = clamp(v, u_min,
+    /// u_max)`, `ξ⁺ = A ξ + B e + L (u − v)`. None: the step returns v and the caller clamps.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub saturation: Option<StateSaturation>,
+    /// Method `pid-notch`: the same controller in the firmware's form, PID then notch biquads
+    /// (`ferrosid_firmware::control::PidNotchLaw`), emitted next to the state-space block.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pid_notch: Option<PidNotchController>,
+}
+
+/// Rails and anti-windup gain of a [`StateController`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StateSaturation {
+    /// Back-calculation gain L, one entry per controller state (all zero: plain clamping).
+    pub l: Vec<f64>,
+    /// Lower rail, input units.
+    pub u_min: f64,
+    /// Upper rail (> `u_min`).
+    pub u_max: f64,
+}
+
+/// PID + notch cascade in the firmware's form: `w = PID(e)` (with its roll-off), `n =` the
+/// biquads in series, `u = clamp(n, u_min, u_max)`; with `anti_windup` the PID's integration
+/// is dropped for a step whose `w` lies beyond a rail in the direction it integrates
+/// (conditional integration, as the host's design simulation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PidNotchController {
+    /// The PID part (Tustin, its own sample time must equal the model's).
+    pub pid: PidGains,
+    /// The notch (or lead) sections, applied in order.
+    pub sections: Vec<Biquad>,
+    /// Lower rail, input units.
+    pub u_min: f64,
+    /// Upper rail.
+    pub u_max: f64,
+    /// Conditional integration at the rails.
+    pub anti_windup: bool,
 }
 
 /// The data of a condensed MPC for `ferrosid_firmware::mpc::MpcQp` (host design

@@ -89,11 +89,12 @@ pub use compensation::{
 };
 pub use context::{snap_checks, CheckPoint, MAX_CHECKS};
 pub use context_check::ClosedLoopCheck;
+pub use context_sk::{MAX_CONTROLLER_ORDER, MAX_NOTCH_SECTIONS};
 pub use error::{Error, Result};
 pub use input::{
     Biquad, CodegenInput, ContinuousModel, ContinuousPid, Dims, DiscreteModel, Matrices,
-    MpcController, OperatingPointValues, PidGains, Provenance, ReceiptLine, SelfIdSettings,
-    SourceDigest, StateController, WeightCoefficients,
+    MpcController, OperatingPointValues, PidGains, PidNotchController, Provenance, ReceiptLine,
+    SelfIdSettings, SourceDigest, StateController, StateSaturation, WeightCoefficients,
 };
 pub use text::{c_float, comment_text, f32_literal, sanitize_prefix};
 

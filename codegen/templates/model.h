@@ -83,10 +83,12 @@ static const float {{ c.p }}_PID_ROLLOFF_A[3] = { {{ c.pid_rolloff_a_c }} };
 {% else %}#define {{ c.p }}_HAS_PID 0
 {% endif %}{% if c.sk.has %}
 /* ---- Chosen controller (discrete state space; run instead of the PID) -------------------
- * xi[k+1] = K_A xi[k] + K_B e[k];  u[k] = K_C xi[k] + K_D e[k];  e = r - y; clamp u to the
- * actuator rails after the step (no anti-windup: a general controller has no integrator
- * state to hold). xi starts at zero.
-{% for d in c.sk.doc %} * {{ d }}
+{% if c.sk.has_sat %} * v = K_C xi[k] + K_D e[k];  u[k] = clamp(v, K_U_MIN, K_U_MAX);  e = r - y;
+ * xi[k+1] = K_A xi[k] + K_B e[k] + K_L (u[k] - v)  (observer-form back-calculation
+ * anti-windup: the state follows the applied input at a rail). xi starts at zero.
+{% else %} * xi[k+1] = K_A xi[k] + K_B e[k];  u[k] = K_C xi[k] + K_D e[k];  e = r - y; clamp u to the
+ * actuator rails after the step (no anti-windup). xi starts at zero.
+{% endif %}{% for d in c.sk.doc %} * {{ d }}
 {% endfor %} */
 #define {{ c.p }}_HAS_STATE_CONTROLLER 1
 #define {{ c.p }}_K_N_STATES {{ c.sk.n }}
@@ -96,19 +98,28 @@ static const float {{ c.p }}_K_A[{{ c.p }}_K_N_STATES][{{ c.p }}_K_N_STATES] = {
 static const float {{ c.p }}_K_B[{{ c.p }}_K_N_STATES] = { {% for row in c.sk.b.rows_c %}{{ row }}{% endfor %} };
 static const float {{ c.p }}_K_C[{{ c.p }}_K_N_STATES] = { {% for row in c.sk.c.rows_c %}{{ row }}{% endfor %} };
 static const float {{ c.p }}_K_D = {{ c.sk.d.c }};
+{% if c.sk.has_sat %}#define {{ c.p }}_K_HAS_SATURATION 1
+static const float {{ c.p }}_K_L[{{ c.p }}_K_N_STATES] = { {% for row in c.sk.l.rows_c %}{{ row }}{% endfor %} };
+static const float {{ c.p }}_K_U_MIN = {{ c.sk.u_min.c }};
+static const float {{ c.p }}_K_U_MAX = {{ c.sk.u_max.c }};
+
+/* One controller step: returns u[k] (clamped to the rails) and advances xi. */
+{% else %}#define {{ c.p }}_K_HAS_SATURATION 0
 
 /* One controller step: returns u[k] (before the clamp) and advances xi. */
-static inline float {{ c.p }}_k_step(float xi[{{ c.p }}_K_N_STATES], float e)
+{% endif %}static inline float {{ c.p }}_k_step(float xi[{{ c.p }}_K_N_STATES], float e)
 {
     float next[{{ c.p }}_K_N_STATES];
     float u = {{ c.p }}_K_D * e;
-    int i;
+{% if c.sk.has_sat %}    float corr;
+{% endif %}    int i;
     int j;
     for (i = 0; i < {{ c.p }}_K_N_STATES; ++i) {
         u += {{ c.p }}_K_C[i] * xi[i];
     }
-    for (i = 0; i < {{ c.p }}_K_N_STATES; ++i) {
-        float acc = {{ c.p }}_K_B[i] * e;
+{% if c.sk.has_sat %}    corr = (u < {{ c.p }}_K_U_MIN ? {{ c.p }}_K_U_MIN : (u > {{ c.p }}_K_U_MAX ? {{ c.p }}_K_U_MAX : u)) - u;
+{% endif %}    for (i = 0; i < {{ c.p }}_K_N_STATES; ++i) {
+        float acc = {{ c.p }}_K_B[i] * e{% if c.sk.has_sat %} + {{ c.p }}_K_L[i] * corr{% endif %};
         for (j = 0; j < {{ c.p }}_K_N_STATES; ++j) {
             acc += {{ c.p }}_K_A[i][j] * xi[j];
         }
@@ -117,7 +128,73 @@ static inline float {{ c.p }}_k_step(float xi[{{ c.p }}_K_N_STATES], float e)
     for (i = 0; i < {{ c.p }}_K_N_STATES; ++i) {
         xi[i] = next[i];
     }
-    return u;
+    return u{% if c.sk.has_sat %} + corr{% endif %};
+}
+{% endif %}{% if c.kn.has %}
+/* ---- PID + notch cascade (the same controller in the firmware's form) -------------------
+ * e = r - y;  i' = i + KN_PID_KI_D (e + e1);  d' = KN_PID_A_D d + KN_PID_B_D (e - e1);
+ * v = KN_PID_KP e + i' + d';  w = roll-off biquad of v (KN_ROLLOFF = {b}, {a}; identity when
+ * absent);  with KN_ANTI_WINDUP, a step whose w lies beyond a rail in the direction the
+ * integrator moves keeps i' = i (conditional integration) and recomputes v, w;
+ * n = the KN_SECTIONS biquads in series (KN_SOS rows {b0, b1, b2, 1, a1, a2}, direct form I);
+ * u = clamp(n, KN_U_MIN, KN_U_MAX). The filters keep their unclamped outputs as state.
+ */
+#define {{ c.p }}_HAS_PID_NOTCH 1
+#define {{ c.p }}_KN_SECTIONS {{ c.kn.sections }}
+#define {{ c.p }}_KN_ANTI_WINDUP {% if c.kn.anti_windup %}1{% else %}0{% endif %}
+static const float {{ c.p }}_KN_PID_KP = {{ c.kn.kp.c }};
+static const float {{ c.p }}_KN_PID_KI_D = {{ c.kn.ki_d.c }};
+static const float {{ c.p }}_KN_PID_A_D = {{ c.kn.a_d.c }};
+static const float {{ c.p }}_KN_PID_B_D = {{ c.kn.b_d.c }};
+static const float {{ c.p }}_KN_ROLLOFF[2][3] = {
+{% for row in c.kn.rolloff.rows_c %}    { {{ row }} },
+{% endfor %}};
+static const float {{ c.p }}_KN_SOS[{{ c.p }}_KN_SECTIONS][6] = {
+{% for row in c.kn.sos.rows_c %}    { {{ row }} },
+{% endfor %}};
+static const float {{ c.p }}_KN_U_MIN = {{ c.kn.u_min.c }};
+static const float {{ c.p }}_KN_U_MAX = {{ c.kn.u_max.c }};
+
+/* State of {{ c.p }}_kn_step (zero at start). */
+typedef struct {
+    float e1, i, d, v1, v2, w1, w2;
+    float z[{{ c.p }}_KN_SECTIONS][4];
+} {{ c.p }}_kn_state;
+
+/* One step of the PID + notch law: returns u[k] (clamped) and advances s. */
+static inline float {{ c.p }}_kn_step({{ c.p }}_kn_state *s, float e)
+{
+    const float (*ro)[3] = {{ c.p }}_KN_ROLLOFF;
+    float i_new = s->i + {{ c.p }}_KN_PID_KI_D * (e + s->e1);
+    float d_new = {{ c.p }}_KN_PID_A_D * s->d + {{ c.p }}_KN_PID_B_D * (e - s->e1);
+    float v = {{ c.p }}_KN_PID_KP * e + i_new + d_new;
+    float w = ro[0][0] * v + ro[0][1] * s->v1 + ro[0][2] * s->v2 - ro[1][1] * s->w1 - ro[1][2] * s->w2;
+    float n;
+    int k;
+    if ({{ c.p }}_KN_ANTI_WINDUP && ((w > {{ c.p }}_KN_U_MAX && i_new > s->i) || (w < {{ c.p }}_KN_U_MIN && i_new < s->i))) {
+        i_new = s->i;
+        v = {{ c.p }}_KN_PID_KP * e + i_new + d_new;
+        w = ro[0][0] * v + ro[0][1] * s->v1 + ro[0][2] * s->v2 - ro[1][1] * s->w1 - ro[1][2] * s->w2;
+    }
+    n = w;
+    for (k = 0; k < {{ c.p }}_KN_SECTIONS; ++k) {
+        const float *q = {{ c.p }}_KN_SOS[k];
+        float *z = s->z[k];
+        float y = q[0] * n + q[1] * z[0] + q[2] * z[1] - q[4] * z[2] - q[5] * z[3];
+        z[1] = z[0];
+        z[0] = n;
+        z[3] = z[2];
+        z[2] = y;
+        n = y;
+    }
+    s->e1 = e;
+    s->i = i_new;
+    s->d = d_new;
+    s->v2 = s->v1;
+    s->v1 = v;
+    s->w2 = s->w1;
+    s->w1 = w;
+    return n < {{ c.p }}_KN_U_MIN ? {{ c.p }}_KN_U_MIN : (n > {{ c.p }}_KN_U_MAX ? {{ c.p }}_KN_U_MAX : n);
 }
 {% endif %}{% if c.mpc.has %}
 /* ---- Model predictive controller (condensed QP, ADMM; run instead of the PID) ------------

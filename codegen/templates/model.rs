@@ -114,9 +114,12 @@ pub struct DiscretePid {
 {% else %}pub const PID: Option<DiscretePid> = None;
 {% endif %}{% if c.sk.has %}
 // ---- Chosen controller (discrete state space; run instead of the PID) -------------------
-// xi[k+1] = K_A xi[k] + K_B e[k];  u[k] = K_C xi[k] + K_D e[k];  e = r − y; clamp u to the
+{% if c.sk.has_sat %}// v = K_C xi[k] + K_D e[k];  u[k] = clamp(v, K_U_MIN, K_U_MAX);  e = r − y;
+// xi[k+1] = K_A xi[k] + K_B e[k] + K_L (u[k] − v)  (observer-form back-calculation
+// anti-windup; `ferrosid_firmware::control::StateSpaceLaw`). xi starts at zero.
+{% else %}// xi[k+1] = K_A xi[k] + K_B e[k];  u[k] = K_C xi[k] + K_D e[k];  e = r − y; clamp u to the
 // actuator rails after the step (no anti-windup). xi starts at zero.
-{% for d in c.sk.doc %}// {{ d }}
+{% endif %}{% for d in c.sk.doc %}// {{ d }}
 {% endfor %}/// States of the chosen controller.
 pub const K_N_STATES: usize = {{ c.sk.n }};
 /// Controller state matrix.
@@ -133,7 +136,41 @@ pub static K_C: [f32; K_N_STATES] = [{% for row in c.sk.c.rows_rs %}{{ row }}{% 
 /// Controller feedthrough.
 #[allow(clippy::approx_constant)]
 pub const K_D: f32 = {{ c.sk.d.rs }};
+{% if c.sk.has_sat %}/// Back-calculation gain L (observer form).
+#[allow(clippy::approx_constant)]
+pub static K_L: [f32; K_N_STATES] = [{% for row in c.sk.l.rows_rs %}{{ row }}{% endfor %}];
+/// Lower rail of the controller's output.
+pub const K_U_MIN: f32 = {{ c.sk.u_min.rs }};
+/// Upper rail of the controller's output.
+pub const K_U_MAX: f32 = {{ c.sk.u_max.rs }};
 
+/// One step of the chosen controller: returns u[k] (clamped to the rails) and advances `xi`
+/// with the back-calculation term. Allocation-free; the state lives with the caller.
+pub fn k_step(xi: &mut [f32; K_N_STATES], e: f32) -> f32 {
+    let mut v = K_D * e;
+    for (c, x) in K_C.iter().zip(xi.iter()) {
+        v += c * x;
+    }
+    let u = if v < K_U_MIN {
+        K_U_MIN
+    } else if v > K_U_MAX {
+        K_U_MAX
+    } else {
+        v
+    };
+    let corr = u - v;
+    let mut next = [0.0f32; K_N_STATES];
+    for (i, n) in next.iter_mut().enumerate() {
+        let mut acc = K_B[i] * e + K_L[i] * corr;
+        for (a, x) in K_A[i].iter().zip(xi.iter()) {
+            acc += a * x;
+        }
+        *n = acc;
+    }
+    *xi = next;
+    u
+}
+{% else %}
 /// One step of the chosen controller: returns u[k] (before the clamp) and advances `xi`.
 /// Allocation-free; the state lives with the caller.
 pub fn k_step(xi: &mut [f32; K_N_STATES], e: f32) -> f32 {
@@ -151,6 +188,51 @@ pub fn k_step(xi: &mut [f32; K_N_STATES], e: f32) -> f32 {
     }
     *xi = next;
     u
+}
+{% endif %}{% endif %}{% if c.kn.has %}
+// ---- PID + notch cascade (the same controller in the firmware's form) -------------------
+// e = r − y; w = KN_PID(e) (its roll-off included); with KN_ANTI_WINDUP a step whose w lies
+// beyond a rail in the direction the integrator moves drops that step's integration
+// (conditional integration); n = the KN_SECTIONS biquads of KN_SOS in series; u = clamp(n,
+// KN_U_MIN, KN_U_MAX). Run it with `ferrosid_firmware::control::PidNotchLaw`:
+//     PidNotchConfig { pid: PidConfig { kp: KN_PID.kp, .. }, cascade: BiquadCascade {
+//         sections: KN_SOS (as firmware biquads) }, u_min: KN_U_MIN, u_max: KN_U_MAX,
+//         anti_windup: KN_ANTI_WINDUP }
+/// Notch/lead sections after the PID.
+pub const KN_SECTIONS: usize = {{ c.kn.sections }};
+/// The PID part of the PID + notch controller.
+#[allow(clippy::approx_constant)]
+pub const KN_PID: DiscretePid = DiscretePid {
+    kp: {{ c.kn.kp.rs }},
+    ki_d: {{ c.kn.ki_d.rs }},
+    a_d: {{ c.kn.a_d.rs }},
+    b_d: {{ c.kn.b_d.rs }},
+{% if c.kn.has_rolloff %}    rolloff: Some(Biquad {
+        b: [{{ c.kn.rolloff.rows_rs[0] }}],
+        a: [{{ c.kn.rolloff.rows_rs[1] }}],
+    }),
+{% else %}    rolloff: None,
+{% endif %}};
+/// The sections, applied in order (`a[0] == 1`).
+#[allow(clippy::approx_constant)]
+pub static KN_SOS: [Biquad; KN_SECTIONS] = [
+{% for row in c.kn.sos.rows_rs %}    Biquad::from_row([{{ row }}]),
+{% endfor %}];
+/// Lower rail.
+pub const KN_U_MIN: f32 = {{ c.kn.u_min.rs }};
+/// Upper rail.
+pub const KN_U_MAX: f32 = {{ c.kn.u_max.rs }};
+/// Conditional integration at the rails.
+pub const KN_ANTI_WINDUP: bool = {{ c.kn.anti_windup }};
+
+impl Biquad {
+    /// A section from `[b0, b1, b2, a0, a1, a2]`.
+    pub const fn from_row(r: [f32; 6]) -> Self {
+        Biquad {
+            b: [r[0], r[1], r[2]],
+            a: [r[3], r[4], r[5]],
+        }
+    }
 }
 {% endif %}{% if c.mpc.has %}
 // ---- Model predictive controller (condensed QP, ADMM; run instead of the PID) ------------

@@ -854,6 +854,8 @@ fn state_controller() -> StateController {
         },
         note: "test controller".into(),
         mpc: None,
+        saturation: None,
+        pid_notch: None,
     }
 }
 
@@ -1048,6 +1050,8 @@ fn mpc_block(n: usize) -> StateController {
         matrices: full_input().model.matrices,
         note: "test MPC".into(),
         mpc: Some(mpc_of_full_input(n)),
+        saturation: None,
+        pid_notch: None,
     }
 }
 

@@ -20,6 +20,15 @@ fn main() {
         println!("cargo:rustc-link-arg=-Tlink.x");
         println!("cargo:rustc-link-arg=-Tdefmt.x");
     }
+    println!("cargo::rustc-check-cfg=cfg(ctl_kn)");
+    if env::var_os("CARGO_FEATURE_CTL").is_some() {
+        let text = generated("FERROSID_CTL_MODEL", "\"pid-notch\" or \"hinf\"");
+        // The PID + notch block present: the image runs it (else the state-space block).
+        if text.contains("pub const KN_SECTIONS") {
+            println!("cargo:rustc-cfg=ctl_kn");
+        }
+        write_out("ctl_model.rs", &text);
+    }
     if env::var_os("CARGO_FEATURE_MPC").is_some() {
         const VAR: &str = "FERROSID_MPC_MODEL";
         println!("cargo:rerun-if-env-changed={VAR}");
@@ -49,5 +58,41 @@ fn main() {
         if std::fs::read_to_string(&out).ok().as_deref() != Some(text.as_str()) {
             std::fs::write(&out, text).expect("write mpc_model.rs");
         }
+    }
+}
+
+/// The generated module named by the environment variable `var` (or a `compile_error!` saying
+/// what to set).
+fn generated(var: &str, method: &str) -> String {
+    println!("cargo:rerun-if-env-changed={var}");
+    match env::var_os(var) {
+        Some(path) => {
+            let path = PathBuf::from(path);
+            println!("cargo:rerun-if-changed={}", path.display());
+            std::fs::read_to_string(&path).unwrap_or_else(|e| {
+                format!(
+                    "compile_error!({:?});\n",
+                    format!(
+                        "{var}={}: cannot read the generated module: {e}",
+                        path.display()
+                    )
+                )
+            })
+        }
+        None => format!(
+            "compile_error!({:?});\n",
+            format!(
+                "set {var} to the Rust module written by `ferrosid codegen` for a pipeline run \
+                 with [control] method = {method}"
+            )
+        ),
+    }
+}
+
+/// Writes `text` to `$OUT_DIR/name` when it changed.
+fn write_out(name: &str, text: &str) {
+    let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default()).join(name);
+    if std::fs::read_to_string(&out).ok().as_deref() != Some(text) {
+        std::fs::write(&out, text).expect("write generated module");
     }
 }

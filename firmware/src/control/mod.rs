@@ -1,5 +1,7 @@
 //! The control step: the discrete PID the host designs (Tustin, filtered derivative, optional
-//! roll-off biquad) followed by the compensation of a diagnosed nonlinearity.
+//! roll-off biquad) followed by the compensation of a diagnosed nonlinearity; and the chosen
+//! controllers beyond PID (PID + notch cascade, discrete state space with anti-windup:
+//! [`PidNotchLaw`], [`StateSpaceLaw`]).
 //!
 //! Configuration and state are separate: a [`ControlLaw`] is built once from a validated
 //! [`ControlConfig`] (immutable; reciprocals precomputed so the step has no division), and
@@ -48,6 +50,7 @@
 mod compensation;
 mod oscillation;
 mod pid;
+mod shaped;
 
 pub use compensation::{
     AntiWindup, BacklashInverse, CompensationConfig, DeadZoneInverse, FrictionFeedforward,
@@ -55,6 +58,10 @@ pub use compensation::{
 };
 pub use oscillation::{analyse_oscillation, Oscillation};
 pub use pid::{Biquad, PidConfig};
+pub use shaped::{
+    BiquadCascade, CascadeState, LawOutput, PidNotchConfig, PidNotchLaw, PidNotchState,
+    StateSpaceConfig, StateSpaceLaw, StateSpaceState, MAX_SECTIONS, MAX_STATE_ORDER,
+};
 
 use crate::Error;
 

@@ -20,6 +20,13 @@
 //!   ([`crate::ops::codegen::CompensationFile`], `"kind": "ferrosid.compensation/1"`): the
 //!   compensation block goes into the header and module (applied only when the run chose
 //!   `compensate`; otherwise it is written disabled).
+//! * `--control`: the `receipts.json` of a `ferrosid run` with `[control] method = "pid-notch"`,
+//!   `"hinf"` or `"mpc"`, read typed (its `control` block and `provenance.settings`): the
+//!   chosen controller goes into the header and module as `ferrosid run` would generate it —
+//!   the state-space block with its rails and back-calculation gain (`hinf`), plus the PID +
+//!   notch biquads (`pid-notch`), or the MPC's QP data (`mpc`, re-designed from `--model` and
+//!   the run's settings, and checked against the run's recorded unconstrained law, so a
+//!   different model is refused). `--model` must be the run's model (same sample time).
 //! * `--source FILE` (repeatable): logs and settings files whose SHA-256 goes into the
 //!   provenance; the model/PID/W_m/receipts files are always included.
 //!
@@ -86,6 +93,10 @@ pub struct Args {
     /// Compensation JSON (`compensation.json` of `ferrosid run`).
     #[arg(long, value_name = "FILE")]
     pub compensation: Option<PathBuf>,
+    /// `receipts.json` of a `ferrosid run` whose `[control] method` chose pid-notch, hinf or
+    /// mpc: that controller is generated too.
+    #[arg(long, value_name = "FILE")]
+    pub control: Option<PathBuf>,
     /// Source file (log, settings) whose SHA-256 goes into the provenance. Repeatable.
     #[arg(long = "source", value_name = "FILE")]
     pub sources: Vec<PathBuf>,
@@ -254,6 +265,223 @@ pub fn read_compensation(path: &Path) -> Result<cg::Compensation> {
     Ok(f.compensation)
 }
 
+/// The parts of a pipeline run's `receipts.json` that carry its chosen controller (typed; other
+/// keys are ignored).
+#[derive(serde::Deserialize)]
+struct RunRecord {
+    provenance: RunProvenance,
+    #[serde(default)]
+    control: Option<ControlRecord>,
+}
+
+#[derive(serde::Deserialize)]
+struct RunProvenance {
+    settings: crate::pipeline::PipelineConfig,
+}
+
+#[derive(serde::Deserialize)]
+struct ControlRecord {
+    method: crate::pipeline::control_stage::ControlMethod,
+    status: String,
+    #[serde(default)]
+    error: Option<String>,
+    #[serde(default)]
+    controller: Option<StateSpaceData>,
+    #[serde(default)]
+    design: Option<DesignRecord>,
+}
+
+/// The `design` object of the record: the fields codegen needs per `kind` (`loopshape`:
+/// pid, design, notches, anti_windup; `hinf`: anti_windup_gain; `mpc`: model_states,
+/// unconstrained_kx). A plain struct, not an internally tagged enum: serde buffers a tagged
+/// enum's content, and with serde_json's arbitrary-precision numbers a buffered float no
+/// longer reads as an f64.
+#[derive(serde::Deserialize)]
+struct DesignRecord {
+    kind: String,
+    #[serde(default)]
+    pid: Option<Pid>,
+    #[serde(default)]
+    design: Option<crate::robust::pid::PidDesignPoint>,
+    #[serde(default)]
+    notches: Option<Vec<crate::synth::loopshape::Notch>>,
+    #[serde(default)]
+    anti_windup: Option<bool>,
+    #[serde(default)]
+    anti_windup_gain: Option<Vec<f64>>,
+    #[serde(default)]
+    model_states: Option<usize>,
+    #[serde(default)]
+    unconstrained_kx: Option<Vec<f64>>,
+}
+
+/// Reads the chosen controller of a pipeline run from its `receipts.json` (module docs) for
+/// the discrete model `model` the header is generated for. Ok(None) for method `pid` (give
+/// its PID with `--pid`). Errors name the file: not a run's receipts, a failed design, a
+/// sample time or model that differs from `model`.
+pub fn read_control(path: &Path, model: &StateSpace) -> Result<Option<cg::StateController>> {
+    use crate::pipeline::control_stage::{pid_notch_block, saturation_block, ControlMethod};
+    let text = read_text(path)?;
+    let rec: RunRecord = serde_json::from_str(&text).map_err(|e| Error::Parse {
+        file: path.to_path_buf(),
+        line: e.line(),
+        msg: format!("not the receipts.json of a `ferrosid run`: {e}"),
+    })?;
+    let settings = rec.provenance.settings;
+    let Some(c) = rec.control else {
+        return match settings.control.method {
+            ControlMethod::Pid => Ok(None),
+            m => Err(data_err(
+                path,
+                format!("method {} but no \"control\" block", m.name()),
+            )),
+        };
+    };
+    if c.status != "designed" {
+        return Err(data_err(
+            path,
+            format!(
+                "the {} design of this run failed: {}",
+                c.method.name(),
+                c.error.as_deref().unwrap_or("no reason given")
+            ),
+        ));
+    }
+    if !model.is_discrete() {
+        return Err(data_err(path, "the model must be discrete (give --ts)"));
+    }
+    let ts = model.ts;
+    let limit = settings.control.actuator_limit;
+    let err = |e: Error| data_err(path, e.to_string());
+    let controller = |what: &str| -> Result<StateSpace> {
+        let data = c
+            .controller
+            .as_ref()
+            .ok_or_else(|| data_err(path, format!("the {what} record has no \"controller\"")))?;
+        let k = StateSpace::try_from(data).map_err(|e| data_err(path, e.to_string()))?;
+        if !((k.ts - ts).abs() <= 1e-12 * ts) {
+            return Err(data_err(
+                path,
+                format!(
+                    "the controller's ts = {} s differs from the model's {ts} s",
+                    k.ts
+                ),
+            ));
+        }
+        Ok(k)
+    };
+    let block = |k: &StateSpace| cg::StateController {
+        method: c.method.name().to_string(),
+        ts_s: k.ts,
+        matrices: crate::ops::codegen::matrices(k),
+        note: format!(
+            "{} controller of order {} from {}; receipts as in that file",
+            c.method.name(),
+            k.n_states(),
+            path.display()
+        ),
+        mpc: None,
+        saturation: None,
+        pid_notch: None,
+    };
+    let missing = |what: &str| {
+        data_err(
+            path,
+            format!(
+                "the {} record's \"design\" has no \"{what}\"",
+                c.method.name()
+            ),
+        )
+    };
+    let d = match (&c.method, c.design) {
+        (ControlMethod::Pid, _) => return Ok(None),
+        (m, Some(d)) if d.kind == kind_of(*m) => d,
+        (m, d) => {
+            return Err(data_err(
+                path,
+                format!(
+                    "the {} record has no matching \"design\" block (kind {:?})",
+                    m.name(),
+                    d.map(|d| d.kind)
+                ),
+            ))
+        }
+    };
+    match c.method {
+        ControlMethod::Loopshape => {
+            let k = controller("pid-notch")?;
+            let pid = d.pid.ok_or_else(|| missing("pid"))?;
+            let design = d.design.ok_or_else(|| missing("design"))?;
+            let notches = d.notches.ok_or_else(|| missing("notches"))?;
+            let aw = d.anti_windup.unwrap_or(settings.control.anti_windup);
+            let kn =
+                pid_notch_block(&pid, design.crossover_hz, &notches, ts, limit, aw).map_err(err)?;
+            Ok(Some(cg::StateController {
+                pid_notch: kn,
+                ..block(&k)
+            }))
+        }
+        ControlMethod::Hinf => {
+            let k = controller("hinf")?;
+            // A record written before the gain was recorded: the same deterministic design.
+            let gain = match (d.anti_windup_gain, settings.control.anti_windup) {
+                (Some(g), _) => Some(g),
+                (None, true) => Some(crate::synth::sim::anti_windup_gain(&k).map_err(err)?),
+                (None, false) => None,
+            };
+            Ok(Some(cg::StateController {
+                saturation: Some(saturation_block(gain.as_deref(), k.n_states(), limit)),
+                ..block(&k)
+            }))
+        }
+        ControlMethod::Mpc => {
+            let model_states = d.model_states.ok_or_else(|| missing("model_states"))?;
+            let unconstrained_kx = d
+                .unconstrained_kx
+                .ok_or_else(|| missing("unconstrained_kx"))?;
+            let spec = crate::pipeline::control_mpc::mpc_spec(&settings);
+            let d = crate::synth::mpc::MpcDesign::new(model, spec).map_err(err)?;
+            let kx = d.unconstrained_law().map_err(err)?.kx;
+            let scale = unconstrained_kx
+                .iter()
+                .fold(0.0f64, |m, v| m.max(v.abs()))
+                .max(1e-300);
+            let same = model.n_states() == model_states
+                && kx.len() == unconstrained_kx.len()
+                && kx
+                    .iter()
+                    .zip(&unconstrained_kx)
+                    .all(|(a, b)| (a - b).abs() <= 1e-9 * scale);
+            if !same {
+                return Err(data_err(
+                    path,
+                    format!(
+                        "the run's MPC was designed on another model: its unconstrained law \
+                         k_x = {unconstrained_kx:?} ({model_states} states), the MPC re-designed \
+                         on --model gives {kx:?} ({} states)",
+                        model.n_states()
+                    ),
+                ));
+            }
+            Ok(Some(crate::pipeline::control_mpc::mpc_state_controller(
+                &d, model,
+            )))
+        }
+        ControlMethod::Pid => Ok(None),
+    }
+}
+
+/// The `kind` of a method's design summary.
+fn kind_of(m: crate::pipeline::control_stage::ControlMethod) -> &'static str {
+    use crate::pipeline::control_stage::ControlMethod;
+    match m {
+        ControlMethod::Pid => "pid",
+        ControlMethod::Loopshape => "loopshape",
+        ControlMethod::Hinf => "hinf",
+        ControlMethod::Mpc => "mpc",
+    }
+}
+
 /// Reads W_m coefficients (`num`, `den`) from a JSON file.
 pub fn read_weight(path: &Path) -> Result<cg::WeightCoefficients> {
     let v = read_json(path)?;
@@ -396,6 +624,19 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
         }
         None => None,
     };
+    let state_controller = match &args.control {
+        Some(p) => {
+            sources.push(digest_file(p, "control")?);
+            let ts_model = match args.ts {
+                Some(t) if !model.is_discrete() => model
+                    .c2d_zoh(t)
+                    .map_err(|e| data_err(model_path, e.to_string()))?,
+                _ => model.clone(),
+            };
+            read_control(p, &ts_model)?
+        }
+        None => None,
+    };
     for s in &args.sources {
         sources.push(digest_file(s, "source")?);
     }
@@ -408,7 +649,7 @@ pub fn build_input(args: &Args) -> Result<cg::CodegenInput> {
         weight,
         receipts,
         sources,
-        state_controller: None,
+        state_controller,
     };
     codegen_input(parts, &args.options())
 }

@@ -312,6 +312,14 @@ fn out_base(inp: &ControlStageInputs<'_>) -> Option<f64> {
 /// matrices and the firmware QP data.
 pub fn mpc_codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateController> {
     let (d, model) = c.mpc.as_ref()?;
+    Some(mpc_state_controller(d, model))
+}
+
+/// The codegen block of the MPC `d` designed on the prediction model `model`.
+pub fn mpc_state_controller(
+    d: &MpcDesign,
+    model: &crate::lti::StateSpace,
+) -> ferrosid_codegen::StateController {
     let (gx, gr) = d.firmware_terms();
     let rows = |m: &faer::Mat<f64>| -> Vec<Vec<f64>> {
         (0..m.nrows())
@@ -319,7 +327,7 @@ pub fn mpc_codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateCo
             .collect()
     };
     let s = d.spec;
-    Some(ferrosid_codegen::StateController {
+    ferrosid_codegen::StateController {
         method: "mpc".into(),
         ts_s: model.ts,
         matrices: crate::ops::codegen::matrices(model),
@@ -348,5 +356,7 @@ pub fn mpc_codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateCo
             du_max: s.du_max,
             iterations: s.iterations as u32,
         }),
-    })
+        saturation: None,
+        pid_notch: None,
+    }
 }

@@ -48,7 +48,7 @@ use crate::synth::hinf::{
 };
 use crate::synth::loopshape::{tune_pid_notch, Notch};
 use crate::synth::mpc::MpcDesign;
-use crate::synth::sim::{saturated_step_general, DiscreteLaw, SsFilter};
+use crate::synth::sim::{anti_windup_gain, saturated_step_general, DiscreteLaw, SsFilter};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
@@ -244,6 +244,8 @@ pub enum DesignSummary {
         notches: Vec<Notch>,
         /// Modes with damping below this were notched.
         notch_max_damping: f64,
+        /// Conditional integration of the PID at the rails (`control.anti_windup`).
+        anti_windup: bool,
     },
     /// H∞ mixed sensitivity.
     Hinf {
@@ -275,6 +277,10 @@ pub enum DesignSummary {
         controller_stable: bool,
         /// The balanced truncation to `hinf_order` (null without reduction).
         reduction: Option<Reduction>,
+        /// Back-calculation gain L of the discrete controller that runs (observer form
+        /// ξ⁺ = Aξ + Be + L(u − v), `synth::sim::anti_windup_gain`; null with
+        /// `control.anti_windup = false`).
+        anti_windup_gain: Option<Vec<f64>>,
     },
     /// Condensed MPC.
     Mpc {
@@ -461,6 +467,7 @@ fn design_loopshape(
             design: d.pid.design,
             notches: d.notches,
             notch_max_damping: zmax,
+            anti_windup: c.control.anti_windup,
         },
     }))
 }
@@ -559,7 +566,7 @@ fn design_hinf(
             neg.d = &neg.d * faer::Scale(-1.0);
             let measured = hinf_norm(&d.controller.parallel(&neg)?)?.gamma;
             let kr = tustin_state_space(&balance(&red.reduced)?, model.ts, Some(wc))?;
-            let law = DiscreteLaw::StateSpace(SsFilter::new(&kd)?);
+            let law = DiscreteLaw::StateSpace(hinf_filter(&kd, k.anti_windup)?);
             let info = Reduction {
                 full_order: d.controller.n_states(),
                 order: r,
@@ -572,6 +579,7 @@ fn design_hinf(
         }
         _ => (kd, None, None),
     };
+    let law = hinf_filter(&kd, k.anti_windup)?;
     let summary = DesignSummary::Hinf {
         bandwidth_hz: bw,
         bandwidths_tried: tried,
@@ -587,14 +595,26 @@ fn design_hinf(
         order: d.controller.n_states(),
         controller_stable: d.controller.is_stable(0.0)?,
         reduction,
+        anti_windup_gain: law.anti_windup().map(<[f64]>::to_vec),
     };
     Ok(Ok(Designed {
-        law: DiscreteLaw::StateSpace(SsFilter::new(&kd)?),
+        law: DiscreteLaw::StateSpace(law),
         controller: kd,
         full,
         design_hz: bw,
         summary,
     }))
+}
+
+/// The discrete H∞ controller's law: with `anti_windup`, the observer-form back-calculation
+/// gain of [`anti_windup_gain`] (the same law the firmware's `StateSpaceLaw` runs).
+fn hinf_filter(kd: &StateSpace, anti_windup: bool) -> Result<SsFilter> {
+    let f = SsFilter::new(kd)?;
+    if anti_windup {
+        f.with_anti_windup(&anti_windup_gain(kd)?)
+    } else {
+        Ok(f)
+    }
 }
 
 /// What the stage needs from the pipeline.
@@ -844,7 +864,7 @@ fn chosen_loop_receipts(
         cross_validation: None,
         limits: *limits,
         // The state-space law has none (the step receipts' detail says so).
-        anti_windup: k.anti_windup && matches!(law, DiscreteLaw::PidThenFilter { .. }),
+        anti_windup: k.anti_windup,
     };
     push_norm_receipts(&mut rs, &ri, &lp, stable)?;
     let spec = StepSpec {
@@ -855,10 +875,14 @@ fn chosen_loop_receipts(
         settle_band: 0.02,
     };
     let note = match law {
-        DiscreteLaw::StateSpace(_) => format!(
-            "sampled loop, ts = {} s, state-space controller clamped at the rail (no \
-             anti-windup)",
-            inp.model.ts
+        DiscreteLaw::StateSpace(f) => format!(
+            "sampled loop, ts = {} s, state-space controller clamped at the rail ({})",
+            inp.model.ts,
+            if f.anti_windup().is_some() {
+                "observer-form back-calculation anti-windup"
+            } else {
+                "no anti-windup"
+            }
         ),
         DiscreteLaw::PidThenFilter { .. } => format!(
             "sampled loop, ts = {} s, Tustin PID (its anti-windup) then the notches",
@@ -898,5 +922,131 @@ pub fn codegen_block(c: &ControlOutcome) -> Option<ferrosid_codegen::StateContro
             c.baseline_pid_crossover_hz.map_or("n/a".into(), fmt_num)
         ),
         mpc: None,
+        saturation: codegen_saturation(c),
+        pid_notch: codegen_pid_notch(c, k.ts),
     })
+}
+
+/// The actuator rails of the chosen loop's step (±`control.actuator_limit`).
+fn rails(c: &ControlOutcome) -> Option<f64> {
+    c.step.as_ref().map(|s| s.actuator_limit)
+}
+
+/// Rails and back-calculation gain of an H∞ controller (None for other methods, or without a
+/// step to take the rails from).
+fn codegen_saturation(c: &ControlOutcome) -> Option<ferrosid_codegen::StateSaturation> {
+    let Some(DesignSummary::Hinf {
+        anti_windup_gain, ..
+    }) = &c.design
+    else {
+        return None;
+    };
+    let n = c.controller_ss.as_ref()?.n_states();
+    Some(saturation_block(anti_windup_gain.as_deref(), n, rails(c)?))
+}
+
+/// The codegen rails ±`limit` with the back-calculation gain `gain` (None: zero, plain
+/// clamping) of an `n`-state controller.
+pub fn saturation_block(
+    gain: Option<&[f64]>,
+    n: usize,
+    limit: f64,
+) -> ferrosid_codegen::StateSaturation {
+    ferrosid_codegen::StateSaturation {
+        l: gain.map_or_else(|| vec![0.0; n], <[f64]>::to_vec),
+        u_min: -limit,
+        u_max: limit,
+    }
+}
+
+/// The PID + notch form of a `loopshape` design at sample time `ts`.
+fn codegen_pid_notch(c: &ControlOutcome, ts: f64) -> Option<ferrosid_codegen::PidNotchController> {
+    let Some(DesignSummary::Loopshape {
+        pid,
+        design,
+        notches,
+        anti_windup,
+        ..
+    }) = &c.design
+    else {
+        return None;
+    };
+    pid_notch_block(
+        pid,
+        design.crossover_hz,
+        notches,
+        ts,
+        rails(c)?,
+        *anti_windup,
+    )
+    .ok()?
+}
+
+/// The PID + notch codegen block of a `loopshape` design: the PID discretised at `ts` as the
+/// design simulation does (Tustin prewarped at its crossover), each notch as its biquad
+/// ([`Notch::biquad`]), rails ±`limit`. Ok(None) without a notch (the PID block is then the
+/// whole controller; a C array cannot be empty).
+pub fn pid_notch_block(
+    pid: &Pid,
+    crossover_hz: f64,
+    notches: &[Notch],
+    ts: f64,
+    limit: f64,
+    anti_windup: bool,
+) -> Result<Option<ferrosid_codegen::PidNotchController>> {
+    if notches.is_empty() {
+        return Ok(None);
+    }
+    let dp = pid.discretize(ts, Some(crossover_hz))?;
+    let sections = notches
+        .iter()
+        .map(|n| n.biquad(ts).map(|(b, a)| ferrosid_codegen::Biquad { b, a }))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Some(ferrosid_codegen::PidNotchController {
+        pid: crate::ops::codegen::pid_gains(&dp, Some(pid)),
+        sections,
+        u_min: -limit,
+        u_max: limit,
+        anti_windup,
+    }))
+}
+
+/// The discrete law the control stage simulated for its saturated step (`loopshape`: the
+/// PID's conditional integration then the notches; `hinf`: the state-space controller with
+/// its back-calculation gain), rebuilt from the outcome at sample time `ts`; None for other
+/// methods or a failed design. For checks of the same law elsewhere (the target, other steps).
+pub fn chosen_law(c: &ControlOutcome, ts: f64) -> Result<Option<DiscreteLaw>> {
+    match &c.design {
+        Some(DesignSummary::Loopshape {
+            pid,
+            design,
+            notches,
+            anti_windup,
+            ..
+        }) => {
+            let mut notch = StateSpace::identity(1, ts)?;
+            for n in notches {
+                notch = n.in_domain(Some(ts))?.series(&notch)?;
+            }
+            Ok(Some(DiscreteLaw::PidThenFilter {
+                pid: pid.discretize(ts, Some(design.crossover_hz))?,
+                state: Default::default(),
+                filter: SsFilter::new(&notch)?,
+                anti_windup: *anti_windup,
+            }))
+        }
+        Some(DesignSummary::Hinf {
+            anti_windup_gain, ..
+        }) => {
+            let Some(k) = c.controller_ss.as_ref() else {
+                return Ok(None);
+            };
+            let f = SsFilter::new(k)?;
+            Ok(Some(DiscreteLaw::StateSpace(match anti_windup_gain {
+                Some(l) => f.with_anti_windup(l)?,
+                None => f,
+            })))
+        }
+        _ => Ok(None),
+    }
 }

@@ -189,6 +189,7 @@ fn design_table(h: &mut String, d: &DesignSummary) {
             design,
             notches,
             notch_max_damping,
+            ..
         } => {
             row(
                 "PID",

@@ -79,6 +79,31 @@ impl Notch {
         }
     }
 
+    /// The sampled notch as one biquad `([b0, b1, b2], [1, a1, a2])` in z⁻¹: the Tustin map
+    /// prewarped at the centre, s = c (1 − z⁻¹)/(1 + z⁻¹), c = ω/tan(ωT/2) — the same transfer
+    /// function as [`Self::in_domain`]`(Some(ts))`, in the firmware's direct form.
+    pub fn biquad(&self, ts: f64) -> Result<([f64; 3], [f64; 3])> {
+        self.transfer_function()?;
+        let w = 2.0 * PI * self.centre_hz;
+        if !(ts > 0.0 && w * ts < PI) {
+            return Err(Error::InvalidArgument(format!(
+                "notch centre {} Hz is at or above the Nyquist frequency {} Hz",
+                self.centre_hz,
+                0.5 / ts
+            )));
+        }
+        let c = w / (0.5 * w * ts).tan();
+        let quad = |z: f64| {
+            [
+                c * c + 2.0 * z * w * c + w * w,
+                2.0 * (w * w - c * c),
+                c * c - 2.0 * z * w * c + w * w,
+            ]
+        };
+        let (n, d) = (quad(self.zeta_num), quad(self.zeta_den));
+        Ok((n.map(|v| v / d[0]), [1.0, d[1] / d[0], d[2] / d[0]]))
+    }
+
     /// Depth at the centre, dB (negative).
     pub fn depth_db(&self) -> f64 {
         20.0 * (self.zeta_num / self.zeta_den).log10()

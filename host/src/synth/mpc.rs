@@ -271,7 +271,62 @@ impl MpcDesign {
         samples: usize,
         settle_band: f64,
     ) -> Result<MpcStep> {
+        self.closed_loop_step_with(plant, None, r, samples, settle_band)
+    }
+
+    /// [`Self::closed_loop_step`] with a diagnosed nonlinearity `effect` between the MPC and
+    /// the plant (the laws of [`crate::gap::effect`], once per sample; the MPC still feeds
+    /// back the plant's state and does not know the effect):
+    /// * at the plant input, on the applied command u: `deadzone` (w = dead-zone(u)),
+    ///   `backlash` (play operator), `saturation`, `slew_rate` (at most rate·ts per sample),
+    ///   `time_delay` (rounded to whole samples);
+    /// * `coulomb_friction` as a torque at the plant input against the sign of the output,
+    ///   w = u − level·clamp(y/ε, −1, 1) with ε = 1e-3·|r| (a velocity output, as the bundled
+    ///   example's speed);
+    /// * `quantization` of the recorded measurement (the MPC feeds back the state, so it does
+    ///   not act on the loop).
+    ///
+    /// `stiction`, `resonance` and `state_limit` need the sub-sampled plant of
+    /// [`crate::limit_cycle`] and are refused (InvalidArgument naming the effect).
+    /// [`MpcStep::plant_input`] records w.
+    pub fn closed_loop_step_with(
+        &self,
+        plant: &StateSpace,
+        effect: Option<&crate::gap::effect::Effect>,
+        r: f64,
+        samples: usize,
+        settle_band: f64,
+    ) -> Result<MpcStep> {
+        use crate::gap::effect::{deadzone, quantize, saturation, Effect, Play, RateLimiter};
         let n = plant.n_states();
+        if let Some(e) = effect {
+            e.validate()?;
+            if matches!(
+                e,
+                Effect::Stiction { .. } | Effect::Resonance { .. } | Effect::StateLimit { .. }
+            ) {
+                return Err(Error::InvalidArgument(format!(
+                    "MPC step: the effect {} is not simulated here (it needs the sub-sampled \
+                     plant of the limit-cycle simulation)",
+                    e.kind()
+                )));
+            }
+        }
+        let mut play = match effect {
+            Some(Effect::Backlash { gap }) => Some(Play::new(*gap)),
+            _ => None,
+        };
+        let mut slew = match effect {
+            Some(Effect::SlewRate { rate }) => Some(RateLimiter::new(rate * plant.ts)),
+            _ => None,
+        };
+        let delay = match effect {
+            Some(Effect::TimeDelay { seconds }) => (seconds / plant.ts).round() as usize,
+            _ => 0,
+        };
+        let mut line = std::collections::VecDeque::from(vec![0.0; delay]);
+        let eps = 1e-3 * r.abs();
+        let mut w_all = Vec::with_capacity(samples);
         if plant.d[(0, 0)] != 0.0 || self.phi.ncols() != n {
             return Err(Error::InvalidArgument(
                 "MPC step: the plant must be the design model (same states, D = 0)".into(),
@@ -290,6 +345,24 @@ impl MpcDesign {
         for k in 0..samples {
             let yk: f64 = (0..n).map(|j| plant.c[(0, j)] * x[j]).sum();
             let (uk, rk) = self.step_detailed(&mut st, &x, r, u_prev);
+            let wk = match effect {
+                None => uk,
+                Some(Effect::Deadzone { width }) => deadzone(uk, *width),
+                Some(Effect::Saturation { limit }) => saturation(uk, *limit),
+                Some(Effect::Backlash { .. }) => play.as_mut().map_or(uk, |p| p.apply(uk)),
+                Some(Effect::SlewRate { .. }) => slew.as_mut().map_or(uk, |l| l.apply(uk)),
+                Some(Effect::TimeDelay { .. }) => {
+                    line.push_back(uk);
+                    line.pop_front().unwrap_or(uk)
+                }
+                Some(Effect::CoulombFriction { level }) => uk - level * (yk / eps).clamp(-1.0, 1.0),
+                Some(_) => uk,
+            };
+            let yk = match effect {
+                Some(Effect::Quantization { step }) => quantize(yk, *step),
+                _ => yk,
+            };
+            w_all.push(wk);
             if !(yk.is_finite() && rk.is_finite()) {
                 return Err(Error::Numerical(format!(
                     "MPC step: the response diverged at sample {k}"
@@ -297,7 +370,7 @@ impl MpcDesign {
             }
             max_du = max_du.max((uk - u_prev).abs());
             let next: Vec<f64> = (0..n)
-                .map(|i| (0..n).map(|j| plant.a[(i, j)] * x[j]).sum::<f64>() + plant.b[(i, 0)] * uk)
+                .map(|i| (0..n).map(|j| plant.a[(i, j)] * x[j]).sum::<f64>() + plant.b[(i, 0)] * wk)
                 .collect();
             x = next;
             t.push(k as f64 * plant.ts);
@@ -318,6 +391,7 @@ impl MpcDesign {
             max_abs_du: max_du,
             max_raw_excess,
             raw_u0: raw,
+            plant_input: w_all,
         })
     }
 
@@ -367,6 +441,8 @@ pub struct MpcStep {
     pub max_raw_excess: f64,
     /// The raw ADMM iterate U₀ per sample.
     pub raw_u0: Vec<f64>,
+    /// The plant's input per sample (the command u after the effect; u without one).
+    pub plant_input: Vec<f64>,
 }
 
 /// The summary numbers of a step, defined as in [`crate::robust::step::StepResponse`] (the

@@ -3,8 +3,10 @@
 //!
 //! Per sample k: `y[k] = C x[k] + D u[k]; e[k] = r − y[k]; v[k] = law(e[k]);
 //! u[k] = clamp(v[k], ±limit); x[k+1] = A x[k] + B u[k]`. The laws ([`DiscreteLaw`]):
-//! - a state-space controller `v = C_k ξ + D_k e, ξ⁺ = A_k ξ + B_k e` (no anti-windup: a general
-//!   LTI controller has no integrator state to hold);
+//! - a state-space controller `v = C_k ξ + D_k e, ξ⁺ = A_k ξ + B_k e`, optionally with the
+//!   observer form of back-calculation anti-windup ([`SsFilter::with_anti_windup`]):
+//!   `u = clamp(v, ±limit), ξ⁺ = A_k ξ + B_k e + L (u − v)` (the f32 twin is
+//!   `ferrosid_firmware::control::StateSpaceLaw`; L from [`anti_windup_gain`]);
 //! - a PID (with its conditional-integration anti-windup, [`DiscretePid::update_detailed`])
 //!   followed by a state-space filter (the notches): `v = N(PID(e))`, the PID's anti-windup
 //!   acting on its own output.
@@ -16,6 +18,7 @@ use crate::error::{Error, Result};
 use crate::lti::StateSpace;
 use crate::robust::pid::{DiscretePid, DiscretePidState};
 use crate::robust::step::{StepResponse, StepSpec};
+use faer::Mat;
 
 /// A discrete SISO state-space filter with its state, in flat row-major storage.
 #[derive(Debug, Clone)]
@@ -26,6 +29,8 @@ pub struct SsFilter {
     c: Vec<f64>,
     d: f64,
     x: Vec<f64>,
+    /// Back-calculation gain L (None: no anti-windup).
+    aw: Option<Vec<f64>>,
 }
 
 impl SsFilter {
@@ -45,7 +50,47 @@ impl SsFilter {
             c: (0..n).map(|j| sys.c[(0, j)]).collect(),
             d: sys.d[(0, 0)],
             x: vec![0.0; n],
+            aw: None,
         })
+    }
+
+    /// The same filter with the observer-form back-calculation gain `l` (one entry per state,
+    /// finite): at a rail the state update gets `+ L (u − v)` (module docs).
+    pub fn with_anti_windup(mut self, l: &[f64]) -> Result<Self> {
+        if l.len() != self.n || l.iter().any(|v| !v.is_finite()) {
+            return Err(Error::InvalidArgument(format!(
+                "anti-windup gain: need {} finite entries, got {:?}",
+                self.n, l
+            )));
+        }
+        self.aw = Some(l.to_vec());
+        Ok(self)
+    }
+
+    /// The back-calculation gain, if any.
+    pub fn anti_windup(&self) -> Option<&[f64]> {
+        self.aw.as_deref()
+    }
+
+    /// Output v for input `e`, applied input u = clamp(v, ±limit); the state advances with the
+    /// back-calculation term L (u − v) when the filter has a gain (else as [`Self::step`]).
+    /// Returns v.
+    pub fn step_saturated(&mut self, e: f64, limit: f64) -> f64 {
+        let Some(l) = self.aw.clone() else {
+            return self.step(e);
+        };
+        let v = self.output(e);
+        let corr = v.clamp(-limit, limit) - v;
+        let mut next = vec![0.0; self.n];
+        for (i, nx) in next.iter_mut().enumerate() {
+            *nx = self.b[i] * e
+                + l[i] * corr
+                + (0..self.n)
+                    .map(|j| self.a[i * self.n + j] * self.x[j])
+                    .sum::<f64>();
+        }
+        self.x = next;
+        v
     }
 
     /// Output for input `e` at the current state (state unchanged).
@@ -71,7 +116,7 @@ impl SsFilter {
 /// A controller law for [`saturated_step_general`].
 #[derive(Debug, Clone)]
 pub enum DiscreteLaw {
-    /// A state-space controller (no anti-windup).
+    /// A state-space controller (anti-windup when the filter has a gain).
     StateSpace(SsFilter),
     /// A PID with anti-windup, then a filter (e.g. the notches).
     PidThenFilter {
@@ -95,10 +140,11 @@ impl DiscreteLaw {
         }
     }
 
-    /// Demand for error `e`; the state advances.
-    fn step(&mut self, e: f64, limit: f64) -> f64 {
+    /// Demand v for error `e` against the rails ±`limit` (the caller applies clamp(v)); the
+    /// state advances, with the law's anti-windup.
+    pub fn step(&mut self, e: f64, limit: f64) -> f64 {
         match self {
-            Self::StateSpace(f) => f.step(e),
+            Self::StateSpace(f) => f.step_saturated(e, limit),
             Self::PidThenFilter {
                 pid,
                 state,
@@ -110,6 +156,37 @@ impl DiscreteLaw {
             }
         }
     }
+}
+
+/// Back-calculation gain of a discrete SISO controller (A, B, C, D) for the observer form
+/// `ξ⁺ = A ξ + B e + L (u − v)`: the steady-state Kalman gain of (A, C) with unit state and
+/// measurement weights, `L = A X Cᵀ (1 + C X Cᵀ)⁻¹` with X the stabilising solution of the dual
+/// DARE (A − L C is then stable, so the state stays bounded while the input sits on a rail;
+/// the controller should be balanced so the unit weights are meaningful). Errors: a
+/// continuous or MIMO controller, or a DARE that cannot be solved reliably (its own error).
+pub fn anti_windup_gain(k: &StateSpace) -> Result<Vec<f64>> {
+    k.validate()?;
+    if !k.is_discrete() || !k.is_siso() {
+        return Err(Error::InvalidArgument(
+            "anti-windup gain: the controller must be a discrete SISO model".into(),
+        ));
+    }
+    let n = k.n_states();
+    let at = k.a.transpose().to_owned();
+    let ct = k.c.transpose().to_owned();
+    let q = Mat::<f64>::identity(n, n);
+    let r = Mat::<f64>::identity(1, 1);
+    let x = super::riccati::dare(at.as_ref(), ct.as_ref(), q.as_ref(), r.as_ref())?.x;
+    let xc = &x * &ct;
+    let s = 1.0 + (&k.c * &xc)[(0, 0)];
+    let l = &k.a * &xc;
+    let out: Vec<f64> = (0..n).map(|i| l[(i, 0)] / s).collect();
+    if out.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical(
+            "anti-windup gain: not finite (controller too ill-conditioned)".into(),
+        ));
+    }
+    Ok(out)
 }
 
 /// Simulates the saturated step of the discrete SISO `plant` under `law` (module docs).
