@@ -136,13 +136,13 @@ fn configure(
     // are reported: the text is not the user's).
     let text = toml::to_string(&config)
         .map_err(|e| Error::InvalidArgument(format!("{what}: settings: {e}")))?;
-    let mut loaded = LoadedConfig::from_text(Path::new(what), &text).map_err(|e| match e {
+    let loaded = LoadedConfig::from_text(Path::new(what), &text).map_err(|e| match e {
         Error::Parse { msg, .. } | Error::Data { msg, .. } => {
             Error::InvalidArgument(format!("{what}: {msg}"))
         }
         other => other,
     })?;
-    loaded.text = String::new();
+    let mut loaded = loaded.without_text();
     loaded.config = config;
     Ok(loaded)
 }

@@ -92,61 +92,29 @@ pub const DEFAULT_HINF_WS_FLOOR: f64 = 1e-3;
 pub const DEFAULT_HINF_BACKOFF: f64 = 0.01;
 /// Geometric bisection steps of the H∞ bandwidth search.
 const HINF_BANDWIDTH_STEPS: usize = 6;
+/// The method a `[control]` key belongs to, by its prefix (`notch_`, `hinf_`, `mpc_`); None
+/// for a key every method reads.
+fn method_of_key(key: &str) -> Option<ControlMethod> {
+    [
+        ("notch_", ControlMethod::Loopshape),
+        ("hinf_", ControlMethod::Hinf),
+        ("mpc_", ControlMethod::Mpc),
+    ]
+    .into_iter()
+    .find_map(|(prefix, m)| key.starts_with(prefix).then_some(m))
+}
+
 /// Checks the method-specific `[control]` keys: ranges, and no key of another method (it would
 /// be silently ignored).
 pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
     let k = &cfg.config.control;
-    for (key, given, method) in [
-        (
-            "control.notch_max_damping",
-            k.notch_max_damping.is_some(),
-            ControlMethod::Loopshape,
-        ),
-        (
-            "control.hinf_ws_floor",
-            k.hinf_ws_floor.is_some(),
-            ControlMethod::Hinf,
-        ),
-        (
-            "control.hinf_backoff",
-            k.hinf_backoff.is_some(),
-            ControlMethod::Hinf,
-        ),
-        (
-            "control.hinf_order",
-            k.hinf_order.is_some(),
-            ControlMethod::Hinf,
-        ),
-        (
-            "control.mpc_horizon",
-            k.mpc_horizon.is_some(),
-            ControlMethod::Mpc,
-        ),
-        (
-            "control.mpc_output_weight",
-            k.mpc_output_weight.is_some(),
-            ControlMethod::Mpc,
-        ),
-        (
-            "control.mpc_rate_weight",
-            k.mpc_rate_weight.is_some(),
-            ControlMethod::Mpc,
-        ),
-        (
-            "control.mpc_rate_limit",
-            k.mpc_rate_limit.is_some(),
-            ControlMethod::Mpc,
-        ),
-        ("control.mpc_rho", k.mpc_rho.is_some(), ControlMethod::Mpc),
-        (
-            "control.mpc_iterations",
-            k.mpc_iterations.is_some(),
-            ControlMethod::Mpc,
-        ),
-    ] {
-        if given && k.method != method {
+    for key in cfg.keys_written_in("control") {
+        let Some(method) = method_of_key(key) else {
+            continue;
+        };
+        if k.method != method {
             return Err(cfg.key_error(
-                key,
+                &format!("control.{key}"),
                 format!(
                     "only used with method = \"{}\" (method is \"{}\")",
                     method.name(),
