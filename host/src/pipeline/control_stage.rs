@@ -29,7 +29,7 @@
 //! cross-validation, audit) are unchanged.
 use super::config::{LoadedConfig, PipelineConfig};
 use super::control_mpc::{mpc_codegen_block, run_mpc, MAX_MPC_HORIZON, MAX_MPC_ITERATIONS};
-use super::{fmt_num, log_grid};
+use super::fmt_num;
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
 use crate::robust::discretize::tustin_state_space;
@@ -579,6 +579,13 @@ pub(super) struct ControlStageInputs<'a> {
     pub f_first_bin: Option<f64>,
 }
 
+impl ControlStageInputs<'_> {
+    /// Design crossover of the PID baseline, Hz (None when it could not be tuned).
+    pub fn baseline_crossover_hz(&self) -> Option<f64> {
+        self.baseline.map(|t| t.design.crossover_hz)
+    }
+}
+
 /// A loop receipt a chosen controller replaces: `controller_design` and the loop receipts,
 /// which [`ReceiptKind::ALL`] lists first (up to `step_settling_time`).
 fn is_loop_kind(k: ReceiptKind) -> bool {
@@ -604,7 +611,7 @@ pub(super) fn run_control_stage(
         design: None,
         controller: None,
         gain_crossover_hz: None,
-        baseline_pid_crossover_hz: inp.baseline.map(|t| t.design.crossover_hz),
+        baseline_pid_crossover_hz: inp.baseline_crossover_hz(),
         receipts: Receipts::default(),
         replaced_pid_receipts: Vec::new(),
         not_applicable: Vec::new(),
@@ -800,19 +807,9 @@ fn chosen_loop_receipts(
     let m = margins(&lp.l, Some((wc / 100.0, wc * 100.0))).ok();
     push_margin_receipts(&mut rs, m.as_ref(), limits);
     let ri = ReceiptInputs {
-        plant: inp.model,
-        pid: &UNUSED_PID,
-        controller_ts: None,
-        crossover_hz: fc,
-        weight: inp.weight,
-        actuator_limit: k.actuator_limit,
-        actuator_unit: &c.signals.input_unit,
-        reference_amplitude: k.reference_amplitude,
-        etfe: None,
-        cross_validation: None,
-        limits: *limits,
         // The state-space law has none (the step receipts' detail says so).
         anti_windup: k.anti_windup && matches!(law, DiscreteLaw::PidThenFilter { .. }),
+        ..super::stages::receipt_inputs(c, inp.model, &UNUSED_PID, fc, inp.weight, *limits)
     };
     push_norm_receipts(&mut rs, &ri, &lp, stable)?;
     let spec = StepSpec {
@@ -836,9 +833,8 @@ fn chosen_loop_receipts(
     let step = saturated_step_general(inp.model, law.clone(), &spec);
     let kept = step.as_ref().ok().cloned();
     push_step_receipts(&mut rs, &ri, &(step, note));
-    let nyq = 0.5 * inp.fs;
-    let f_lo = (fc / 50.0).min(0.5 * inp.f_first_bin.unwrap_or(fc));
-    let curves = loop_curves(&lp, inp.weight, &log_grid(f_lo, nyq * 0.999, 600))?;
+    let grid = super::stages::curves_grid(fc, inp.fs, inp.f_first_bin);
+    let curves = loop_curves(&lp, inp.weight, &grid)?;
     Ok(LoopReceipts {
         receipts: rs,
         margins: m,

@@ -14,7 +14,7 @@ use crate::lti::StateSpace;
 use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, OrderSelection};
 use crate::preprocess::preprocess;
 use crate::robust::audit::{audit_nonlinearity, AuditOptions, FrfRun, NonlinearityAudit};
-use crate::robust::pid::{implemented_loop, tune_pid, TunedPid};
+use crate::robust::pid::{implemented_loop, tune_pid, Pid, TunedPid};
 use crate::robust::receipts::{
     compute_receipts, cross_validation_receipt, etfe_phase_receipt, loop_curves, phase_agreement,
     Comparison, CrossValidation, EtfeView, LoopCurves, Receipt, ReceiptInputs, ReceiptKind,
@@ -449,6 +449,40 @@ pub(super) struct LoopStageInputs<'a> {
     pub cross_validation: Option<CrossValidation>,
 }
 
+/// The receipts' inputs for the loop of `model` and `pid` with the `[control]` settings
+/// (no ETFE, no cross-validation: the model receipts are the caller's).
+pub(super) fn receipt_inputs<'a>(
+    c: &'a PipelineConfig,
+    model: &'a StateSpace,
+    pid: &'a Pid,
+    fc: f64,
+    weight: Option<&'a UncertaintyWeight>,
+    limits: ReceiptLimits,
+) -> ReceiptInputs<'a> {
+    let k = &c.control;
+    ReceiptInputs {
+        plant: model,
+        pid,
+        controller_ts: None,
+        crossover_hz: fc,
+        weight,
+        actuator_limit: k.actuator_limit,
+        actuator_unit: &c.signals.input_unit,
+        reference_amplitude: k.reference_amplitude,
+        etfe: None,
+        cross_validation: None,
+        limits,
+        anti_windup: k.anti_windup,
+    }
+}
+
+/// The frequency grid of the loop curves, Hz: 600 log-spaced points from below the
+/// crossover and the lowest ETFE bin (`f_first_bin`) to just under Nyquist.
+pub(super) fn curves_grid(fc: f64, fs: f64, f_first_bin: Option<f64>) -> Vec<f64> {
+    let f_lo = (fc / 50.0).min(0.5 * f_first_bin.unwrap_or(fc));
+    log_grid(f_lo, 0.5 * fs * 0.999, 600)
+}
+
 /// The loop receipts of the tuned controller and the loop curves for the report; without a
 /// controller only the model receipts (ETFE phase, cross-validation) are issued.
 pub(super) fn loop_receipts(
@@ -456,7 +490,6 @@ pub(super) fn loop_receipts(
     inp: LoopStageInputs<'_>,
     receipts: &mut Receipts,
 ) -> Result<(Option<ReceiptsReport>, Option<LoopCurves>)> {
-    let k = &c.control;
     let nom = &inp.nominal.etfe;
     let gate = nom.gate(c.etfe.coherence_gate);
     let view = EtfeView {
@@ -484,26 +517,15 @@ pub(super) fn loop_receipts(
         return Ok((None, None));
     };
     let rep = compute_receipts(&ReceiptInputs {
-        plant: inp.model,
-        pid: &t.pid,
-        controller_ts: None,
-        crossover_hz: fc,
-        weight: inp.weight,
-        actuator_limit: k.actuator_limit,
-        actuator_unit: &c.signals.input_unit,
-        reference_amplitude: k.reference_amplitude,
         etfe: Some(view),
         cross_validation: inp.cross_validation.clone(),
-        limits: inp.limits,
-        anti_windup: k.anti_windup,
+        ..receipt_inputs(c, inp.model, &t.pid, fc, inp.weight, inp.limits)
     })?;
     for rc in &rep.receipts.receipts {
         receipts.push(rc.clone());
     }
     let (lp, _) = implemented_loop(inp.model, &t.pid, None, Some(fc))?;
-    let nyq = 0.5 * inp.fs;
-    let f_lo = (fc / 50.0).min(0.5 * nom.freq_hz.get(1).copied().unwrap_or(fc));
-    let grid = log_grid(f_lo, nyq * 0.999, 600);
+    let grid = curves_grid(fc, inp.fs, nom.freq_hz.get(1).copied());
     let curves = loop_curves(&lp, inp.weight, &grid)?;
     Ok((Some(rep), Some(curves)))
 }
