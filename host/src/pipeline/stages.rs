@@ -6,7 +6,10 @@
 //! that becomes a note or a failing receipt.
 use super::config::{self, LoadedConfig, PipelineConfig};
 use super::RESIDUAL_MAX_LAG;
-use super::{display_path, fmt_num, log_grid, rms, sha256_hex, EnvelopeData, InputFile, LogData};
+use super::{
+    display_path, fmt_num, log_grid, rms, sha256_hex, EnvelopeData, InputFile, LogData, NoWeight,
+    TuningFailed, WeightFit,
+};
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::io::{read_log, LogSpec};
@@ -343,11 +346,11 @@ pub(super) fn tune(
     c: &PipelineConfig,
     model: &StateSpace,
     weight: Option<&UncertaintyWeight>,
-) -> Result<std::result::Result<TunedPid, String>> {
+) -> Result<std::result::Result<TunedPid, TuningFailed>> {
     let spec = super::control_stage::pid_spec(c, weight);
     match tune_pid(model, &spec) {
         Ok(t) => Ok(Ok(t)),
-        Err(Error::InvalidArgument(m)) | Err(Error::Numerical(m)) => Ok(Err(m)),
+        Err(Error::InvalidArgument(m)) | Err(Error::Numerical(m)) => Ok(Err(TuningFailed(m))),
         Err(e) => Err(e),
     }
 }
@@ -624,22 +627,15 @@ pub(super) fn push_audit_receipts(
     ));
 }
 
-/// The envelope, the weight, and why there is none (see [`uncertainty`]).
-pub(super) type UncertaintyOut = (
-    Option<EnvelopeData>,
-    Option<UncertaintyWeight>,
-    Option<String>,
-);
-
 /// The multiplicative envelope of the `[uncertainty].family` around G0 and the weight fitted
-/// to it (see the module docs of [`super`]); `Ok((None, None, Some(why)))` when fewer than
+/// to it (see the module docs of [`super`]); `Ok(Err(NoWeight::TooFewBins))` when fewer than
 /// three bins pass the gate for every family member.
 pub(super) fn uncertainty(
     cfg: &LoadedConfig,
     model: &StateSpace,
     runs: &[LogData],
     validation: Option<&LogData>,
-) -> Result<UncertaintyOut> {
+) -> Result<std::result::Result<WeightFit, NoWeight>> {
     let u = &cfg.config.uncertainty;
     let gate = cfg.config.etfe.coherence_gate;
     let family: Vec<&LogData> = match &u.family {
@@ -664,21 +660,11 @@ pub(super) fn uncertainty(
         .collect();
     let idx: Vec<usize> = (0..grid.len()).filter(|&i| ok[i]).collect();
     if idx.len() < 3 {
-        return Ok((
-            None,
-            None,
-            Some(format!(
-                "only {} bins where every family member ({}) passes the coherence gate {}: no \
-                 uncertainty weight; robust stability is not checked",
-                idx.len(),
-                family
-                    .iter()
-                    .map(|m| m.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                gate
-            )),
-        ));
+        return Ok(Err(NoWeight::TooFewBins {
+            bins: idx.len(),
+            family: family.iter().map(|m| m.name.clone()).collect(),
+            gate,
+        }));
     }
     let f: Vec<f64> = idx.iter().map(|&i| grid[i]).collect();
     let ev = model.freq_evaluator();
@@ -732,8 +718,11 @@ pub(super) fn uncertainty(
         family: family.iter().map(|m| m.name.clone()).collect(),
         f_top_hz: f_top,
     };
-    let w = fit_weight(cfg, &env)?;
-    Ok((Some(env), Some(w), None))
+    let weight = fit_weight(cfg, &env)?;
+    Ok(Ok(WeightFit {
+        envelope: env,
+        weight,
+    }))
 }
 
 /// W_m fitted to an envelope with the `[uncertainty]` order and floor.
