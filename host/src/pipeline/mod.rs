@@ -597,3 +597,23 @@ pub fn json_pretty<T: Serialize>(v: &T) -> Result<String> {
     s.push('\n');
     Ok(s)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_weight_reads_as_the_note_receipts_json_carried() {
+        let w = NoWeight::TooFewBins {
+            bins: 2,
+            family: vec!["low".into(), "validation".into()],
+            gate: 0.85,
+        };
+        assert_eq!(
+            w.to_string(),
+            "only 2 bins where every family member (low, validation) passes the coherence gate \
+             0.85: no uncertainty weight; robust stability is not checked"
+        );
+        assert_eq!(TuningFailed("no PID".into()).to_string(), "no PID");
+    }
+}
