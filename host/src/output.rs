@@ -67,11 +67,11 @@ pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<Pa
     let doc = ReceiptsDocument::from_run(run);
     written.push(out.write(Path::new("receipts.json"), &doc.to_json()?)?);
     written.push(out.write(Path::new("model.json"), &json_pretty(&run.model_file())?)?);
-    match &run.tuned {
+    match run.tuned() {
         Some(t) => written.push(out.write(Path::new("pid.json"), &json_pretty(t)?)?),
         None => out.remove_stale(Path::new("pid.json"))?,
     }
-    match &run.weight {
+    match run.weight() {
         Some(w) => written.push(out.write(Path::new("wm.json"), &json_pretty(w)?)?),
         None => out.remove_stale(Path::new("wm.json"))?,
     }

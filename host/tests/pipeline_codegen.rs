@@ -54,7 +54,7 @@ fn a_run_gives_the_same_codegen_input_as_its_written_files() {
     let cfg = LoadedConfig::load(&toml).expect("load");
     let run = run_pipeline(&cfg, &|_| {}).expect("run");
     assert!(
-        run.tuned.is_some() && run.weight.is_some(),
+        run.tuned().is_some() && run.weight().is_some(),
         "fixture has a PID and a W_m"
     );
     let out = dir.join("out");

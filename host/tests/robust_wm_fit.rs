@@ -131,10 +131,7 @@ fn bundled_example_envelope() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let cfg = LoadedConfig::load(&root.join("examples/pipeline.toml")).expect("config");
     let run = run_pipeline(&cfg, &|_| {}).expect("pipeline");
-    let env = run
-        .envelope
-        .as_ref()
-        .expect("the example forms an envelope");
+    let env = run.envelope().expect("the example forms an envelope");
     let min_level = cfg.config.uncertainty.min_level;
     compare("bundled example", &env.freq_hz, &env.level, 3, min_level);
 }

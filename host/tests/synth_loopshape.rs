@@ -105,10 +105,10 @@ fn bundled_example_pid_notch_gains_crossover_with_every_receipt() {
     let cfg = LoadedConfig::load(&toml).unwrap();
     let run = run_pipeline(&cfg, &|_| {}).unwrap();
     let k = &run.config.control;
-    let plain = run.tuned.as_ref().expect("the pipeline tunes a PID");
+    let plain = run.tuned().expect("the pipeline tunes a PID");
     let mut s = PidTuningSpec::new(k.crossover_hz);
     s.ms_max = k.ms_max;
-    s.weight = run.weight.clone();
+    s.weight = run.weight().cloned();
     s.ks_max = k
         .limit_control_effort
         .then(|| k.actuator_limit / k.reference_amplitude);
@@ -122,7 +122,7 @@ fn bundled_example_pid_notch_gains_crossover_with_every_receipt() {
         pid: &d.pid.pid,
         controller_ts: None,
         crossover_hz: d.pid.design.crossover_hz,
-        weight: run.weight.as_ref(),
+        weight: run.weight(),
         actuator_limit: k.actuator_limit,
         actuator_unit: "N·m",
         reference_amplitude: k.reference_amplitude,

@@ -12,13 +12,14 @@
 //! Exit status: 0 when every unit passes every receipt, 1 when a unit fails a receipt or its
 //! pipeline could not run (the table says which), 3 when the fleet directory, the template or
 //! a shard summary is unusable.
+use super::output::emit as print;
 use super::ExitCode;
 use crate::error::{Error, Result};
 use crate::fleet::{run_fleet, FleetOptions, FleetSummary, Shard, OUTLIER_Z};
 use crate::pipeline::physical_stage::PhysicalConfig;
 use crate::pipeline::{fmt_num, LoadedConfig};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Flags of `ferrosid fleet`.
@@ -85,18 +86,6 @@ pub struct MergeArgs {
     /// Print the summary as JSON instead of tables.
     #[arg(long)]
     pub json: bool,
-}
-
-fn print(text: &str) -> Result<()> {
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(source) => Err(Error::Io {
-            file: PathBuf::from("<stdout>"),
-            source,
-        }),
-    }
 }
 
 fn opt(v: Option<f64>) -> String {

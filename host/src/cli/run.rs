@@ -20,12 +20,13 @@
 //! Exit status: 0 when every receipt passes, 1 when any receipt fails (the files are written
 //! either way), 3 for unusable data or a bad pipeline file (named with file, line and key),
 //! 4 when identification fails numerically.
+use super::output::emit as print;
 use super::ExitCode;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::output::{prepare_output_dir, write_outputs_to};
 use crate::pipeline::{run_pipeline, LoadedConfig, ReceiptsDocument};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Flags of `ferrosid run`.
@@ -61,18 +62,6 @@ fn spinner() -> ProgressBar {
     pb
 }
 
-fn print(text: &str) -> Result<()> {
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(source) => Err(Error::Io {
-            file: PathBuf::from("<stdout>"),
-            source,
-        }),
-    }
-}
-
 /// Runs `ferrosid run`.
 pub fn run(args: &Args) -> Result<ExitCode> {
     let cfg = LoadedConfig::load(&args.pipeline)?;
@@ -101,7 +90,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             run.ident.order,
             crate::pipeline::fmt_num(1.0 / run.model().ts),
             run.nominal_run().name,
-            match &run.tuned {
+            match run.tuned() {
                 Some(t) => format!(
                     "PID crossover {} Hz (target {} Hz)",
                     crate::pipeline::fmt_num(t.design.crossover_hz),

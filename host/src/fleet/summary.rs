@@ -131,12 +131,9 @@ impl UnitResult {
             order: Some(run.ident.order),
             dc_gain: Some(run.dc_gain),
             modes: run.modes.clone(),
-            wm_low_gain: run.weight.as_ref().map(|w| weight_low_gain(&w.num, &w.den)),
-            wm_high_gain: run
-                .weight
-                .as_ref()
-                .map(|w| weight_high_gain(&w.num, &w.den)),
-            crossover_hz: run.tuned.as_ref().map(|t| t.design.crossover_hz),
+            wm_low_gain: run.weight().map(|w| weight_low_gain(&w.num, &w.den)),
+            wm_high_gain: run.weight().map(|w| weight_high_gain(&w.num, &w.den)),
+            crossover_hz: run.tuned().map(|t| t.design.crossover_hz),
             ms: rs.of_kind(ReceiptKind::SensitivityPeak).map(|r| r.value),
             validation_fit_percent: run.validation_fit.as_ref().map(|f| f.fit_percent[0]),
             out_dir,

@@ -136,13 +136,13 @@ fn configure(
     // are reported: the text is not the user's).
     let text = toml::to_string(&config)
         .map_err(|e| Error::InvalidArgument(format!("{what}: settings: {e}")))?;
-    let mut loaded = LoadedConfig::from_text(Path::new(what), &text).map_err(|e| match e {
+    let loaded = LoadedConfig::from_text(Path::new(what), &text).map_err(|e| match e {
         Error::Parse { msg, .. } | Error::Data { msg, .. } => {
             Error::InvalidArgument(format!("{what}: {msg}"))
         }
         other => other,
     })?;
-    loaded.text = String::new();
+    let mut loaded = loaded.without_text();
     loaded.config = config;
     Ok(loaded)
 }
@@ -259,18 +259,7 @@ pub fn audit(p: &PreparedLogs, crossover_hz: f64) -> Result<(AuditSummary, Vec<R
         .ok_or_else(|| Error::InvalidArgument(format!("{what}: the audit did not run")))?;
     let mut receipts = Receipts::default();
     stages::push_audit_receipts(&mut receipts, Some(&a), &cfg.config.audit, crossover_hz);
-    // The fields `ReceiptsDocument::from_run` copies into `audit`.
-    let summary = AuditSummary {
-        verdict: a.verdict,
-        reasons: a.reasons.clone(),
-        band_hz: a.band_hz,
-        runs: a.runs.clone(),
-        bins_examined: a.bins_examined,
-        worst_gain_shift_db: a.worst_gain_shift_db.clone(),
-        worst_phase_shift_deg: a.worst_phase_shift_deg.clone(),
-        shift_bands: a.shift_bands.clone(),
-        coherence_drops: a.coherence_drops.clone(),
-    };
+    let summary = AuditSummary::from(&a);
     Ok((summary, receipts.receipts))
 }
 
@@ -289,13 +278,15 @@ pub fn fit_weight(
 ) -> Result<(WeightSummary, UncertaintyWeight)> {
     let what = p.config.path.display().to_string();
     check_model(&what, model, Some(p.runs[0].log.ts))?;
-    let (envelope, weight, note) =
-        stages::uncertainty(&p.config, model, &p.runs, p.validation.as_ref())?;
-    let (Some(e), Some(w)) = (envelope, weight) else {
-        return Err(Error::Data {
-            file: PathBuf::from(&what),
-            msg: note.unwrap_or_else(|| "no uncertainty weight could be formed".into()),
-        });
+    let fit = stages::uncertainty(&p.config, model, &p.runs, p.validation.as_ref())?;
+    let (e, w) = match fit {
+        Ok(u) => (u.envelope, u.weight),
+        Err(why) => {
+            return Err(Error::Data {
+                file: PathBuf::from(&what),
+                msg: why.to_string(),
+            })
+        }
     };
     let summary = WeightSummary::new(&w, &e);
     Ok((summary, w))

@@ -16,7 +16,9 @@ use super::control_stage::{
 };
 use super::{fmt_num, log_grid};
 use crate::error::Result;
-use crate::robust::receipts::{Comparison, Receipt, ReceiptKind, ReceiptLimits, Receipts};
+use crate::robust::receipts::{
+    push_failed_step_receipts, Comparison, Receipt, ReceiptKind, ReceiptLimits, Receipts,
+};
 use crate::synth::mpc::{MpcDesign, MpcSpec, MpcStep, UnconstrainedLaw};
 
 /// Default of `control.mpc_horizon`.
@@ -183,12 +185,11 @@ pub(super) fn mpc_receipts(
         }
     }
     let mut rs = Receipts::default();
-    let base = out_base(inp);
     rs.push(design_receipt(
         c,
         ControlMethod::Mpc,
         Ok(bandwidth_hz.unwrap_or(nyq)),
-        base,
+        inp.baseline_crossover_hz(),
     ));
     rs.push(Receipt::new(
         ReceiptKind::ClosedLoopStable,
@@ -208,33 +209,16 @@ pub(super) fn mpc_receipts(
     let step = match finding(d.closed_loop_step(inp.model, k.reference_amplitude, samples, 0.02))? {
         Ok(s) => s,
         Err(e) => {
-            for (kind, what, limit) in [
-                (
-                    ReceiptKind::StepActuatorDemand,
+            push_failed_step_receipts(
+                &mut rs,
+                limits,
+                [
                     "MPC step: rails and rate limit",
-                    1.0,
-                ),
-                (
-                    ReceiptKind::StepOvershoot,
                     "MPC step overshoot",
-                    limits.overshoot_pct_max,
-                ),
-                (
-                    ReceiptKind::StepSettlingTime,
                     "MPC step settling time",
-                    limits.settling_time_s_max,
-                ),
-            ] {
-                rs.push(Receipt::new(
-                    kind,
-                    what,
-                    f64::INFINITY,
-                    Comparison::AtMost,
-                    limit,
-                    "1",
-                    format!("simulation failed: {e}"),
-                ));
-            }
+                ],
+                &e,
+            );
             return Ok(MpcReceipts {
                 receipts: rs,
                 law,
@@ -302,10 +286,6 @@ pub(super) fn mpc_receipts(
         bandwidth_hz,
         step: Some(step),
     })
-}
-
-fn out_base(inp: &ControlStageInputs<'_>) -> Option<f64> {
-    inp.baseline.map(|t| t.design.crossover_hz)
 }
 
 /// The MPC as a codegen block (None unless an MPC was designed): the prediction model's

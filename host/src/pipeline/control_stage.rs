@@ -29,7 +29,7 @@
 //! cross-validation, audit) are unchanged.
 use super::config::{LoadedConfig, PipelineConfig};
 use super::control_mpc::{mpc_codegen_block, run_mpc, MAX_MPC_HORIZON, MAX_MPC_ITERATIONS};
-use super::{fmt_num, log_grid};
+use super::fmt_num;
 use crate::error::{Error, Result};
 use crate::lti::{StateSpace, StateSpaceData};
 use crate::robust::discretize::tustin_state_space;
@@ -92,61 +92,29 @@ pub const DEFAULT_HINF_WS_FLOOR: f64 = 1e-3;
 pub const DEFAULT_HINF_BACKOFF: f64 = 0.01;
 /// Geometric bisection steps of the H∞ bandwidth search.
 const HINF_BANDWIDTH_STEPS: usize = 6;
+/// The method a `[control]` key belongs to, by its prefix (`notch_`, `hinf_`, `mpc_`); None
+/// for a key every method reads.
+fn method_of_key(key: &str) -> Option<ControlMethod> {
+    [
+        ("notch_", ControlMethod::Loopshape),
+        ("hinf_", ControlMethod::Hinf),
+        ("mpc_", ControlMethod::Mpc),
+    ]
+    .into_iter()
+    .find_map(|(prefix, m)| key.starts_with(prefix).then_some(m))
+}
+
 /// Checks the method-specific `[control]` keys: ranges, and no key of another method (it would
 /// be silently ignored).
 pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
     let k = &cfg.config.control;
-    for (key, given, method) in [
-        (
-            "control.notch_max_damping",
-            k.notch_max_damping.is_some(),
-            ControlMethod::Loopshape,
-        ),
-        (
-            "control.hinf_ws_floor",
-            k.hinf_ws_floor.is_some(),
-            ControlMethod::Hinf,
-        ),
-        (
-            "control.hinf_backoff",
-            k.hinf_backoff.is_some(),
-            ControlMethod::Hinf,
-        ),
-        (
-            "control.hinf_order",
-            k.hinf_order.is_some(),
-            ControlMethod::Hinf,
-        ),
-        (
-            "control.mpc_horizon",
-            k.mpc_horizon.is_some(),
-            ControlMethod::Mpc,
-        ),
-        (
-            "control.mpc_output_weight",
-            k.mpc_output_weight.is_some(),
-            ControlMethod::Mpc,
-        ),
-        (
-            "control.mpc_rate_weight",
-            k.mpc_rate_weight.is_some(),
-            ControlMethod::Mpc,
-        ),
-        (
-            "control.mpc_rate_limit",
-            k.mpc_rate_limit.is_some(),
-            ControlMethod::Mpc,
-        ),
-        ("control.mpc_rho", k.mpc_rho.is_some(), ControlMethod::Mpc),
-        (
-            "control.mpc_iterations",
-            k.mpc_iterations.is_some(),
-            ControlMethod::Mpc,
-        ),
-    ] {
-        if given && k.method != method {
+    for key in cfg.keys_written_in("control") {
+        let Some(method) = method_of_key(key) else {
+            continue;
+        };
+        if k.method != method {
             return Err(cfg.key_error(
-                key,
+                &format!("control.{key}"),
                 format!(
                     "only used with method = \"{}\" (method is \"{}\")",
                     method.name(),
@@ -631,6 +599,13 @@ pub(super) struct ControlStageInputs<'a> {
     pub f_first_bin: Option<f64>,
 }
 
+impl ControlStageInputs<'_> {
+    /// Design crossover of the PID baseline, Hz (None when it could not be tuned).
+    pub fn baseline_crossover_hz(&self) -> Option<f64> {
+        self.baseline.map(|t| t.design.crossover_hz)
+    }
+}
+
 /// A loop receipt a chosen controller replaces: `controller_design` and the loop receipts,
 /// which [`ReceiptKind::ALL`] lists first (up to `step_settling_time`).
 fn is_loop_kind(k: ReceiptKind) -> bool {
@@ -656,7 +631,7 @@ pub(super) fn run_control_stage(
         design: None,
         controller: None,
         gain_crossover_hz: None,
-        baseline_pid_crossover_hz: inp.baseline.map(|t| t.design.crossover_hz),
+        baseline_pid_crossover_hz: inp.baseline_crossover_hz(),
         receipts: Receipts::default(),
         replaced_pid_receipts: Vec::new(),
         not_applicable: Vec::new(),
@@ -852,19 +827,10 @@ fn chosen_loop_receipts(
     let m = margins(&lp.l, Some((wc / 100.0, wc * 100.0))).ok();
     push_margin_receipts(&mut rs, m.as_ref(), limits);
     let ri = ReceiptInputs {
-        plant: inp.model,
-        pid: &UNUSED_PID,
-        controller_ts: None,
-        crossover_hz: fc,
-        weight: inp.weight,
-        actuator_limit: k.actuator_limit,
-        actuator_unit: &c.signals.input_unit,
-        reference_amplitude: k.reference_amplitude,
-        etfe: None,
-        cross_validation: None,
-        limits: *limits,
-        // The state-space law has none (the step receipts' detail says so).
+        // Both laws run with anti-windup when asked (the state-space law by observer-form
+        // back-calculation).
         anti_windup: k.anti_windup,
+        ..super::stages::receipt_inputs(c, inp.model, &UNUSED_PID, fc, inp.weight, *limits)
     };
     push_norm_receipts(&mut rs, &ri, &lp, stable)?;
     let spec = StepSpec {
@@ -892,9 +858,8 @@ fn chosen_loop_receipts(
     let step = saturated_step_general(inp.model, law.clone(), &spec);
     let kept = step.as_ref().ok().cloned();
     push_step_receipts(&mut rs, &ri, &(step, note));
-    let nyq = 0.5 * inp.fs;
-    let f_lo = (fc / 50.0).min(0.5 * inp.f_first_bin.unwrap_or(fc));
-    let curves = loop_curves(&lp, inp.weight, &log_grid(f_lo, nyq * 0.999, 600))?;
+    let grid = super::stages::curves_grid(fc, inp.fs, inp.f_first_bin);
+    let curves = loop_curves(&lp, inp.weight, &grid)?;
     Ok(LoopReceipts {
         receipts: rs,
         margins: m,

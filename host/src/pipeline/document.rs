@@ -9,7 +9,7 @@
 use super::{fmt_num, EnvelopeData, InputFile, Mode, PipelineConfig, PipelineRun};
 use crate::error::Result;
 use crate::preprocess::Preprocessing;
-use crate::robust::audit::{CoherenceDrop, ShiftBand, Verdict, WorstShift};
+use crate::robust::audit::{CoherenceDrop, NonlinearityAudit, ShiftBand, Verdict, WorstShift};
 use crate::robust::pid::{DiscretePid, Pid, PidDesignPoint};
 use crate::robust::receipts::Receipt;
 use crate::robust::uncertainty::UncertaintyWeight;
@@ -108,6 +108,23 @@ pub struct AuditSummary {
     pub shift_bands: Vec<ShiftBand>,
     /// Coherence drops near crossover.
     pub coherence_drops: Vec<CoherenceDrop>,
+}
+
+impl From<&NonlinearityAudit> for AuditSummary {
+    /// The audit's verdict and evidence without the per-bin data.
+    fn from(a: &NonlinearityAudit) -> Self {
+        AuditSummary {
+            verdict: a.verdict,
+            reasons: a.reasons.clone(),
+            band_hz: a.band_hz,
+            runs: a.runs.clone(),
+            bins_examined: a.bins_examined,
+            worst_gain_shift_db: a.worst_gain_shift_db.clone(),
+            worst_phase_shift_deg: a.worst_phase_shift_deg.clone(),
+            shift_bands: a.shift_bands.clone(),
+            coherence_drops: a.coherence_drops.clone(),
+        }
+    }
 }
 
 /// The uncertainty weight in brief.
@@ -315,22 +332,13 @@ impl ReceiptsDocument {
             }),
             _ => None,
         };
-        let audit = run.audit.as_ref().map(|a| AuditSummary {
-            verdict: a.verdict,
-            reasons: a.reasons.clone(),
-            band_hz: a.band_hz,
-            runs: a.runs.clone(),
-            bins_examined: a.bins_examined,
-            worst_gain_shift_db: a.worst_gain_shift_db.clone(),
-            worst_phase_shift_deg: a.worst_phase_shift_deg.clone(),
-            shift_bands: a.shift_bands.clone(),
-            coherence_drops: a.coherence_drops.clone(),
-        });
-        let uncertainty_weight = match (&run.weight, &run.envelope) {
-            (Some(w), Some(e)) => Some(WeightSummary::new(w, e)),
-            _ => None,
-        };
-        let controller = run.tuned.as_ref().map(|t| ControllerSummary {
+        let audit = run.audit.as_ref().map(AuditSummary::from);
+        let uncertainty_weight = run
+            .uncertainty
+            .as_ref()
+            .ok()
+            .map(|u| WeightSummary::new(&u.weight, &u.envelope));
+        let controller = run.tuned().map(|t| ControllerSummary {
             pid: t.pid,
             discrete: t.discrete.clone(),
             design: t.design,
@@ -375,9 +383,9 @@ impl ReceiptsDocument {
             validation,
             audit,
             uncertainty_weight,
-            uncertainty_weight_note: run.weight_note.clone(),
+            uncertainty_weight_note: run.uncertainty.as_ref().err().map(ToString::to_string),
             controller,
-            controller_error: run.tuning_error.clone(),
+            controller_error: run.tuning.as_ref().err().map(ToString::to_string),
             provenance: Provenance {
                 pipeline: run.pipeline_file.clone(),
                 inputs: run.inputs.clone(),

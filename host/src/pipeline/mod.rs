@@ -173,6 +173,53 @@ impl EnvelopeData {
     }
 }
 
+/// The uncertainty stage's result: the envelope and the weight W_m fitted to it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WeightFit {
+    /// The envelope the weight was fitted to.
+    pub envelope: EnvelopeData,
+    /// The fitted multiplicative uncertainty weight.
+    pub weight: UncertaintyWeight,
+}
+
+/// Why the uncertainty stage has no weight (a finding: robust stability is then not checked).
+#[derive(Debug, Clone, PartialEq)]
+pub enum NoWeight {
+    /// Fewer than three bins pass the coherence gate for every family member.
+    TooFewBins {
+        /// Bins that pass for every member.
+        bins: usize,
+        /// The family (log names).
+        family: Vec<String>,
+        /// The coherence gate.
+        gate: f64,
+    },
+}
+
+impl std::fmt::Display for NoWeight {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NoWeight::TooFewBins { bins, family, gate } => write!(
+                f,
+                "only {bins} bins where every family member ({}) passes the coherence gate \
+                 {gate}: no uncertainty weight; robust stability is not checked",
+                family.join(", ")
+            ),
+        }
+    }
+}
+
+/// Why the PID tuner produced no controller (a finding the `controller_design` receipt
+/// reports, not an error of the run): the tuner's message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TuningFailed(pub String);
+
+impl std::fmt::Display for TuningFailed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
 /// Everything the pipeline computed, for the receipts document and the report.
 #[derive(Debug, Clone)]
 pub struct PipelineRun {
@@ -202,16 +249,10 @@ pub struct PipelineRun {
     pub residuals: Option<ResidualTest>,
     /// Nonlinearity audit (None with fewer than two runs).
     pub audit: Option<NonlinearityAudit>,
-    /// The envelope and the weight (None when it could not be formed; see `weight_note`).
-    pub envelope: Option<EnvelopeData>,
-    /// Fitted multiplicative uncertainty weight.
-    pub weight: Option<UncertaintyWeight>,
-    /// Why there is no weight, when there is none.
-    pub weight_note: Option<String>,
-    /// The tuned controller.
-    pub tuned: Option<TunedPid>,
-    /// Why tuning failed, when it did.
-    pub tuning_error: Option<String>,
+    /// The uncertainty stage: the envelope and the weight fitted to it, or why there is none.
+    pub uncertainty: std::result::Result<WeightFit, NoWeight>,
+    /// The tuning stage: the tuned PID, or why no controller meets the limits.
+    pub tuning: std::result::Result<TunedPid, TuningFailed>,
     /// Everything computed for the loop receipts (None without a controller).
     pub loop_report: Option<ReceiptsReport>,
     /// |S|, |T|, |KS|, 1/|W_m| of the implemented loop on a log grid (None without a
@@ -233,6 +274,19 @@ pub struct PipelineRun {
 }
 
 impl PipelineRun {
+    /// The fitted W_m, if any.
+    pub fn weight(&self) -> Option<&UncertaintyWeight> {
+        self.uncertainty.as_ref().ok().map(|u| &u.weight)
+    }
+    /// The envelope W_m was fitted to, if any.
+    pub fn envelope(&self) -> Option<&EnvelopeData> {
+        self.uncertainty.as_ref().ok().map(|u| &u.envelope)
+    }
+    /// The tuned PID, if any.
+    pub fn tuned(&self) -> Option<&TunedPid> {
+        self.tuning.as_ref().ok()
+    }
+
     /// The model file content (`model.json`): G0 with the operating point and preprocessing
     /// of the estimation run ([`crate::operating_point`]).
     pub fn model_file(&self) -> crate::lti::StateSpaceData {
@@ -249,14 +303,16 @@ impl PipelineRun {
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] when the run has no uncertainty weight (the power-up check
-    /// needs one; `weight_note` says why it is missing).
+    /// needs one; the error says why it is missing).
     pub fn codegen_parts(&self) -> Result<CodegenParts> {
-        let weight = self.weight.as_ref().ok_or_else(|| {
-            Error::InvalidArgument(format!(
-                "the run has no uncertainty weight for the power-up check: {}",
-                self.weight_note.as_deref().unwrap_or("not fitted")
-            ))
-        })?;
+        let weight = match &self.uncertainty {
+            Ok(u) => &u.weight,
+            Err(why) => {
+                return Err(Error::InvalidArgument(format!(
+                    "the run has no uncertainty weight for the power-up check: {why}"
+                )))
+            }
+        };
         let model_file = self.model_file();
         let sources = std::iter::once(&self.pipeline_file)
             .chain(&self.inputs)
@@ -270,7 +326,7 @@ impl PipelineRun {
             model: self.model().clone(),
             model_origin: Path::new(&self.pipeline_file.path).to_path_buf(),
             operating_point: model_file.operating_point,
-            controller: self.tuned.as_ref().map(|t| ControllerSource::Tuned {
+            controller: self.tuned().map(|t| ControllerSource::Tuned {
                 pid: t.pid,
                 discrete: t.discrete.clone(),
                 crossover_hz: Some(t.design.crossover_hz),
@@ -391,22 +447,19 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     stages::push_audit_receipts(&mut receipts, audit.as_ref(), &c.audit, fc_target);
 
     progress("uncertainty");
-    let (envelope, weight, weight_note) =
-        stages::uncertainty(cfg, &model, &runs, validation.as_ref())?;
+    let uncertainty = stages::uncertainty(cfg, &model, &runs, validation.as_ref())?;
+    let weight = uncertainty.as_ref().ok().map(|u| &u.weight);
 
     progress("tuning");
-    let tuning = stages::tune(c, &model, weight.as_ref())?;
+    let tuning = stages::tune(c, &model, weight)?;
     receipts.push(stages::controller_design_receipt(
         c,
-        tuning.as_ref().map_err(String::as_str),
+        tuning.as_ref().map_err(|e| e.0.as_str()),
     ));
-    let (tuned, tuning_error) = match tuning {
-        Ok(t) => (Some(t), None),
-        Err(e) => (None, Some(e)),
-    };
+    let tuned = tuning.as_ref().ok();
 
     progress("receipts");
-    let fc = tuned.as_ref().map_or(fc_target, |t| t.design.crossover_hz);
+    let fc = tuned.map_or(fc_target, |t| t.design.crossover_hz);
     let cv_min = c
         .receipts
         .cross_validation_fit_min
@@ -416,8 +469,8 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
     let has_cross_validation = cross_validation.is_some();
     let loop_inputs = stages::LoopStageInputs {
         model: &model,
-        tuned: tuned.as_ref(),
-        weight: weight.as_ref(),
+        tuned,
+        weight,
         nominal: &runs[nominal],
         fs,
         fc,
@@ -449,8 +502,8 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             cfg,
             gap: &gap,
             model: &model,
-            tuned: tuned.as_ref(),
-            envelope: envelope.as_ref(),
+            tuned,
+            envelope: uncertainty.as_ref().ok().map(|u| &u.envelope),
             validation: validation.as_ref(),
             loop_inputs,
         },
@@ -458,15 +511,16 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         progress,
     )?;
     // `widen_wm`: the re-tuned design replaces the first one downstream.
-    let (mut tuned, mut weight, mut envelope, mut fc) = (tuned, weight, envelope, fc);
+    let (mut tuning, mut uncertainty, mut fc) = (tuning, uncertainty, fc);
     if let Some(r) = compensation.decision().and_then(|d| d.retuned.as_ref()) {
         if let (Some(t), Some((rep, cur))) = (&r.tuned, &r.loop_report) {
             fc = t.design.crossover_hz;
-            tuned = Some(t.clone());
-            weight = Some(r.weight.clone());
-            envelope = Some(r.envelope.clone());
-            loop_report = Some(rep.clone());
-            curves = Some(cur.clone());
+            tuning = Ok(t.clone());
+            uncertainty = Ok(WeightFit {
+                envelope: r.envelope.clone(),
+                weight: r.weight.clone(),
+            });
+            (loop_report, curves) = (Some(rep.clone()), Some(cur.clone()));
         }
     }
     progress("control");
@@ -474,8 +528,8 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         c,
         control_stage::ControlStageInputs {
             model: &model,
-            weight: weight.as_ref(),
-            baseline: tuned.as_ref(),
+            weight: uncertainty.as_ref().ok().map(|u| &u.weight),
+            baseline: tuning.as_ref().ok(),
             fs,
             f_first_bin: runs[nominal].etfe.freq_hz.get(1).copied(),
         },
@@ -500,11 +554,8 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         validation_fit,
         residuals,
         audit,
-        envelope,
-        weight,
-        weight_note,
-        tuned,
-        tuning_error,
+        uncertainty,
+        tuning,
         loop_report,
         curves,
         receipts_crossover_hz: fc,
@@ -545,4 +596,24 @@ pub fn json_pretty<T: Serialize>(v: &T) -> Result<String> {
         .map_err(|e| Error::Numerical(format!("serialising JSON: {e}")))?;
     s.push('\n');
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_weight_reads_as_the_note_receipts_json_carried() {
+        let w = NoWeight::TooFewBins {
+            bins: 2,
+            family: vec!["low".into(), "validation".into()],
+            gate: 0.85,
+        };
+        assert_eq!(
+            w.to_string(),
+            "only 2 bins where every family member (low, validation) passes the coherence gate \
+             0.85: no uncertainty weight; robust stability is not checked"
+        );
+        assert_eq!(TuningFailed("no PID".into()).to_string(), "no PID");
+    }
 }

@@ -297,11 +297,11 @@ fn widen_and_retune(
     let mut rs = Receipts::default();
     rs.push(stages::controller_design_receipt(
         c,
-        tuning.as_ref().map_err(String::as_str),
+        tuning.as_ref().map_err(|e| e.0.as_str()),
     ));
     let (tuned, tuning_error) = match tuning {
         Ok(t) => (Some(t), None),
-        Err(e) => (None, Some(e)),
+        Err(e) => (None, Some(e.0)),
     };
     let fc = tuned
         .as_ref()

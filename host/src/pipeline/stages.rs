@@ -6,7 +6,10 @@
 //! that becomes a note or a failing receipt.
 use super::config::{self, LoadedConfig, PipelineConfig};
 use super::RESIDUAL_MAX_LAG;
-use super::{display_path, fmt_num, log_grid, rms, sha256_hex, EnvelopeData, InputFile, LogData};
+use super::{
+    display_path, fmt_num, log_grid, rms, sha256_hex, EnvelopeData, InputFile, LogData, NoWeight,
+    TuningFailed, WeightFit,
+};
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::io::{read_log, LogSpec};
@@ -14,7 +17,7 @@ use crate::lti::StateSpace;
 use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, OrderSelection};
 use crate::preprocess::preprocess;
 use crate::robust::audit::{audit_nonlinearity, AuditOptions, FrfRun, NonlinearityAudit};
-use crate::robust::pid::{implemented_loop, tune_pid, TunedPid};
+use crate::robust::pid::{implemented_loop, tune_pid, Pid, TunedPid};
 use crate::robust::receipts::{
     compute_receipts, cross_validation_receipt, etfe_phase_receipt, loop_curves, phase_agreement,
     Comparison, CrossValidation, EtfeView, LoopCurves, Receipt, ReceiptInputs, ReceiptKind,
@@ -343,11 +346,11 @@ pub(super) fn tune(
     c: &PipelineConfig,
     model: &StateSpace,
     weight: Option<&UncertaintyWeight>,
-) -> Result<std::result::Result<TunedPid, String>> {
+) -> Result<std::result::Result<TunedPid, TuningFailed>> {
     let spec = super::control_stage::pid_spec(c, weight);
     match tune_pid(model, &spec) {
         Ok(t) => Ok(Ok(t)),
-        Err(Error::InvalidArgument(m)) | Err(Error::Numerical(m)) => Ok(Err(m)),
+        Err(Error::InvalidArgument(m)) | Err(Error::Numerical(m)) => Ok(Err(TuningFailed(m))),
         Err(e) => Err(e),
     }
 }
@@ -449,6 +452,40 @@ pub(super) struct LoopStageInputs<'a> {
     pub cross_validation: Option<CrossValidation>,
 }
 
+/// The receipts' inputs for the loop of `model` and `pid` with the `[control]` settings
+/// (no ETFE, no cross-validation: the model receipts are the caller's).
+pub(super) fn receipt_inputs<'a>(
+    c: &'a PipelineConfig,
+    model: &'a StateSpace,
+    pid: &'a Pid,
+    fc: f64,
+    weight: Option<&'a UncertaintyWeight>,
+    limits: ReceiptLimits,
+) -> ReceiptInputs<'a> {
+    let k = &c.control;
+    ReceiptInputs {
+        plant: model,
+        pid,
+        controller_ts: None,
+        crossover_hz: fc,
+        weight,
+        actuator_limit: k.actuator_limit,
+        actuator_unit: &c.signals.input_unit,
+        reference_amplitude: k.reference_amplitude,
+        etfe: None,
+        cross_validation: None,
+        limits,
+        anti_windup: k.anti_windup,
+    }
+}
+
+/// The frequency grid of the loop curves, Hz: 600 log-spaced points from below the
+/// crossover and the lowest ETFE bin (`f_first_bin`) to just under Nyquist.
+pub(super) fn curves_grid(fc: f64, fs: f64, f_first_bin: Option<f64>) -> Vec<f64> {
+    let f_lo = (fc / 50.0).min(0.5 * f_first_bin.unwrap_or(fc));
+    log_grid(f_lo, 0.5 * fs * 0.999, 600)
+}
+
 /// The loop receipts of the tuned controller and the loop curves for the report; without a
 /// controller only the model receipts (ETFE phase, cross-validation) are issued.
 pub(super) fn loop_receipts(
@@ -456,7 +493,6 @@ pub(super) fn loop_receipts(
     inp: LoopStageInputs<'_>,
     receipts: &mut Receipts,
 ) -> Result<(Option<ReceiptsReport>, Option<LoopCurves>)> {
-    let k = &c.control;
     let nom = &inp.nominal.etfe;
     let gate = nom.gate(c.etfe.coherence_gate);
     let view = EtfeView {
@@ -484,26 +520,15 @@ pub(super) fn loop_receipts(
         return Ok((None, None));
     };
     let rep = compute_receipts(&ReceiptInputs {
-        plant: inp.model,
-        pid: &t.pid,
-        controller_ts: None,
-        crossover_hz: fc,
-        weight: inp.weight,
-        actuator_limit: k.actuator_limit,
-        actuator_unit: &c.signals.input_unit,
-        reference_amplitude: k.reference_amplitude,
         etfe: Some(view),
         cross_validation: inp.cross_validation.clone(),
-        limits: inp.limits,
-        anti_windup: k.anti_windup,
+        ..receipt_inputs(c, inp.model, &t.pid, fc, inp.weight, inp.limits)
     })?;
     for rc in &rep.receipts.receipts {
         receipts.push(rc.clone());
     }
     let (lp, _) = implemented_loop(inp.model, &t.pid, None, Some(fc))?;
-    let nyq = 0.5 * inp.fs;
-    let f_lo = (fc / 50.0).min(0.5 * nom.freq_hz.get(1).copied().unwrap_or(fc));
-    let grid = log_grid(f_lo, nyq * 0.999, 600);
+    let grid = curves_grid(fc, inp.fs, nom.freq_hz.get(1).copied());
     let curves = loop_curves(&lp, inp.weight, &grid)?;
     Ok((Some(rep), Some(curves)))
 }
@@ -602,22 +627,15 @@ pub(super) fn push_audit_receipts(
     ));
 }
 
-/// The envelope, the weight, and why there is none (see [`uncertainty`]).
-pub(super) type UncertaintyOut = (
-    Option<EnvelopeData>,
-    Option<UncertaintyWeight>,
-    Option<String>,
-);
-
 /// The multiplicative envelope of the `[uncertainty].family` around G0 and the weight fitted
-/// to it (see the module docs of [`super`]); `Ok((None, None, Some(why)))` when fewer than
+/// to it (see the module docs of [`super`]); `Ok(Err(NoWeight::TooFewBins))` when fewer than
 /// three bins pass the gate for every family member.
 pub(super) fn uncertainty(
     cfg: &LoadedConfig,
     model: &StateSpace,
     runs: &[LogData],
     validation: Option<&LogData>,
-) -> Result<UncertaintyOut> {
+) -> Result<std::result::Result<WeightFit, NoWeight>> {
     let u = &cfg.config.uncertainty;
     let gate = cfg.config.etfe.coherence_gate;
     let family: Vec<&LogData> = match &u.family {
@@ -642,21 +660,11 @@ pub(super) fn uncertainty(
         .collect();
     let idx: Vec<usize> = (0..grid.len()).filter(|&i| ok[i]).collect();
     if idx.len() < 3 {
-        return Ok((
-            None,
-            None,
-            Some(format!(
-                "only {} bins where every family member ({}) passes the coherence gate {}: no \
-                 uncertainty weight; robust stability is not checked",
-                idx.len(),
-                family
-                    .iter()
-                    .map(|m| m.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                gate
-            )),
-        ));
+        return Ok(Err(NoWeight::TooFewBins {
+            bins: idx.len(),
+            family: family.iter().map(|m| m.name.clone()).collect(),
+            gate,
+        }));
     }
     let f: Vec<f64> = idx.iter().map(|&i| grid[i]).collect();
     let ev = model.freq_evaluator();
@@ -710,8 +718,11 @@ pub(super) fn uncertainty(
         family: family.iter().map(|m| m.name.clone()).collect(),
         f_top_hz: f_top,
     };
-    let w = fit_weight(cfg, &env)?;
-    Ok((Some(env), Some(w), None))
+    let weight = fit_weight(cfg, &env)?;
+    Ok(Ok(WeightFit {
+        envelope: env,
+        weight,
+    }))
 }
 
 /// W_m fitted to an envelope with the `[uncertainty]` order and floor.

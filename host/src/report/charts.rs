@@ -320,7 +320,7 @@ pub(super) fn fig_order(run: &PipelineRun) -> Result<Figure> {
 }
 
 pub(super) fn fig_robustness(run: &PipelineRun) -> Result<Option<Figure>> {
-    let (Some(c), Some(w)) = (&run.curves, &run.weight) else {
+    let (Some(c), Some(w)) = (&run.curves, run.weight()) else {
         return Ok(None);
     };
     let Some(inv) = &c.inv_wm_mag else {
@@ -343,7 +343,7 @@ pub(super) fn fig_robustness(run: &PipelineRun) -> Result<Option<Figure>> {
         colors::RED,
         Kind::Line(2),
     ));
-    if let Some(e) = &run.envelope {
+    if let Some(e) = run.envelope() {
         p.series.push(Series::new(
             "1/l_m measured",
             e.measured_points()
@@ -379,7 +379,7 @@ pub(super) fn fig_robustness(run: &PipelineRun) -> Result<Option<Figure>> {
 }
 
 pub(super) fn fig_uncertainty(run: &PipelineRun) -> Result<Option<Figure>> {
-    let (Some(e), Some(w)) = (&run.envelope, &run.weight) else {
+    let (Some(e), Some(w)) = (run.envelope(), run.weight()) else {
         return Ok(None);
     };
     let mut p = Panel::new("", "frequency (Hz)", "relative uncertainty", true, true);

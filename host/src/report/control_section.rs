@@ -178,189 +178,215 @@ pub(crate) fn render(h: &mut String, run: &PipelineRun, figs: &[Figure]) {
     h.push_str("</section>\n");
 }
 
+/// The design as a key/value table, one function per method.
 fn design_table(h: &mut String, d: &DesignSummary) {
-    h.push_str("<table>\n");
-    let mut row = |k: &str, v: String| {
-        let _ = writeln!(h, "<tr><th>{}</th><td>{}</td></tr>", esc(k), esc(&v));
-    };
+    let mut rows = Vec::new();
+    let mut row = |k: &'static str, v: String| rows.push((k, v));
     match d {
-        DesignSummary::Loopshape {
-            pid,
-            design,
-            notches,
-            notch_max_damping,
-            ..
-        } => {
+        DesignSummary::Loopshape { .. } => loopshape_rows(d, &mut row),
+        DesignSummary::Hinf { .. } => hinf_rows(d, &mut row),
+        DesignSummary::Mpc { .. } => mpc_rows(d, &mut row),
+    }
+    super::kv_table(h, &rows);
+}
+
+/// Rows of a `loopshape` design.
+fn loopshape_rows(d: &DesignSummary, row: &mut dyn FnMut(&'static str, String)) {
+    let DesignSummary::Loopshape {
+        pid,
+        design,
+        notches,
+        notch_max_damping,
+        ..
+    } = d
+    else {
+        return;
+    };
+    {
+        row(
+            "PID",
+            format!(
+                "Kp {}, Ki {} 1/s, Kd {} s, τ_f {} s; design crossover {} Hz",
+                fmt_num(pid.kp),
+                fmt_num(pid.ki),
+                fmt_num(pid.kd),
+                fmt_num(pid.tau_f),
+                fmt_num(design.crossover_hz)
+            ),
+        );
+        for n in notches {
             row(
-                "PID",
+                "notch",
                 format!(
-                    "Kp {}, Ki {} 1/s, Kd {} s, τ_f {} s; design crossover {} Hz",
-                    fmt_num(pid.kp),
-                    fmt_num(pid.ki),
-                    fmt_num(pid.kd),
-                    fmt_num(pid.tau_f),
-                    fmt_num(design.crossover_hz)
+                    "centre {} Hz, depth {} dB (ζ_n {}, ζ_d {})",
+                    fmt_num(n.centre_hz),
+                    fmt_num(n.depth_db()),
+                    fmt_num(n.zeta_num),
+                    fmt_num(n.zeta_den)
                 ),
-            );
-            for n in notches {
-                row(
-                    "notch",
-                    format!(
-                        "centre {} Hz, depth {} dB (ζ_n {}, ζ_d {})",
-                        fmt_num(n.centre_hz),
-                        fmt_num(n.depth_db()),
-                        fmt_num(n.zeta_num),
-                        fmt_num(n.zeta_den)
-                    ),
-                );
-            }
-            row(
-                "notched modes",
-                format!("damping below {}", fmt_num(*notch_max_damping)),
             );
         }
-        DesignSummary::Hinf {
-            bandwidth_hz,
-            ws_floor,
-            ws_rolloff_hz,
-            wks,
-            wt_order,
-            gamma_lower,
-            gamma_upper,
-            gamma,
-            closed_loop_gamma,
-            riccati_residuals,
-            order,
-            controller_stable,
-            reduction,
-            ..
-        } => {
+        row(
+            "notched modes",
+            format!("damping below {}", fmt_num(*notch_max_damping)),
+        );
+    }
+}
+
+/// Rows of an `hinf` design.
+fn hinf_rows(d: &DesignSummary, row: &mut dyn FnMut(&'static str, String)) {
+    let DesignSummary::Hinf {
+        bandwidth_hz,
+        ws_floor,
+        ws_rolloff_hz,
+        wks,
+        wt_order,
+        gamma_lower,
+        gamma_upper,
+        gamma,
+        closed_loop_gamma,
+        riccati_residuals,
+        order,
+        controller_stable,
+        reduction,
+        ..
+    } = d
+    else {
+        return;
+    };
+    {
+        row(
+            "weights",
+            format!(
+                "W_S bandwidth {} Hz (floor {}, roll-off {} Hz), W_KS {}, W_T = W_m {}",
+                fmt_num(*bandwidth_hz),
+                fmt_num(*ws_floor),
+                fmt_num(*ws_rolloff_hz),
+                fmt_num(*wks),
+                wt_order.map_or("absent".into(), |o| format!("(order {o})"))
+            ),
+        );
+        row(
+            "γ",
+            format!(
+                "γ_opt in [{}, {}], built at {}, closed loop {} (recomputed from G and K)",
+                fmt_num(*gamma_lower),
+                fmt_num(*gamma_upper),
+                fmt_num(*gamma),
+                fmt_num(*closed_loop_gamma)
+            ),
+        );
+        row(
+            "controller",
+            format!(
+                "order {order}, {}; Riccati residuals {:.1e}, {:.1e}",
+                if *controller_stable {
+                    "stable"
+                } else {
+                    "unstable"
+                },
+                riccati_residuals[0],
+                riccati_residuals[1]
+            ),
+        );
+        if let Some(r) = reduction {
             row(
-                "weights",
+                "reduction",
                 format!(
-                    "W_S bandwidth {} Hz (floor {}, roll-off {} Hz), W_KS {}, W_T = W_m {}",
-                    fmt_num(*bandwidth_hz),
-                    fmt_num(*ws_floor),
-                    fmt_num(*ws_rolloff_hz),
-                    fmt_num(*wks),
-                    wt_order.map_or("absent".into(), |o| format!("(order {o})"))
-                ),
-            );
-            row(
-                "γ",
-                format!(
-                    "γ_opt in [{}, {}], built at {}, closed loop {} (recomputed from G and K)",
-                    fmt_num(*gamma_lower),
-                    fmt_num(*gamma_upper),
-                    fmt_num(*gamma),
-                    fmt_num(*closed_loop_gamma)
-                ),
-            );
-            row(
-                "controller",
-                format!(
-                    "order {order}, {}; Riccati residuals {:.1e}, {:.1e}",
-                    if *controller_stable {
-                        "stable"
-                    } else {
-                        "unstable"
-                    },
-                    riccati_residuals[0],
-                    riccati_residuals[1]
-                ),
-            );
-            if let Some(r) = reduction {
-                row(
-                    "reduction",
-                    format!(
-                        "balanced truncation {} → {} states before Tustin: ‖K − K_r‖∞ {} ≤ \
+                    "balanced truncation {} → {} states before Tustin: ‖K − K_r‖∞ {} ≤ \
                          bound 2Σσ {} (σ_{} = {}); receipts of the full-order loop: {}",
-                        r.full_order,
-                        r.order,
-                        fmt_num(r.measured_error),
-                        fmt_num(r.error_bound),
-                        r.order + 1,
-                        fmt_num(
-                            r.hankel_singular_values
-                                .get(r.order)
-                                .copied()
-                                .unwrap_or(0.0)
-                        ),
-                        r.receipts_before.as_ref().map_or("—".into(), |b| {
-                            b.receipts
-                                .iter()
-                                .map(|x| format!("{} {}", x.name, x.value_text))
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        })
+                    r.full_order,
+                    r.order,
+                    fmt_num(r.measured_error),
+                    fmt_num(r.error_bound),
+                    r.order + 1,
+                    fmt_num(
+                        r.hankel_singular_values
+                            .get(r.order)
+                            .copied()
+                            .unwrap_or(0.0)
                     ),
-                );
-            }
-        }
-        DesignSummary::Mpc {
-            spec,
-            sigma,
-            model_states,
-            unconstrained_kx,
-            unconstrained_kr,
-            unconstrained_ku,
-            unconstrained_pole_modulus,
-            unconstrained_bandwidth_hz,
-            step_max_abs_du,
-            step_max_raw_excess,
-        } => {
-            row(
-                "QP",
-                format!(
-                    "horizon N = {}, output weight q {}, rate weight ρ_Δ {}, box [{}, {}], \
-                     |Δu| ≤ {} per sample; prediction model G0 ({model_states} states, state \
-                     feedback)",
-                    spec.horizon,
-                    fmt_num(spec.output_weight),
-                    fmt_num(spec.rate_weight),
-                    fmt_num(spec.u_min),
-                    fmt_num(spec.u_max),
-                    fmt_num(spec.rate_limit)
-                ),
-            );
-            row(
-                "solver",
-                format!(
-                    "ADMM, ρ {}, σ {:.1e}, {} iterations per sample from the shifted previous \
-                     solution (the firmware's budget)",
-                    fmt_num(spec.rho),
-                    sigma,
-                    spec.iterations
-                ),
-            );
-            row(
-                "unconstrained law",
-                format!(
-                    "u = −k_x·x + {}·r + {}·u_prev, k_x = [{}]; closed-loop pole modulus {}, \
-                     −3 dB bandwidth {}",
-                    fmt_num(*unconstrained_kr),
-                    fmt_num(*unconstrained_ku),
-                    unconstrained_kx
-                        .iter()
-                        .map(|v| fmt_num(*v))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    fmt_num(*unconstrained_pole_modulus),
-                    unconstrained_bandwidth_hz
-                        .map_or("above Nyquist".into(), |f| format!("{} Hz", fmt_num(f)))
-                ),
-            );
-            row(
-                "constrained step",
-                format!(
-                    "largest |Δu| {}; raw ADMM U₀ at most {} outside the box before the clamp",
-                    fmt_num(*step_max_abs_du),
-                    fmt_num(*step_max_raw_excess)
+                    r.receipts_before.as_ref().map_or("—".into(), |b| {
+                        b.receipts
+                            .iter()
+                            .map(|x| format!("{} {}", x.name, x.value_text))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    })
                 ),
             );
         }
     }
-    h.push_str("</table>\n");
+}
+
+/// Rows of an `mpc` design.
+fn mpc_rows(d: &DesignSummary, row: &mut dyn FnMut(&'static str, String)) {
+    let DesignSummary::Mpc {
+        spec,
+        sigma,
+        model_states,
+        unconstrained_kx,
+        unconstrained_kr,
+        unconstrained_ku,
+        unconstrained_pole_modulus,
+        unconstrained_bandwidth_hz,
+        step_max_abs_du,
+        step_max_raw_excess,
+    } = d
+    else {
+        return;
+    };
+    {
+        row(
+            "QP",
+            format!(
+                "horizon N = {}, output weight q {}, rate weight ρ_Δ {}, box [{}, {}], \
+                     |Δu| ≤ {} per sample; prediction model G0 ({model_states} states, state \
+                     feedback)",
+                spec.horizon,
+                fmt_num(spec.output_weight),
+                fmt_num(spec.rate_weight),
+                fmt_num(spec.u_min),
+                fmt_num(spec.u_max),
+                fmt_num(spec.rate_limit)
+            ),
+        );
+        row(
+            "solver",
+            format!(
+                "ADMM, ρ {}, σ {:.1e}, {} iterations per sample from the shifted previous \
+                     solution (the firmware's budget)",
+                fmt_num(spec.rho),
+                sigma,
+                spec.iterations
+            ),
+        );
+        row(
+            "unconstrained law",
+            format!(
+                "u = −k_x·x + {}·r + {}·u_prev, k_x = [{}]; closed-loop pole modulus {}, \
+                     −3 dB bandwidth {}",
+                fmt_num(*unconstrained_kr),
+                fmt_num(*unconstrained_ku),
+                unconstrained_kx
+                    .iter()
+                    .map(|v| fmt_num(*v))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                fmt_num(*unconstrained_pole_modulus),
+                unconstrained_bandwidth_hz
+                    .map_or("above Nyquist".into(), |f| format!("{} Hz", fmt_num(f)))
+            ),
+        );
+        row(
+            "constrained step",
+            format!(
+                "largest |Δu| {}; raw ADMM U₀ at most {} outside the box before the clamp",
+                fmt_num(*step_max_abs_du),
+                fmt_num(*step_max_raw_excess)
+            ),
+        );
+    }
 }
 
 /// The chosen loop's receipts next to the PID baseline's.

@@ -29,7 +29,7 @@ pub(super) fn banner(h: &mut String, run: &PipelineRun) {
         run.ident.order,
         fmt_num(1.0 / run.model().ts)
     )];
-    if let Some(t) = &run.tuned {
+    if let Some(t) = run.tuned() {
         facts.push(format!(
             "PID crossover {} Hz (target {} Hz)",
             fmt_num(t.design.crossover_hz),
@@ -183,8 +183,9 @@ pub(super) fn design_loop(h: &mut String, run: &PipelineRun, figs: &[Figure]) {
     h.push_str("<section id=\"robustness\">\n<h2>Robust stability: |T| against 1/|W_m|</h2>\n");
     let has_rob = figure_html(h, figs, "robustness");
     figure_html(h, figs, "uncertainty");
-    match (&run.weight, &run.envelope) {
-        (Some(w), Some(e)) => {
+    match &run.uncertainty {
+        Ok(u) => {
+            let (w, e) = (&u.weight, &u.envelope);
             let _ = writeln!(
                 h,
                 "<p class=\"note\">W_m(s) = ({}) / ({}), s in rad/s; |W_m(0)| = {}, |W_m(∞)| = \
@@ -212,15 +213,15 @@ pub(super) fn design_loop(h: &mut String, run: &PipelineRun, figs: &[Figure]) {
                 esc(&w.objective)
             );
         }
-        _ => {
+        Err(why) => {
             let _ = writeln!(
                 h,
                 "<p class=\"note\">No uncertainty weight: {}</p>",
-                esc(run.weight_note.as_deref().unwrap_or("not available"))
+                esc(&why.to_string())
             );
         }
     }
-    if !has_rob && run.weight.is_some() {
+    if !has_rob && run.weight().is_some() {
         h.push_str("<p class=\"note\">No loop to check: no controller was tuned.</p>\n");
     }
     h.push_str("</section>\n");
@@ -380,8 +381,8 @@ pub(super) fn validation(h: &mut String, run: &PipelineRun, figs: &[Figure]) {
 pub(super) fn controller(h: &mut String, run: &PipelineRun) {
     // Controller.
     h.push_str("<section id=\"controller\">\n<h2>Controller</h2>\n");
-    match (&run.tuned, &run.tuning_error) {
-        (Some(t), _) => {
+    match &run.tuning {
+        Ok(t) => {
             let p = &t.pid;
             let mut rows = vec![
                 ("K(s)", "(Kp + Ki/s + Kd·s/(τ_f·s + 1))·R(s)".to_string()),
@@ -422,10 +423,9 @@ pub(super) fn controller(h: &mut String, run: &PipelineRun) {
             rows.push(("method", t.method.clone()));
             kv_table(h, &rows);
         }
-        (None, Some(e)) => {
-            let _ = writeln!(h, "<p><b>No controller.</b> {}</p>", esc(e));
+        Err(e) => {
+            let _ = writeln!(h, "<p><b>No controller.</b> {}</p>", esc(&e.0));
         }
-        _ => {}
     }
     h.push_str("</section>\n");
 }

@@ -36,7 +36,9 @@ pub use compute::{
     compute_receipts, disturbance_rejection_bandwidth_hz, ClosedLoopNorms, ReceiptInputs,
     ReceiptsReport,
 };
-pub(crate) use compute::{push_margin_receipts, push_norm_receipts, push_step_receipts};
+pub(crate) use compute::{
+    push_failed_step_receipts, push_margin_receipts, push_norm_receipts, push_step_receipts,
+};
 pub use curves::{loop_curves, LoopCurves};
 pub use phase::{etfe_phase_receipt, phase_agreement, EtfeView, PhaseAgreement, PhaseSlice};
 

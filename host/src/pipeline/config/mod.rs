@@ -11,10 +11,10 @@ use crate::spectral::{Welch, Window};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-mod keys;
+mod spans;
 mod validate;
 
-use keys::{find_key_line, key_at_line};
+use spans::{line_at, KeyTree};
 
 /// Signal selection shared by every log (each log may override it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -584,6 +584,8 @@ pub struct LoadedConfig {
     pub text: String,
     /// The parsed and validated configuration.
     pub config: PipelineConfig,
+    /// Where each key is written in `text` (for errors).
+    keys: KeyTree,
 }
 
 impl LoadedConfig {
@@ -598,12 +600,10 @@ impl LoadedConfig {
 
     /// Parses and validates `text` as if read from `path`.
     pub fn from_text(path: &Path, text: &str) -> Result<Self> {
+        let keys = KeyTree::parse(text);
         let config: PipelineConfig = toml::from_str(text).map_err(|e| {
             let (line, key) = match e.span() {
-                Some(span) => {
-                    let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
-                    (line, key_at_line(text, line))
-                }
+                Some(span) => (line_at(text, span.start), keys.key_at(span.start)),
                 None => (0, None),
             };
             let msg = e.message().trim().to_string();
@@ -633,6 +633,7 @@ impl LoadedConfig {
             base_dir,
             text: text.to_string(),
             config,
+            keys,
         };
         loaded.validate()?;
         Ok(loaded)
@@ -641,7 +642,7 @@ impl LoadedConfig {
     /// An error about `key` (dotted, e.g. `control.crossover_hz` or `runs[1].file`), naming the
     /// file and the key's line when it is written in the file.
     pub fn key_error(&self, key: &str, msg: impl std::fmt::Display) -> Error {
-        match find_key_line(&self.text, key) {
+        match self.keys.line_of(&self.text, key) {
             Some(line) => Error::Parse {
                 file: self.path.clone(),
                 line,
@@ -652,6 +653,18 @@ impl LoadedConfig {
                 msg: format!("key `{key}`: {msg}"),
             },
         }
+    }
+
+    /// The keys written directly in `table` (e.g. `control`), in file order.
+    pub fn keys_written_in<'a>(&'a self, table: &'a str) -> impl Iterator<Item = &'a str> + 'a {
+        self.keys.keys_in(table)
+    }
+
+    /// The same configuration with no text behind it (errors then name no line).
+    pub(crate) fn without_text(mut self) -> Self {
+        self.text = String::new();
+        self.keys = KeyTree::default();
+        self
     }
 
     /// Resolves a path written in the file against its directory.

@@ -493,37 +493,41 @@ pub(crate) fn push_step_receipts(
                 ),
             ));
         }
-        Err(e) => {
-            for (n, d, l, u) in [
-                (
-                    ReceiptKind::StepActuatorDemand,
-                    "saturated step: demand / rail",
-                    1.0,
-                    "1",
-                ),
-                (
-                    ReceiptKind::StepOvershoot,
-                    "saturated step overshoot",
-                    lim.overshoot_pct_max,
-                    "%",
-                ),
-                (
-                    ReceiptKind::StepSettlingTime,
-                    "saturated step settling time",
-                    lim.settling_time_s_max,
-                    "s",
-                ),
-            ] {
-                rs.push(Receipt::new(
-                    n,
-                    d,
-                    f64::INFINITY,
-                    Comparison::AtMost,
-                    l,
-                    u,
-                    format!("simulation failed: {e}"),
-                ));
-            }
-        }
+        Err(e) => push_failed_step_receipts(
+            rs,
+            lim,
+            [
+                "saturated step: demand / rail",
+                "saturated step overshoot",
+                "saturated step settling time",
+            ],
+            e,
+        ),
+    }
+}
+
+/// The three step receipts (actuator demand, overshoot, settling time; descriptions `what`)
+/// failing with the reason the simulation gave.
+pub(crate) fn push_failed_step_receipts(
+    rs: &mut Receipts,
+    lim: &ReceiptLimits,
+    what: [&str; 3],
+    reason: &dyn std::fmt::Display,
+) {
+    let kinds = [
+        (ReceiptKind::StepActuatorDemand, 1.0, "1"),
+        (ReceiptKind::StepOvershoot, lim.overshoot_pct_max, "%"),
+        (ReceiptKind::StepSettlingTime, lim.settling_time_s_max, "s"),
+    ];
+    for ((kind, limit, unit), what) in kinds.into_iter().zip(what) {
+        rs.push(Receipt::new(
+            kind,
+            what,
+            f64::INFINITY,
+            Comparison::AtMost,
+            limit,
+            unit,
+            format!("simulation failed: {reason}"),
+        ));
     }
 }
