@@ -120,21 +120,24 @@ impl WelchConfig {
 
 /// Streaming Welch estimator over segments of `N` samples (power of two, `64..=4096`, checked at
 /// compile time). See the [module documentation](self) for conventions, statistics and costs.
+#[repr(C)]
 pub struct Welch<const N: usize> {
-    cfg: WelchConfig,
-    /// Density scaling `1 / (fs Σw²)`.
-    density: f32,
-    hop: u32,
-    /// Work ticks granted per push while a segment is in work.
-    budget: i32,
+    // Field order (`repr(C)`): the state every `push` touches comes first, within the
+    // immediate-offset range of a Cortex-M load/store from `self` (the banks and sums, 24·N
+    // bytes, come last); this saves address arithmetic in `push` and in every work slice.
     /// Ticks each push adds to the credit: `budget` while a segment is in work, else 0.
     grant: i32,
     /// Next write index into the fill bank.
     pos: usize,
-    /// First index of the fill bank written by `push` (0 after a reset, then `overlap`).
-    fill_start: usize,
     /// Which bank is being filled (0 or 1); the other one holds the segment in work.
     fill: usize,
+    /// The segment in work.
+    job: Job,
+    hop: u32,
+    /// Work ticks granted per push while a segment is in work.
+    budget: i32,
+    /// First index of the fill bank written by `push` (0 after a reset, then `overlap`).
+    fill_start: usize,
     /// Number of upcoming segment ends to drop (they contain a rejected sample).
     drop_ends: u32,
     averages: u32,
@@ -145,8 +148,9 @@ pub struct Welch<const N: usize> {
     /// Sums of the deviations `(u, y)` of the samples copied into the fill bank (its first
     /// `fill_start`) from its first sample.
     head_sum: Pair,
-    /// The segment in work.
-    job: Job,
+    cfg: WelchConfig,
+    /// Density scaling `1 / (fs Σw²)`.
+    density: f32,
     /// Two banks of `N` samples of both channels (layout: see `kernels`).
     banks: [[Pair; N]; 2],
     /// Sums over segments of the doubled spectra's products, four per bin, in bit-reversed
