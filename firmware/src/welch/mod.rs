@@ -43,11 +43,11 @@
 //! overlap into the new bank, mean, window, FFT, recombination, accumulation) is done **in
 //! slices by the following `hop` pushes**: each push adds a fixed budget of work credit
 //! (the segment's cost divided by the hop, with margin) and, once the credit reaches a slice
-//! (about 3,300 instructions), runs work items up to it. The work is complete before the next
+//! (about 3,800 instructions), runs work items up to it. The work is complete before the next
 //! segment ends, so no push ever does a whole segment. Measured under QEMU `-icount` on the
-//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 3,840 instructions
-//! and the mean 213 per sample (N = 256: 3,840 and 197), while one segment's work done at once
-//! costs 92,700 (the push completing a segment used to cost 124,600). There is no separate
+//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 4,280 instructions
+//! and the mean 199.7 per sample (N = 256: 4,360 and 184.8), while one segment's work done at
+//! once costs 88,760 (the push completing a segment used to cost 124,600). There is no separate
 //! background call to make; an ISR simply calls [`Welch::push`].
 //!
 //! Consequences of the pipeline, all explicit in the API:
