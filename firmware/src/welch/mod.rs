@@ -309,7 +309,7 @@ impl<const N: usize> Welch<N> {
     }
 
     /// Completes the segment in work, if any, so that the estimates include every segment that
-    /// has ended. Costs up to one segment's work (N = 1024: about 92,700 instructions on a
+    /// has ended. Costs up to one segment's work (N = 1024: about 88,800 instructions on a
     /// Cortex-M4F): call it outside time-critical code, e.g. after the last `push` and before
     /// reading the estimates.
     pub fn flush(&mut self) {
