@@ -84,9 +84,29 @@ fn kalman_gain(
     let proj = xt.transpose().to_owned(); // yf × wp
                                           // Γ⁺ by least squares: F = Γ⁺·proj (n × wp).
     let f = lstsq(gamma.as_ref(), proj.as_ref(), "Γ⁺")?;
-    // x̂(k + s) = F·w_p(s) for s in 0..count.
+    // x̂(k + s) = F·w_p(s) for s in 0..count: F split per channel times that channel's
+    // Hankel view (k × count, element (j, s) = w[a][s + j]) — one GEMM per channel.
     let count = len - k + 1;
-    let states = state_sequence(&f, w, k, m, count);
+    let mut states = Mat::<f64>::zeros(n, count);
+    for (a_, wa) in w.iter().enumerate() {
+        let fa = Mat::from_fn(n, k, |i, j| {
+            let col = if a_ < m {
+                j * m + a_
+            } else {
+                k * m + j * p + (a_ - m)
+            };
+            f[(i, col)]
+        });
+        let hankel = MatRef::from_column_major_slice_with_stride(&wa[..count + k - 1], k, count, 1);
+        faer::linalg::matmul::matmul(
+            states.as_mut(),
+            faer::Accum::Add,
+            fa.as_ref(),
+            hankel,
+            1.0,
+            faer::Par::Seq,
+        );
+    }
     // Residuals for t = k .. len−2 (x̂(t+1) needed): e = y − C x̂ − D u, ŵ = x̂⁺ − A x̂ − B u,
     // accumulated into Σŵŵᵀ, Σŵeᵀ, Σeeᵀ without storing them.
     let nres = count - 1;
@@ -153,90 +173,6 @@ fn kalman_gain(
     let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
     let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
     Ok((kf.gain, kf.innovation_cov))
-}
-
-/// Column of F (n×k·q) that multiplies sample `s + j` of channel `a` in `w_p(s)` (inputs
-/// first, then outputs, `m` inputs, `p` outputs, block-row-major).
-fn f_column(a: usize, j: usize, k: usize, m: usize, p: usize) -> usize {
-    if a < m {
-        j * m + a
-    } else {
-        k * m + j * p + (a - m)
-    }
-}
-
-/// The oblique-projection state sequence `x̂(k + s) = F·w_p(s)`, `s = 0..count` (n × count):
-/// each state is a FIR filter of length k per channel, `x̂_i(s) = Σ_a Σ_j F[i, col(a, j)]·
-/// w_a[s + j]`. For orders up to 8 the n sums of a sample are accumulated in registers
-/// (channel by channel, lag by lag); larger orders use one GEMM per channel over that
-/// channel's Hankel view. Both are the same sums; only their rounding order differs (test:
-/// `state_sequence_matches_the_gemm_form`).
-fn state_sequence(f: &Mat<f64>, w: &[Vec<f64>], k: usize, m: usize, count: usize) -> Mat<f64> {
-    let n = f.nrows();
-    match n {
-        1 => state_sequence_fixed::<1>(f, w, k, m, count),
-        2 => state_sequence_fixed::<2>(f, w, k, m, count),
-        3 => state_sequence_fixed::<3>(f, w, k, m, count),
-        4 => state_sequence_fixed::<4>(f, w, k, m, count),
-        5 => state_sequence_fixed::<5>(f, w, k, m, count),
-        6 => state_sequence_fixed::<6>(f, w, k, m, count),
-        7 => state_sequence_fixed::<7>(f, w, k, m, count),
-        8 => state_sequence_fixed::<8>(f, w, k, m, count),
-        _ => state_sequence_gemm(f, w, k, m, count),
-    }
-}
-
-/// [`state_sequence`] as one GEMM per channel (F's columns of that channel times its Hankel
-/// view, k × count, element (j, s) = w_a[s + j]).
-fn state_sequence_gemm(f: &Mat<f64>, w: &[Vec<f64>], k: usize, m: usize, count: usize) -> Mat<f64> {
-    let n = f.nrows();
-    let p = w.len() - m;
-    let mut states = Mat::<f64>::zeros(n, count);
-    for (a_, wa) in w.iter().enumerate() {
-        let fa = Mat::from_fn(n, k, |i, j| f[(i, f_column(a_, j, k, m, p))]);
-        let hankel = MatRef::from_column_major_slice_with_stride(&wa[..count + k - 1], k, count, 1);
-        faer::linalg::matmul::matmul(
-            states.as_mut(),
-            faer::Accum::Add,
-            fa.as_ref(),
-            hankel,
-            1.0,
-            faer::Par::Seq,
-        );
-    }
-    states
-}
-
-/// [`state_sequence`] for `N` states: per sample, `N` sums in registers over the channels'
-/// k lags, F's columns laid out as `[f64; N]` in the order they are used.
-fn state_sequence_fixed<const N: usize>(
-    f: &Mat<f64>,
-    w: &[Vec<f64>],
-    k: usize,
-    m: usize,
-    count: usize,
-) -> Mat<f64> {
-    let p = w.len() - m;
-    let cols: Vec<[f64; N]> = (0..w.len())
-        .flat_map(|a| (0..k).map(move |j| (a, j)))
-        .map(|(a, j)| {
-            let c = f_column(a, j, k, m, p);
-            std::array::from_fn(|i| f[(i, c)])
-        })
-        .collect();
-    let mut states = Mat::<f64>::zeros(N, count);
-    for s in 0..count {
-        let mut acc = [0.0f64; N];
-        for (wa, fa) in w.iter().zip(cols.chunks_exact(k)) {
-            for (v, fc) in wa[s..s + k].iter().zip(fa) {
-                for i in 0..N {
-                    acc[i] += fc[i] * v;
-                }
-            }
-        }
-        states.col_as_slice_mut(s).copy_from_slice(&acc);
-    }
-    states
 }
 
 /// [`dot`] for the short vectors of the residual loop, inlined: [`dot`] sums vectors shorter
@@ -367,60 +303,4 @@ pub fn kalman_filter_gain(
         gain,
         innovation_cov: re,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The register-accumulated state sequence equals the GEMM form (the former code) to
-    /// 1e-13 of the states' scale, for several orders and channel layouts.
-    #[test]
-    fn state_sequence_matches_the_gemm_form() {
-        let mut seed = 99u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        for (n, m, p, k) in [
-            (1, 1, 1, 5),
-            (3, 1, 1, 20),
-            (4, 2, 1, 8),
-            (8, 1, 2, 10),
-            (9, 1, 1, 6),
-        ] {
-            let len = 3000;
-            let w: Vec<Vec<f64>> = (0..m + p)
-                .map(|_| (0..len).map(|_| rnd()).collect())
-                .collect();
-            let f = Mat::from_fn(n, k * (m + p), |_, _| rnd());
-            let count = len - k + 1;
-            let fast = state_sequence(&f, &w, k, m, count);
-            let gemm = state_sequence_gemm(&f, &w, k, m, count);
-            let scale = (0..count)
-                .flat_map(|s| (0..n).map(move |i| (i, s)))
-                .map(|(i, s)| gemm[(i, s)].abs())
-                .fold(0.0, f64::max);
-            assert!(scale > 0.1, "degenerate case");
-            for s in 0..count {
-                for i in 0..n {
-                    let d = (fast[(i, s)] - gemm[(i, s)]).abs();
-                    assert!(d <= 1e-13 * scale, "n={n} m={m} p={p} ({i},{s}): {d:e}");
-                }
-            }
-            // And both equal the definition, summed in f64 directly.
-            let s = count / 2;
-            for i in 0..n {
-                let mut want = 0.0;
-                for (a, wa) in w.iter().enumerate() {
-                    for j in 0..k {
-                        want += f[(i, f_column(a, j, k, m, p))] * wa[s + j];
-                    }
-                }
-                assert!((fast[(i, s)] - want).abs() <= 1e-13 * scale);
-            }
-        }
-    }
 }
