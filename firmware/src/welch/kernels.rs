@@ -281,13 +281,18 @@ pub(super) fn unit4_stage(z: &mut [Quad], start: usize, count: usize) {
 
 /// Adds the products of one bin's doubled spectra `x = [2U, 2Y]` to its sums
 /// `[Σ|2U|², Σ|2Y|², Σ Re conj(2U)·2Y, Σ Im conj(2U)·2Y]`.
+///
+/// Each product is added to the sum on its own (`(acc + a·a) + b·b`, not `acc + (a·a + b·b)`):
+/// on the Cortex-M4F that is two multiply-accumulates (`VMLA`/`VMLS`, which round the product
+/// and then the sum, like a multiply and an add) instead of a multiply, a multiply-accumulate
+/// and an add, 4 instructions less per bin. Every term is still rounded once.
 #[inline(always)]
 fn add_products(acc: &mut Quad, x: &Quad) {
     let [ur, yr, ui, yi] = *x;
-    acc[0] += ur * ur + ui * ui;
-    acc[1] += yr * yr + yi * yi;
-    acc[2] += ur * yr + ui * yi;
-    acc[3] += ur * yi - ui * yr;
+    acc[0] = acc[0] + ur * ur + ui * ui;
+    acc[1] = acc[1] + yr * yr + yi * yi;
+    acc[2] = acc[2] + ur * yr + ui * yi;
+    acc[3] = acc[3] + ur * yi - ui * yr;
 }
 
 /// Recombination of the mirror pair `zk = Z[k]`, `zc = Z[M-k]` with `(c, s)` of `2πk/N`:

@@ -43,11 +43,11 @@
 //! overlap into the new bank, mean, window, FFT, recombination, accumulation) is done **in
 //! slices by the following `hop` pushes**: each push adds a fixed budget of work credit
 //! (the segment's cost divided by the hop, with margin) and, once the credit reaches a slice
-//! (about 3,300 instructions), runs work items up to it. The work is complete before the next
+//! (about 3,800 instructions), runs work items up to it. The work is complete before the next
 //! segment ends, so no push ever does a whole segment. Measured under QEMU `-icount` on the
-//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 3,840 instructions
-//! and the mean 213 per sample (N = 256: 3,840 and 197), while one segment's work done at once
-//! costs 92,700 (the push completing a segment used to cost 124,600). There is no separate
+//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 4,280 instructions
+//! and the mean 199.7 per sample (N = 256: 4,360 and 184.8), while one segment's work done at
+//! once costs 88,760 (the push completing a segment used to cost 124,600). There is no separate
 //! background call to make; an ISR simply calls [`Welch::push`].
 //!
 //! Consequences of the pipeline, all explicit in the API:
@@ -120,21 +120,24 @@ impl WelchConfig {
 
 /// Streaming Welch estimator over segments of `N` samples (power of two, `64..=4096`, checked at
 /// compile time). See the [module documentation](self) for conventions, statistics and costs.
+#[repr(C)]
 pub struct Welch<const N: usize> {
-    cfg: WelchConfig,
-    /// Density scaling `1 / (fs Σw²)`.
-    density: f32,
+    // Field order (`repr(C)`): the state every `push` touches comes first, within the
+    // immediate-offset range of a Cortex-M load/store from `self` (the banks and sums, 24·N
+    // bytes, come last); this saves address arithmetic in `push` and in every work slice.
+    /// Ticks each push adds to the credit: `budget` while a segment is in work, else 0.
+    grant: i32,
+    /// Next write index into the two banks seen as one array of `2N` pairs: bank
+    /// `w / N` is being filled (the other one holds the segment in work), at index `w % N`.
+    /// One index instead of a bank number and a position saves address arithmetic in `push`.
+    w: usize,
+    /// The segment in work.
+    job: Job,
     hop: u32,
     /// Work ticks granted per push while a segment is in work.
     budget: i32,
-    /// Ticks each push adds to the credit: `budget` while a segment is in work, else 0.
-    grant: i32,
-    /// Next write index into the fill bank.
-    pos: usize,
     /// First index of the fill bank written by `push` (0 after a reset, then `overlap`).
     fill_start: usize,
-    /// Which bank is being filled (0 or 1); the other one holds the segment in work.
-    fill: usize,
     /// Number of upcoming segment ends to drop (they contain a rejected sample).
     drop_ends: u32,
     averages: u32,
@@ -145,8 +148,9 @@ pub struct Welch<const N: usize> {
     /// Sums of the deviations `(u, y)` of the samples copied into the fill bank (its first
     /// `fill_start`) from its first sample.
     head_sum: Pair,
-    /// The segment in work.
-    job: Job,
+    cfg: WelchConfig,
+    /// Density scaling `1 / (fs Σw²)`.
+    density: f32,
     /// Two banks of `N` samples of both channels (layout: see `kernels`).
     banks: [[Pair; N]; 2],
     /// Sums over segments of the doubled spectra's products, four per bin, in bit-reversed
@@ -189,9 +193,8 @@ impl<const N: usize> Welch<N> {
             hop: 0,
             budget: 0,
             grant: 0,
-            pos: 0,
+            w: 0,
             fill_start: 0,
-            fill: 0,
             drop_ends: 0,
             averages: 0,
             dropped: 0,
@@ -202,6 +205,12 @@ impl<const N: usize> Welch<N> {
             banks: [[[0.0; 2]; N]; 2],
             acc: [[0.0; 2]; N],
         }
+    }
+
+    /// The bank being filled (0 or 1).
+    #[inline(always)]
+    fn fill(&self) -> usize {
+        (self.w / N) & 1
     }
 
     /// `true` once a valid configuration is in place ([`Welch::new`] or [`Welch::configure`]).
@@ -249,9 +258,8 @@ impl<const N: usize> Welch<N> {
     /// Forgets all samples, averages and counters, and drops the segment in work (the
     /// configuration stays).
     pub fn reset(&mut self) {
-        self.pos = 0;
+        self.w = 0;
         self.fill_start = 0;
-        self.fill = 0;
         self.drop_ends = 0;
         self.averages = 0;
         self.dropped = 0;
@@ -274,16 +282,16 @@ impl<const N: usize> Welch<N> {
     #[inline]
     pub fn push(&mut self, u: f32, y: f32) {
         self.step();
-        let i = self.pos & (N - 1);
-        let bank = &mut self.banks[self.fill & 1];
+        let w = self.w & (2 * N - 1);
+        let slot = &mut self.banks.as_flattened_mut()[w];
         if accepts(u, y) {
-            kernels::set_sample(bank, i, u, y);
+            *slot = [u, y];
         } else {
-            kernels::set_sample(bank, i, 0.0, 0.0);
-            self.reject((N - i) as u32);
+            *slot = [0.0, 0.0];
+            self.reject((N - w % N) as u32);
         }
-        self.pos = i + 1;
-        if self.pos >= N {
+        self.w = w + 1;
+        if (w + 1) % N == 0 {
             self.segment_end();
         }
     }
@@ -301,7 +309,7 @@ impl<const N: usize> Welch<N> {
     }
 
     /// Completes the segment in work, if any, so that the estimates include every segment that
-    /// has ended. Costs up to one segment's work (N = 1024: about 92,700 instructions on a
+    /// has ended. Costs up to one segment's work (N = 1024: about 88,800 instructions on a
     /// Cortex-M4F): call it outside time-critical code, e.g. after the last `push` and before
     /// reading the estimates.
     pub fn flush(&mut self) {
@@ -334,8 +342,8 @@ impl<const N: usize> Welch<N> {
     #[inline(never)]
     fn segment_end(&mut self) {
         if self.hop == 0 {
-            // Unconfigured: never complete a segment.
-            self.pos = 0;
+            // Unconfigured: never complete a segment (stay at the start of the same bank).
+            self.w = ((self.w.wrapping_sub(1) / N) & 1) * N;
             return;
         }
         // The previous segment's work is complete by now (its credit covered it); this only
@@ -362,9 +370,10 @@ impl<const N: usize> Welch<N> {
         (self.job.items, self.job.cost) = self.phase_size();
         self.head_sum = [0.0; 2];
         self.grant = self.budget;
-        self.fill ^= 1;
+        // `w` has just left the bank that was filled, i.e. it is at the other bank's start
+        // (`N`, or `2N` for bank 0).
         self.fill_start = overlap;
-        self.pos = overlap;
+        self.w = ((self.w / N) & 1) * N + overlap;
     }
 
     /// Runs work items of the segment in work for up to `credit` ticks; returns the unspent
@@ -434,7 +443,7 @@ impl<const N: usize> Welch<N> {
             }
             Phase::Sum => {
                 // Mean = reference + mean deviation (see kernels::sum_range).
-                let work = &self.banks[(self.fill ^ 1) & 1];
+                let work = &self.banks[((self.w / N) & 1) ^ 1];
                 let r = kernels::first_sample(work);
                 let hop = N - self.cfg.overlap.min(N - 1);
                 if !schedule::copy_sums(true, j.accept, hop, j.seg_start as usize) {
@@ -468,12 +477,9 @@ impl<const N: usize> Welch<N> {
 
     /// Runs items `start..start + count` of the current phase.
     fn run_items(&mut self, start: usize, count: usize) {
+        let fill_bank = self.fill();
         let [b0, b1] = &mut self.banks;
-        let (work, fill) = if self.fill & 1 == 0 {
-            (b1, b0)
-        } else {
-            (b0, b1)
-        };
+        let (work, fill) = if fill_bank == 0 { (b1, b0) } else { (b0, b1) };
         let j = &mut self.job;
         match j.phase {
             Phase::Idle => {}
@@ -557,7 +563,7 @@ impl<const N: usize> Welch<N> {
         self.flush();
         let (mut u, mut y) = (u, y);
         while !u.is_empty() {
-            let pos = self.pos & (N - 1);
+            let pos = self.w % N;
             // A run ends at the end of the bank or with the input.
             let run = u.len().min(N - pos).max(1);
             let (Some((u_run, u_rest)), Some((y_run, y_rest))) =
@@ -565,7 +571,8 @@ impl<const N: usize> Welch<N> {
             else {
                 break;
             };
-            let bank = &mut self.banks[self.fill & 1];
+            let fill = self.fill();
+            let bank = &mut self.banks[fill];
             if !store_run(bank, pos, u_run, y_run) {
                 // Cold: find the rejected pairs again to book them.
                 for (j, (&a, &b)) in u_run.iter().zip(y_run).enumerate() {
@@ -574,8 +581,8 @@ impl<const N: usize> Welch<N> {
                     }
                 }
             }
-            self.pos = pos + run;
-            if self.pos >= N {
+            self.w = fill * N + pos + run;
+            if pos + run >= N {
                 self.segment_end();
                 self.flush();
             }
