@@ -28,7 +28,7 @@ use ferrosid::robust::pid::{DiscretePid, Pid};
 use ferrosid_codegen as cg;
 use num_complex::Complex64;
 
-use crate::e2e::{build_app_image, write_if_changed};
+use crate::e2e::{build_app_image_with, write_if_changed};
 use crate::{decode_defmt, repo_root, run_qemu, Error, LogLine, RunOptions};
 
 /// Control sample time, s.
@@ -165,16 +165,33 @@ pub fn codegen_input_for(
     }
 }
 
-/// Generates the Rust module for `input` into `dir` and builds the `closedloop` image around
-/// it in its own target directory (`target/qemu-closedloop-<prefix>`).
+/// Generates the Rust module for `input` into `dir` and builds the plain `closedloop` image
+/// (free run only: `check=on` is a set-up error) around it in its own target directory
+/// (`target/qemu-closedloop-<prefix>`).
 pub fn build_image(input: &cg::CodegenInput, dir: &Path) -> Result<PathBuf, String> {
+    build_variant(input, dir, false)
+}
+
+/// [`build_image`] with the closed-loop power-up check (`check=on`; the app's cargo feature
+/// `closed-loop-check`), in `target/qemu-closedloop-<prefix>-check`.
+pub fn build_check_image(input: &cg::CodegenInput, dir: &Path) -> Result<PathBuf, String> {
+    build_variant(input, dir, true)
+}
+
+fn build_variant(input: &cg::CodegenInput, dir: &Path, check: bool) -> Result<PathBuf, String> {
     let g = cg::generate(input).map_err(|e| e.to_string())?;
     let module = dir.join(&g.rs_file_name);
     write_if_changed(&module, &g.rust_module)?;
-    let target = repo_root()
-        .join("target")
-        .join(format!("qemu-closedloop-{}", g.prefix.to_lowercase()));
-    build_app_image(&module, "closedloop", &target).map_err(|e| e.to_string())
+    let (suffix, features): (&str, &[&str]) = if check {
+        ("-check", &["closed-loop-check"])
+    } else {
+        ("", &[])
+    };
+    let target = repo_root().join("target").join(format!(
+        "qemu-closedloop-{}{suffix}",
+        g.prefix.to_lowercase()
+    ));
+    build_app_image_with(&module, "closedloop", features, &target).map_err(|e| e.to_string())
 }
 
 /// One signal's oscillation as the target reported it.

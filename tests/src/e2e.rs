@@ -365,11 +365,24 @@ pub fn build_powerup(model_rs: &Path) -> Result<PathBuf, Error> {
     build_app_image(model_rs, "powerup", &image_target_dir())
 }
 
-/// Builds the image `bin` of `firmware/app` (release, [`TARGET`]) around the generated Rust
-/// module `model_rs` (absolute path) in `target_dir`; returns the ELF path. Images built
-/// around different modules need different target directories (the module is an input of the
-/// whole crate).
+/// Builds the image `bin` of `firmware/app` (release, [`TARGET`], default features) around the
+/// generated Rust module `model_rs` (absolute path) in `target_dir`; returns the ELF path.
+/// Images built around different modules need different target directories (the module is an
+/// input of the whole crate).
 pub fn build_app_image(model_rs: &Path, bin: &str, target_dir: &Path) -> Result<PathBuf, Error> {
+    build_app_image_with(model_rs, bin, &[], target_dir)
+}
+
+/// [`build_app_image`] with the cargo `features` of `firmware/app` enabled (e.g.
+/// `closed-loop-check`). Use a target directory per feature set as well as per module: the
+/// ELF's path does not depend on the features, so two variants in one directory would
+/// overwrite (and rebuild) each other.
+pub fn build_app_image_with(
+    model_rs: &Path,
+    bin: &str,
+    features: &[&str],
+    target_dir: &Path,
+) -> Result<PathBuf, Error> {
     let cargo: OsString = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let mut cmd = Command::new(&cargo);
     cmd.args([
@@ -382,6 +395,9 @@ pub fn build_app_image(model_rs: &Path, bin: &str, target_dir: &Path) -> Result<
         "--manifest-path",
     ])
     .arg(powerup_manifest());
+    if !features.is_empty() {
+        cmd.arg("--features").arg(features.join(","));
+    }
     for var in [
         "CARGO_BUILD_TARGET",
         "CARGO_BUILD_RUSTFLAGS",

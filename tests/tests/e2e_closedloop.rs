@@ -29,7 +29,7 @@ use ferrosid_tests::closedloop::{
     lag_aware_feedforward, lag_pid, lag_plant_continuous, plant_continuous, run, ClosedLoopRun,
     INERTIA, LAG, TS,
 };
-use ferrosid_tests::{panic_sites, repo_root};
+use ferrosid_tests::{image_size, panic_sites, repo_root};
 
 /// Dead zone full width, input units.
 const DEAD_ZONE: f64 = 0.2;
@@ -530,4 +530,38 @@ fn closedloop_code_has_no_panic_path() {
         .map(|s| s.to_string())
         .collect();
     assert!(ours.is_empty(), "panic paths:\n{}", ours.join("\n"));
+}
+
+/// The plain image carries no closed-loop check (it is the app's opt-in feature
+/// `closed-loop-check`, built by `build_check_image` for e2e_closedloop_check): `check=on` is a
+/// set-up error (exit 3) naming the feature, and the image's RAM has no room for the check's
+/// estimator (48·N bytes, 12 KiB at this module's N = 256) beside the 48 KiB trace buffers.
+/// Prints the image's flash and RAM (`llvm-size -A`, flash = text + data, RAM = data + bss).
+#[test]
+fn plain_image_has_no_closed_loop_check() {
+    let r = run(elf(), &["check=on"]).unwrap_or_else(|e| panic!("QEMU: {e}"));
+    for l in &r.lines {
+        println!("target: {l}");
+    }
+    assert_eq!(r.exit_code, 3, "check=on on the plain image");
+    assert!(
+        r.lines
+            .iter()
+            .any(|l| l.text.starts_with("ERROR") && l.text.contains("closed-loop-check")),
+        "no set-up error naming the feature: {:?}",
+        r.lines
+    );
+    let size = image_size(elf()).unwrap_or_else(|e| panic!("{e}"));
+    println!(
+        "closedloop image (servo, without the check): flash {} B, RAM {} B",
+        size.flash(),
+        size.ram()
+    );
+    const TRACE: u64 = 3 * 4096 * 4;
+    const ESTIMATOR: u64 = 48 * 256;
+    assert!(
+        size.ram() < TRACE + ESTIMATOR,
+        "RAM {} B: room for the check's estimator",
+        size.ram()
+    );
 }

@@ -21,7 +21,7 @@ use ferrosid_codegen as cg;
 use ferrosid_firmware::check::ClosedLoopEstimator;
 use ferrosid_firmware::control::{Biquad, ControlConfig, ControlLaw, ControlState, PidConfig};
 use ferrosid_tests::closedloop::{
-    build_image, check_codegen_input, lag_aware_feedforward, lag_pid, lag_plant_continuous,
+    build_check_image, check_codegen_input, lag_aware_feedforward, lag_pid, lag_plant_continuous,
     reference_estimate, run_check, CheckRow, CheckRun, LAG, LAG_COULOMB, TS,
 };
 use ferrosid_tests::{image_size, panic_sites, repo_root};
@@ -78,7 +78,7 @@ fn elf() -> &'static Path {
     let r = E.get_or_init(|| {
         let dir = work_dir();
         std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-        build_image(&input("clcheck"), &dir)
+        build_check_image(&input("clcheck"), &dir)
     });
     match r {
         Ok(p) => p,

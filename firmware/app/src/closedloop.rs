@@ -26,7 +26,10 @@
 //!   noise: a smaller cycle is not observable).
 //!
 //! * `check=on` — instead of the free run: the closed-loop power-up check
-//!   (`ferrosid_firmware::check::ClosedLoopEstimator`). The self-identification multisine of
+//!   (`ferrosid_firmware::check::ClosedLoopEstimator`), only in an image built with the cargo
+//!   feature `closed-loop-check` (see Cargo.toml for why a feature and not a second bin; an
+//!   image without it answers `check=on` with a set-up error naming the feature and costs
+//!   none of the check's flash or RAM). The self-identification multisine of
 //!   the module (bins 1..=EXCITATION_MAX_BIN of a WELCH_N period, RMS
 //!   CLOSED_LOOP_REFERENCE_RMS in output units) is added to the reference `r`; SETTLE_PERIODS
 //!   periods settle, AVERAGES periods feed the estimator with (excitation, the PID's command,
@@ -59,9 +62,12 @@ use ferrosid_firmware::control::{
     analyse_oscillation, Biquad, CompensationConfig, ControlConfig, ControlLaw, ControlState,
     FrictionFeedforward, PidConfig,
 };
+#[cfg(feature = "closed-loop-check")]
 use ferrosid_firmware::excitation::{Multisine, MultisineScratch, MultisineSpec, Phases};
+#[cfg(feature = "closed-loop-check")]
 use ferrosid_firmware::Excitation;
 use ferrosid_powerup::plant::{Axis, AxisParams};
+#[cfg(feature = "closed-loop-check")]
 use ferrosid_powerup::{evaluate, flat_lines, CheckConfig, ClosedLoopEstimator, Model, Weight};
 
 /// The generated module (`ferrosid codegen`), copied into OUT_DIR by build.rs.
@@ -75,6 +81,7 @@ mod flashed {
 mod flashed_comp;
 
 /// The receipt's log lines (shared with the other image).
+#[cfg(feature = "closed-loop-check")]
 #[path = "receipt_log.rs"]
 mod receipt_log;
 use flashed_comp::compensation_config;
@@ -145,6 +152,8 @@ struct Settings {
     /// `check=on`: run the closed-loop check instead of the free run.
     check: bool,
     /// `check_rms=`: overrides the module's CLOSED_LOOP_REFERENCE_RMS (bench exploration).
+    /// Parsed in both variants (same command line), read only by the check.
+    #[cfg_attr(not(feature = "closed-loop-check"), allow(dead_code))]
     check_rms: Option<f32>,
 }
 
@@ -386,30 +395,45 @@ fn main() -> ! {
 }
 
 /// Welch segment length and multisine period of the check.
+#[cfg(feature = "closed-loop-check")]
 const N: usize = flashed::WELCH_N;
 /// Excited lines.
+#[cfg(feature = "closed-loop-check")]
 const LINES: usize = flashed::EXCITATION_MAX_BIN;
+#[cfg(feature = "closed-loop-check")]
 const _: () = assert!(LINES >= 1 && LINES < N / 2);
 
 /// SysTick instruction counter under `qemu -icount` (shared with the QEMU bench images).
+#[cfg(feature = "closed-loop-check")]
 #[path = "../../../tests/qemu/src/icount.rs"]
 #[allow(dead_code)] // `free` and the held SYST are for the bench images
 mod icount;
 /// Stack high-water mark by painting (the painter the power-up image and the QEMU probe use).
+#[cfg(feature = "closed-loop-check")]
 #[path = "../../../tests/qemu/src/stack.rs"]
 mod stack;
 
 /// The closed-loop estimator (48·N bytes) in .bss.
+#[cfg(feature = "closed-loop-check")]
 static mut ESTIMATOR: ClosedLoopEstimator<N> = ClosedLoopEstimator::unconfigured();
 
 /// The multisine design with its 8·N-byte scratch on this frame only.
+#[cfg(feature = "closed-loop-check")]
 #[inline(never)]
 fn design_excitation(spec: &MultisineSpec<'_>) -> Option<Multisine<N>> {
     let mut scratch = MultisineScratch::<N>::new();
     Multisine::design(spec, &mut scratch).ok()
 }
 
+/// Without the feature `closed-loop-check` the image carries no check: `check=on` is a set-up
+/// error that says how to build an image that has one.
+#[cfg(not(feature = "closed-loop-check"))]
+fn run_check(_: &ControlLaw, _: &mut Axis, _: &Settings) -> ! {
+    setup_error("check=on: this image has no closed-loop check (build it with --features closed-loop-check)")
+}
+
 /// The closed-loop check (`check=on`, see the crate docs); exits with its verdict.
+#[cfg(feature = "closed-loop-check")]
 fn run_check(law: &ControlLaw, axis: &mut Axis, s: &Settings) -> ! {
     let painted = stack::paint(32 * 1024);
     let Some(p) = cortex_m::Peripherals::take() else {
