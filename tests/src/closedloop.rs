@@ -384,7 +384,8 @@ fn parse_row(text: &str) -> Option<CheckRow> {
     })
 }
 
-/// Runs the image with `check=on` and the words `args` (with `-icount shift=0` when `icount`).
+/// Runs the image (one from [`build_check_image`]: a plain image refuses `check=on`) with
+/// `check=on` and the words `args` (with `-icount shift=0` when `icount`).
 pub fn run_check(elf: &Path, args: &[&str], icount: bool) -> Result<CheckRun, Error> {
     let mut words: Vec<String> = vec!["check=on".into()];
     words.extend(args.iter().map(|s| s.to_string()));
