@@ -1,5 +1,7 @@
 //! The power-up firmware writes its frame lines with defmt, whose format strings must be
-//! literals in `firmware/app/src/main.rs`. This test reads those literals and checks them
+//! literals: in `firmware/app/src/main.rs`, and the `RECEIPT`/`VERDICT` lines in
+//! `firmware/app/src/receipt_log.rs` (shared with the closed-loop image). This test reads those
+//! literals and checks them
 //! against this crate's definition, so the emitter and the host parser cannot drift apart:
 //! every frame keyword is emitted, the header keys come in [`HEADER_KEYS`] order, and the
 //! `FRAME`/`RECEIPT` lines carry exactly [`BIN_FIELDS`]/[`RECEIPT_FIELDS`] fields.
@@ -7,7 +9,11 @@ use ferrosid_frame::{
     header_field, split_line, Keyword, BIN_FIELDS, END_COUNT_PREFIX, HEADER_KEYS, RECEIPT_FIELDS,
 };
 
-const EMITTER: &str = include_str!("../../firmware/app/src/main.rs");
+/// The emitter's sources: every frame line is written in exactly one of them.
+const EMITTER: [&str; 2] = [
+    include_str!("../../firmware/app/src/main.rs"),
+    include_str!("../../firmware/app/src/receipt_log.rs"),
+];
 
 /// The first string literal of every `defmt::println!` call.
 fn println_literals(src: &str) -> Vec<String> {
@@ -44,9 +50,10 @@ fn instantiate(fmt: &str) -> String {
 }
 
 fn emitted(k: Keyword) -> Vec<Vec<String>> {
-    println_literals(EMITTER)
+    EMITTER
         .iter()
-        .map(|f| instantiate(f))
+        .flat_map(|src| println_literals(src))
+        .map(|f| instantiate(&f))
         .filter_map(|line| {
             let (kw, rest) = split_line(&line)?;
             (kw == k && line.starts_with(k.as_str())).then(|| rest.map(str::to_string).collect())
@@ -57,7 +64,12 @@ fn emitted(k: Keyword) -> Vec<Vec<String>> {
 #[test]
 fn the_emitter_writes_every_frame_line_once() {
     for k in Keyword::ALL {
-        assert_eq!(emitted(k).len(), 1, "{} lines in main.rs", k.as_str());
+        assert_eq!(
+            emitted(k).len(),
+            1,
+            "{} lines in main.rs and receipt_log.rs",
+            k.as_str()
+        );
     }
 }
 
