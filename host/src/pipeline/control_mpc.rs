@@ -121,6 +121,8 @@ pub(super) fn run_mpc(
     out.status = "designed";
     out.gain_crossover_hz = r.bandwidth_hz;
     out.step = r.step.as_ref().map(|s| s.step.clone());
+    out.step_effect = r.step_effect.clone();
+    out.linear_step_receipts = r.linear_step_receipts.clone();
     out.design = Some(DesignSummary::Mpc {
         spec: MpcSpecSummary {
             horizon: spec.horizon,
@@ -157,8 +159,13 @@ pub struct MpcReceipts {
     pub pole_modulus: f64,
     /// Its −3 dB bandwidth r → y, Hz (None: not below Nyquist).
     pub bandwidth_hz: Option<f64>,
-    /// The constrained step (None: the simulation failed; its receipts say why).
+    /// The constrained step the receipts come from (None: the simulation failed; its
+    /// receipts say why).
     pub step: Option<MpcStep>,
+    /// The gap verdict's effect and whether the step simulates it.
+    pub step_effect: Option<StepEffect>,
+    /// With the effect simulated: the step receipts on G0 alone (else empty).
+    pub linear_step_receipts: Vec<Receipt>,
 }
 
 /// Receipts of the MPC `d` on G0 (module docs).
@@ -206,7 +213,177 @@ pub(super) fn mpc_receipts(
         ),
     ));
     let samples = ((limits.settling_time_s_max * 2.0).max(50.0 / fc) / ts).floor() as usize;
-    let step = match finding(d.closed_loop_step(inp.model, k.reference_amplitude, samples, 0.02))? {
+    let (step_effect, effect) = diagnosed_effect(inp.gap);
+    let (linear, linear_step) = step_receipts(c, inp, d, limits, samples, None)?;
+    let (linear_step_receipts, step) = match &effect {
+        Some(e) => {
+            let (with, step) = step_receipts(c, inp, d, limits, samples, Some(e))?;
+            for r in with {
+                rs.push(r);
+            }
+            (linear, step)
+        }
+        None => {
+            for r in linear {
+                rs.push(r);
+            }
+            (Vec::new(), linear_step)
+        }
+    };
+    Ok(MpcReceipts {
+        receipts: rs,
+        law,
+        pole_modulus,
+        bandwidth_hz,
+        step,
+        step_effect,
+        linear_step_receipts,
+    })
+}
+
+/// The gap verdict's effect as the MPC's step simulation sees it (`control.step_effect`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StepEffect {
+    /// The verdict (`GapReport::verdict`).
+    pub verdict: String,
+    /// The effect simulated (null when not simulated).
+    pub effect: Option<String>,
+    /// Its place.
+    pub place: Option<String>,
+    /// Its fitted parameters.
+    pub params: Option<std::collections::BTreeMap<String, f64>>,
+    /// True when the top-level `step_*` receipts simulate it between the MPC and G0.
+    pub simulated: bool,
+    /// What was done, or why the effect is not simulated (the step receipts are then G0's).
+    pub note: String,
+}
+
+/// The effect of the run's gap verdict that [`MpcDesign::closed_loop_step_with`] simulates
+/// where the diagnosis placed it: dead zone, backlash, saturation, slew rate or delay at
+/// `drive`; Coulomb friction at `motor` with the output as its velocity; quantisation at
+/// `sensor`. None (and no record) when no verdict effect was diagnosed; a record without an
+/// effect when the verdict names several effects or one the simulation cannot place.
+fn diagnosed_effect(
+    gap: Option<&crate::gap::GapReport>,
+) -> (Option<StepEffect>, Option<crate::gap::effect::Effect>) {
+    use crate::gap::effect::Effect;
+    use crate::gap::place::Place;
+    let Some(report) = gap else {
+        return (None, None);
+    };
+    let placed = match crate::compensation::verdict_effects(report) {
+        Ok(p) if p.is_empty() => return (None, None),
+        Ok(p) => p,
+        Err(e) => {
+            return (
+                Some(not_simulated(
+                    report,
+                    format!("the verdict does not parse: {e}"),
+                )),
+                None,
+            )
+        }
+    };
+    let [pe] = placed.as_slice() else {
+        return (
+            Some(not_simulated(
+                report,
+                format!(
+                    "the verdict names {} effects; the MPC's step simulation takes one, so the \
+                     step receipts are G0's",
+                    placed.len()
+                ),
+            )),
+            None,
+        );
+    };
+    let velocity = report
+        .effects
+        .iter()
+        .find(|e| e.effect == report.verdict_effects[0].effect && e.place == pe.place.to_string())
+        .and_then(|e| e.velocity_from.clone());
+    let fits = match (&pe.effect, pe.place) {
+        (
+            Effect::Deadzone { .. }
+            | Effect::Backlash { .. }
+            | Effect::Saturation { .. }
+            | Effect::SlewRate { .. }
+            | Effect::TimeDelay { .. },
+            Place::Drive,
+        ) => true,
+        (Effect::CoulombFriction { .. }, Place::Motor) => {
+            matches!(velocity.as_deref(), None | Some("output"))
+        }
+        (Effect::Quantization { .. }, Place::Sensor) => true,
+        _ => false,
+    };
+    let mut rec = StepEffect {
+        verdict: report.verdict.clone(),
+        effect: Some(pe.effect.kind().to_string()),
+        place: Some(pe.place.to_string()),
+        params: Some(report.verdict_effects[0].params.clone()),
+        simulated: fits,
+        note: String::new(),
+    };
+    if fits {
+        rec.note = format!(
+            "step_actuator_demand, step_overshoot and step_settling_time simulate {} at {} \
+             between the MPC and G0 (MpcDesign::closed_loop_step_with; the MPC does not know \
+             it); linear_step_receipts hold the same step on G0 alone",
+            pe.effect.kind(),
+            pe.place
+        );
+        (Some(rec), Some(pe.effect.clone()))
+    } else {
+        rec.note = format!(
+            "{} at {}{} is not simulated in the MPC's step (it needs the sub-sampled plant or \
+             another place in the loop); the step receipts are G0's",
+            pe.effect.kind(),
+            pe.place,
+            velocity.map_or(String::new(), |v| format!(" (velocity from {v})"))
+        );
+        (Some(rec), None)
+    }
+}
+
+fn not_simulated(report: &crate::gap::GapReport, note: String) -> StepEffect {
+    StepEffect {
+        verdict: report.verdict.clone(),
+        effect: None,
+        place: None,
+        params: None,
+        simulated: false,
+        note,
+    }
+}
+
+/// The three step receipts of the MPC's constrained step on G0, with `effect` between the MPC
+/// and G0 when given, and the step (None: the simulation failed; its receipts say why).
+fn step_receipts(
+    c: &PipelineConfig,
+    inp: &ControlStageInputs<'_>,
+    d: &MpcDesign,
+    limits: &ReceiptLimits,
+    samples: usize,
+    effect: Option<&crate::gap::effect::Effect>,
+) -> Result<(Vec<Receipt>, Option<MpcStep>)> {
+    let k = &c.control;
+    let ts = inp.model.ts;
+    let mut rs = Receipts::default();
+    let with = effect.map_or(String::new(), |e| {
+        let p: Vec<String> = e
+            .params()
+            .iter()
+            .map(|(n, v)| format!("{n} = {}", fmt_num(*v)))
+            .collect();
+        format!(
+            "with the diagnosed {} ({}) in the loop: ",
+            e.kind(),
+            p.join(", ")
+        )
+    });
+    let r = k.reference_amplitude;
+    let step = match finding(d.closed_loop_step_with(inp.model, effect, r, samples, 0.02))? {
         Ok(s) => s,
         Err(e) => {
             push_failed_step_receipts(
@@ -217,15 +394,9 @@ pub(super) fn mpc_receipts(
                     "MPC step overshoot",
                     "MPC step settling time",
                 ],
-                &e,
+                &format!("{with}{e}"),
             );
-            return Ok(MpcReceipts {
-                receipts: rs,
-                law,
-                pole_modulus,
-                bandwidth_hz,
-                step: None,
-            });
+            return Ok((rs.receipts, None));
         }
     };
     let s = &step.step;
@@ -241,7 +412,7 @@ pub(super) fn mpc_receipts(
         1.0 + 1e-9,
         "1",
         format!(
-            "step of {} to rails ±{} {unit}, rate limit {} {unit}/sample: max |u| {}, max |Δu| \
+            "{with}step of {} to rails ±{} {unit}, rate limit {} {unit}/sample: max |u| {}, max |Δu| \
              {}; {} samples at the rail; raw ADMM U₀ at most {} {unit} outside the box before \
              the clamp; host simulation of the fixed-budget law ({} ADMM iterations, N = {}), \
              ts = {ts} s",
@@ -263,7 +434,7 @@ pub(super) fn mpc_receipts(
         Comparison::AtMost,
         limits.overshoot_pct_max,
         "%",
-        format!("rise time 10–90 %: {:?} s", s.rise_time_s),
+        format!("{with}rise time 10–90 %: {:?} s", s.rise_time_s),
     ));
     rs.push(Receipt::new(
         ReceiptKind::StepSettlingTime,
@@ -273,19 +444,13 @@ pub(super) fn mpc_receipts(
         limits.settling_time_s_max,
         "s",
         format!(
-            "simulated {} s; final error {} (no integral action: offset-free only on the \
+            "{with}simulated {} s; final error {} (no integral action: offset-free only on the \
              model itself)",
             fmt_num(s.t.last().copied().unwrap_or(0.0)),
             fmt_num(s.final_error)
         ),
     ));
-    Ok(MpcReceipts {
-        receipts: rs,
-        law,
-        pole_modulus,
-        bandwidth_hz,
-        step: Some(step),
-    })
+    Ok((rs.receipts, Some(step)))
 }
 
 /// The MPC as a codegen block (None unless an MPC was designed): the prediction model's
