@@ -9,6 +9,13 @@
 //! (rails and rate limit respected), `step_overshoot`, `step_settling_time`. The
 //! frequency-domain loop receipts need an LTI output-feedback controller and are listed in
 //! `control.not_applicable` with the reason.
+//!
+//! When the run's gap verdict names one effect the step simulation can place
+//! ([`diagnosed_effect`]), the three step receipts simulate it between the MPC and G0
+//! ([`MpcDesign::closed_loop_step_with`]): they gate the run on the plant as diagnosed. The
+//! same step on G0 alone goes to `control.linear_step_receipts` (comparable with the other
+//! methods' step receipts and the QEMU replay), and `control.step_effect` says which effect was
+//! simulated or why none was. Without a verdict effect nothing changes.
 use super::config::PipelineConfig;
 use super::control_stage::{
     design_receipt, finding, ControlMethod, ControlOutcome, ControlStageInputs, DesignSummary,
@@ -333,7 +340,7 @@ fn diagnosed_effect(
             pe.effect.kind(),
             pe.place
         );
-        (Some(rec), Some(pe.effect.clone()))
+        (Some(rec), Some(pe.effect))
     } else {
         rec.note = format!(
             "{} at {}{} is not simulated in the MPC's step (it needs the sub-sampled plant or \
