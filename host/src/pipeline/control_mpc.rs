@@ -11,7 +11,7 @@
 //! `control.not_applicable` with the reason.
 //!
 //! When the run's gap verdict names one effect the step simulation can place
-//! ([`diagnosed_effect`]), the three step receipts simulate it between the MPC and G0
+//! (`diagnosed_effect`), the three step receipts simulate it between the MPC and G0
 //! ([`MpcDesign::closed_loop_step_with`]): they gate the run on the plant as diagnosed. The
 //! same step on G0 alone goes to `control.linear_step_receipts` (comparable with the other
 //! methods' step receipts and the QEMU replay), and `control.step_effect` says which effect was
@@ -273,18 +273,36 @@ pub struct StepEffect {
 fn diagnosed_effect(
     gap: Option<&crate::gap::GapReport>,
 ) -> (Option<StepEffect>, Option<crate::gap::effect::Effect>) {
-    use crate::gap::effect::Effect;
-    use crate::gap::place::Place;
     let Some(report) = gap else {
         return (None, None);
     };
-    let placed = match crate::compensation::verdict_effects(report) {
+    // The velocity proxy of the verdict's own fit (friction), as the compensation stage reads it.
+    let velocity = report.verdict_effects.first().and_then(|v| {
+        report
+            .effects
+            .iter()
+            .find(|e| e.effect == v.effect && e.place == v.place)
+            .and_then(|e| e.velocity_from.as_deref())
+    });
+    effect_from_verdict(&report.verdict, &report.verdict_effects, velocity)
+}
+
+/// [`diagnosed_effect`] from the parts of a gap report: the verdict, its effects and the
+/// velocity source of its friction fit (`None`: output).
+fn effect_from_verdict(
+    verdict: &str,
+    verdict_effects: &[crate::gap::report::VerdictEffect],
+    velocity: Option<&str>,
+) -> (Option<StepEffect>, Option<crate::gap::effect::Effect>) {
+    use crate::gap::effect::Effect;
+    use crate::gap::place::Place;
+    let placed = match crate::compensation::parse_verdict(verdict, verdict_effects) {
         Ok(p) if p.is_empty() => return (None, None),
         Ok(p) => p,
         Err(e) => {
             return (
                 Some(not_simulated(
-                    report,
+                    verdict,
                     format!("the verdict does not parse: {e}"),
                 )),
                 None,
@@ -294,7 +312,7 @@ fn diagnosed_effect(
     let [pe] = placed.as_slice() else {
         return (
             Some(not_simulated(
-                report,
+                verdict,
                 format!(
                     "the verdict names {} effects; the MPC's step simulation takes one, so the \
                      step receipts are G0's",
@@ -304,11 +322,6 @@ fn diagnosed_effect(
             None,
         );
     };
-    let velocity = report
-        .effects
-        .iter()
-        .find(|e| e.effect == report.verdict_effects[0].effect && e.place == pe.place.to_string())
-        .and_then(|e| e.velocity_from.clone());
     let fits = match (&pe.effect, pe.place) {
         (
             Effect::Deadzone { .. }
@@ -319,16 +332,16 @@ fn diagnosed_effect(
             Place::Drive,
         ) => true,
         (Effect::CoulombFriction { .. }, Place::Motor) => {
-            matches!(velocity.as_deref(), None | Some("output"))
+            matches!(velocity, None | Some("output"))
         }
         (Effect::Quantization { .. }, Place::Sensor) => true,
         _ => false,
     };
     let mut rec = StepEffect {
-        verdict: report.verdict.clone(),
+        verdict: verdict.to_string(),
         effect: Some(pe.effect.kind().to_string()),
         place: Some(pe.place.to_string()),
-        params: Some(report.verdict_effects[0].params.clone()),
+        params: Some(verdict_effects[0].params.clone()),
         simulated: fits,
         note: String::new(),
     };
@@ -353,9 +366,9 @@ fn diagnosed_effect(
     }
 }
 
-fn not_simulated(report: &crate::gap::GapReport, note: String) -> StepEffect {
+fn not_simulated(verdict: &str, note: String) -> StepEffect {
     StepEffect {
-        verdict: report.verdict.clone(),
+        verdict: verdict.to_string(),
         effect: None,
         place: None,
         params: None,
@@ -510,5 +523,74 @@ pub fn mpc_state_controller(
         }),
         saturation: None,
         pid_notch: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::effect_from_verdict;
+    use crate::gap::effect::Effect;
+    use crate::gap::report::VerdictEffect;
+
+    fn ve(effect: &str, place: &str, params: &[(&str, f64)]) -> VerdictEffect {
+        VerdictEffect {
+            effect: effect.into(),
+            place: place.into(),
+            params: params.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
+            share: 1.0,
+        }
+    }
+
+    #[test]
+    fn only_one_effect_the_simulation_can_place_is_simulated() {
+        // No effect: no record (receipts.json unchanged).
+        assert!(matches!(
+            effect_from_verdict("none", &[], None),
+            (None, None)
+        ));
+        assert!(matches!(
+            effect_from_verdict("unexplained", &[], None),
+            (None, None)
+        ));
+        // A dead zone at the drive: simulated, with its fitted width.
+        let (rec, e) = effect_from_verdict(
+            "deadzone",
+            &[ve("deadzone", "drive", &[("width", 0.02)])],
+            None,
+        );
+        assert_eq!(e, Some(Effect::Deadzone { width: 0.02 }));
+        let rec = rec.unwrap();
+        assert!(rec.simulated && rec.place.as_deref() == Some("drive"));
+        // Friction at the motor with the output as velocity: simulated; with a differentiated
+        // position output (the simulation's law takes the output's sign): not.
+        let f = [ve("coulomb_friction", "motor", &[("level", 0.01)])];
+        assert_eq!(
+            effect_from_verdict("coulomb_friction", &f, Some("output")).1,
+            Some(Effect::CoulombFriction { level: 0.01 })
+        );
+        let (rec, e) = effect_from_verdict("coulomb_friction", &f, Some("output_derivative"));
+        assert!(e.is_none());
+        let rec = rec.unwrap();
+        assert!(
+            !rec.simulated && rec.note.contains("output_derivative"),
+            "{}",
+            rec.note
+        );
+        // Backlash between the inertias is not at the plant input: not simulated.
+        let (rec, e) = effect_from_verdict(
+            "backlash",
+            &[ve("backlash", "drivetrain", &[("gap", 0.01)])],
+            None,
+        );
+        assert!(e.is_none() && !rec.unwrap().simulated);
+        // Two effects: the simulation takes one; recorded, not simulated.
+        let two = [
+            ve("deadzone", "drive", &[("width", 0.02)]),
+            ve("coulomb_friction", "motor", &[("level", 0.01)]),
+        ];
+        let (rec, e) = effect_from_verdict("deadzone+coulomb_friction", &two, None);
+        assert!(e.is_none());
+        let rec = rec.unwrap();
+        assert!(!rec.simulated && rec.effect.is_none() && rec.note.contains("2 effects"));
     }
 }
