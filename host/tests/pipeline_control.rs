@@ -318,3 +318,115 @@ fn bad_control_keys_name_file_line_and_key() {
         assert!(e.contains(key) && e.contains(what), "{extra}: {e}");
     }
 }
+
+/// `method = "mpc"` on the example as it ships (`[gap] run = "always"` diagnoses Coulomb
+/// friction at the motor): the top-level step receipts simulate the friction between the MPC
+/// and G0, equal a direct `closed_loop_step_with`, keep the linear step in
+/// `control.linear_step_receipts`, and move the way friction moves a loop without integral
+/// action: less overshoot and a final error equal to the steady-state offset of the
+/// unconstrained law against a constant −level at the plant input (computed here by hand).
+#[test]
+fn mpc_step_receipts_simulate_the_diagnosed_friction() {
+    use ferrosid::gap::effect::Effect;
+    let t = std::fs::read_to_string(example_path()).unwrap();
+    let t = t[..t.find("[physical]").unwrap()].replace(
+        "reference_amplitude = 5.0   # rad/s speed step\n",
+        "reference_amplitude = 5.0   # rad/s speed step\nmethod = \"mpc\"\n",
+    );
+    let cfg = LoadedConfig::from_text(&example_path(), &t).unwrap();
+    let run = run_pipeline(&cfg, &|_| {}).unwrap();
+    let report = run.gap.report().expect("the example diagnoses every run");
+    assert_eq!(report.verdict, "coulomb_friction");
+    let level = report.verdict_effects[0].params["level"];
+    let c = run.control.as_ref().unwrap();
+    let se = c.step_effect.as_ref().unwrap();
+    assert!(se.simulated, "{}", se.note);
+    assert_eq!(se.place.as_deref(), Some("motor"));
+    let (d, g0) = c.mpc.as_ref().unwrap();
+    let r = 5.0;
+    let n = c.step.as_ref().unwrap().y.len();
+    let with = d
+        .closed_loop_step_with(g0, Some(&Effect::CoulombFriction { level }), r, n, 0.02)
+        .unwrap();
+    let lin = d.closed_loop_step(g0, r, n, 0.02).unwrap();
+    assert_eq!(c.step.as_ref().unwrap().y, with.step.y);
+    let value = |rs: &[ferrosid::robust::receipts::Receipt], name: &str| {
+        let x: Vec<_> = rs.iter().filter(|x| x.name == name).collect();
+        assert_eq!(x.len(), 1, "{name}");
+        x[0].value
+    };
+    let top = &run.receipts.receipts;
+    assert_eq!(value(top, "step_overshoot"), with.step.overshoot_pct);
+    assert_eq!(
+        value(top, "step_settling_time"),
+        with.step.settling_time_s.unwrap()
+    );
+    assert!(top
+        .iter()
+        .any(|x| x.name == "step_overshoot" && x.detail.contains("coulomb_friction")));
+    let linear = &c.linear_step_receipts;
+    assert_eq!(value(linear, "step_overshoot"), lin.step.overshoot_pct);
+    assert_eq!(
+        value(linear, "step_settling_time"),
+        lin.step.settling_time_s.unwrap()
+    );
+    assert!(with.step.overshoot_pct < lin.step.overshoot_pct);
+    assert!(lin.step.final_error.abs() < 1e-6 * r);
+    // Steady state of u = −k_x·x + k_r·r + k_u·u, x = A x + B (u − level): with
+    // m = (I − A)⁻¹B, u (1 − k_u + k_x·m) = k_x·m·level + k_r·r, y = C m (u − level).
+    let law = d.unconstrained_law().unwrap();
+    let ns = g0.n_states();
+    let mut aug: Vec<Vec<f64>> = (0..ns)
+        .map(|i| {
+            let mut row: Vec<f64> = (0..ns)
+                .map(|j| f64::from(u8::from(i == j)) - g0.a[(i, j)])
+                .collect();
+            row.push(g0.b[(i, 0)]);
+            row
+        })
+        .collect();
+    for p in 0..ns {
+        let piv = (p..ns)
+            .max_by(|&a, &b| aug[a][p].abs().total_cmp(&aug[b][p].abs()))
+            .unwrap();
+        aug.swap(p, piv);
+        for i in 0..ns {
+            if i != p {
+                let f = aug[i][p] / aug[p][p];
+                for j in p..=ns {
+                    aug[i][j] -= f * aug[p][j];
+                }
+            }
+        }
+    }
+    let m: Vec<f64> = (0..ns).map(|i| aug[i][ns] / aug[i][i]).collect();
+    let kxm: f64 = law.kx.iter().zip(&m).map(|(a, b)| a * b).sum();
+    let cm: f64 = (0..ns).map(|j| g0.c[(0, j)] * m[j]).sum();
+    let u = (kxm * level + law.kr * r) / (1.0 - law.ku + kxm);
+    let offset = r - cm * (u - level);
+    assert!(offset > 0.0);
+    assert!(
+        (with.step.final_error - offset).abs() <= 1e-3 * offset,
+        "final error {} vs steady-state offset {offset}",
+        with.step.final_error
+    );
+    let doc: serde_json::Value = serde_json::from_str(&json(&run)).unwrap();
+    assert_eq!(doc["control"]["step_effect"]["simulated"], true);
+    assert_eq!(
+        doc["control"]["linear_step_receipts"]
+            .as_array()
+            .unwrap()
+            .len(),
+        3
+    );
+}
+
+/// Without a diagnosis the MPC writes neither `step_effect` nor `linear_step_receipts`.
+#[test]
+fn mpc_without_a_diagnosis_writes_no_effect_keys() {
+    let run = run("method = \"mpc\"\n");
+    assert!(run.gap.report().is_none());
+    let doc: serde_json::Value = serde_json::from_str(&json(&run)).unwrap();
+    assert!(doc["control"].get("step_effect").is_none());
+    assert!(doc["control"].get("linear_step_receipts").is_none());
+}

@@ -9,6 +9,13 @@
 //! (rails and rate limit respected), `step_overshoot`, `step_settling_time`. The
 //! frequency-domain loop receipts need an LTI output-feedback controller and are listed in
 //! `control.not_applicable` with the reason.
+//!
+//! When the run's gap verdict names one effect the step simulation can place
+//! (`diagnosed_effect`), the three step receipts simulate it between the MPC and G0
+//! ([`MpcDesign::closed_loop_step_with`]): they gate the run on the plant as diagnosed. The
+//! same step on G0 alone goes to `control.linear_step_receipts` (comparable with the other
+//! methods' step receipts and the QEMU replay), and `control.step_effect` says which effect was
+//! simulated or why none was. Without a verdict effect nothing changes.
 use super::config::PipelineConfig;
 use super::control_stage::{
     design_receipt, finding, ControlMethod, ControlOutcome, ControlStageInputs, DesignSummary,
@@ -121,6 +128,8 @@ pub(super) fn run_mpc(
     out.status = "designed";
     out.gain_crossover_hz = r.bandwidth_hz;
     out.step = r.step.as_ref().map(|s| s.step.clone());
+    out.step_effect = r.step_effect.clone();
+    out.linear_step_receipts = r.linear_step_receipts.clone();
     out.design = Some(DesignSummary::Mpc {
         spec: MpcSpecSummary {
             horizon: spec.horizon,
@@ -157,8 +166,13 @@ pub struct MpcReceipts {
     pub pole_modulus: f64,
     /// Its −3 dB bandwidth r → y, Hz (None: not below Nyquist).
     pub bandwidth_hz: Option<f64>,
-    /// The constrained step (None: the simulation failed; its receipts say why).
+    /// The constrained step the receipts come from (None: the simulation failed; its
+    /// receipts say why).
     pub step: Option<MpcStep>,
+    /// The gap verdict's effect and whether the step simulates it.
+    pub step_effect: Option<StepEffect>,
+    /// With the effect simulated: the step receipts on G0 alone (else empty).
+    pub linear_step_receipts: Vec<Receipt>,
 }
 
 /// Receipts of the MPC `d` on G0 (module docs).
@@ -206,7 +220,190 @@ pub(super) fn mpc_receipts(
         ),
     ));
     let samples = ((limits.settling_time_s_max * 2.0).max(50.0 / fc) / ts).floor() as usize;
-    let step = match finding(d.closed_loop_step(inp.model, k.reference_amplitude, samples, 0.02))? {
+    let (step_effect, effect) = diagnosed_effect(inp.gap);
+    let (linear, linear_step) = step_receipts(c, inp, d, limits, samples, None)?;
+    let (linear_step_receipts, step) = match &effect {
+        Some(e) => {
+            let (with, step) = step_receipts(c, inp, d, limits, samples, Some(e))?;
+            for r in with {
+                rs.push(r);
+            }
+            (linear, step)
+        }
+        None => {
+            for r in linear {
+                rs.push(r);
+            }
+            (Vec::new(), linear_step)
+        }
+    };
+    Ok(MpcReceipts {
+        receipts: rs,
+        law,
+        pole_modulus,
+        bandwidth_hz,
+        step,
+        step_effect,
+        linear_step_receipts,
+    })
+}
+
+/// The gap verdict's effect as the MPC's step simulation sees it (`control.step_effect`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StepEffect {
+    /// The verdict (`GapReport::verdict`).
+    pub verdict: String,
+    /// The effect simulated (null when not simulated).
+    pub effect: Option<String>,
+    /// Its place.
+    pub place: Option<String>,
+    /// Its fitted parameters.
+    pub params: Option<std::collections::BTreeMap<String, f64>>,
+    /// True when the top-level `step_*` receipts simulate it between the MPC and G0.
+    pub simulated: bool,
+    /// What was done, or why the effect is not simulated (the step receipts are then G0's).
+    pub note: String,
+}
+
+/// The effect of the run's gap verdict that [`MpcDesign::closed_loop_step_with`] simulates
+/// where the diagnosis placed it: dead zone, backlash, saturation, slew rate or delay at
+/// `drive`; Coulomb friction at `motor` with the output as its velocity; quantisation at
+/// `sensor`. None (and no record) when no verdict effect was diagnosed; a record without an
+/// effect when the verdict names several effects or one the simulation cannot place.
+fn diagnosed_effect(
+    gap: Option<&crate::gap::GapReport>,
+) -> (Option<StepEffect>, Option<crate::gap::effect::Effect>) {
+    let Some(report) = gap else {
+        return (None, None);
+    };
+    // The velocity proxy of the verdict's own fit (friction), as the compensation stage reads it.
+    let velocity = report.verdict_effects.first().and_then(|v| {
+        report
+            .effects
+            .iter()
+            .find(|e| e.effect == v.effect && e.place == v.place)
+            .and_then(|e| e.velocity_from.as_deref())
+    });
+    effect_from_verdict(&report.verdict, &report.verdict_effects, velocity)
+}
+
+/// [`diagnosed_effect`] from the parts of a gap report: the verdict, its effects and the
+/// velocity source of its friction fit (`None`: output).
+fn effect_from_verdict(
+    verdict: &str,
+    verdict_effects: &[crate::gap::report::VerdictEffect],
+    velocity: Option<&str>,
+) -> (Option<StepEffect>, Option<crate::gap::effect::Effect>) {
+    use crate::gap::effect::Effect;
+    use crate::gap::place::Place;
+    let placed = match crate::compensation::parse_verdict(verdict, verdict_effects) {
+        Ok(p) if p.is_empty() => return (None, None),
+        Ok(p) => p,
+        Err(e) => {
+            return (
+                Some(not_simulated(
+                    verdict,
+                    format!("the verdict does not parse: {e}"),
+                )),
+                None,
+            )
+        }
+    };
+    let [pe] = placed.as_slice() else {
+        return (
+            Some(not_simulated(
+                verdict,
+                format!(
+                    "the verdict names {} effects; the MPC's step simulation takes one, so the \
+                     step receipts are G0's",
+                    placed.len()
+                ),
+            )),
+            None,
+        );
+    };
+    let fits = match (&pe.effect, pe.place) {
+        (
+            Effect::Deadzone { .. }
+            | Effect::Backlash { .. }
+            | Effect::Saturation { .. }
+            | Effect::SlewRate { .. }
+            | Effect::TimeDelay { .. },
+            Place::Drive,
+        ) => true,
+        (Effect::CoulombFriction { .. }, Place::Motor) => {
+            matches!(velocity, None | Some("output"))
+        }
+        (Effect::Quantization { .. }, Place::Sensor) => true,
+        _ => false,
+    };
+    let mut rec = StepEffect {
+        verdict: verdict.to_string(),
+        effect: Some(pe.effect.kind().to_string()),
+        place: Some(pe.place.to_string()),
+        params: Some(verdict_effects[0].params.clone()),
+        simulated: fits,
+        note: String::new(),
+    };
+    if fits {
+        rec.note = format!(
+            "step_actuator_demand, step_overshoot and step_settling_time simulate {} at {} \
+             between the MPC and G0 (MpcDesign::closed_loop_step_with; the MPC does not know \
+             it); linear_step_receipts hold the same step on G0 alone",
+            pe.effect.kind(),
+            pe.place
+        );
+        (Some(rec), Some(pe.effect))
+    } else {
+        rec.note = format!(
+            "{} at {}{} is not simulated in the MPC's step (it needs the sub-sampled plant or \
+             another place in the loop); the step receipts are G0's",
+            pe.effect.kind(),
+            pe.place,
+            velocity.map_or(String::new(), |v| format!(" (velocity from {v})"))
+        );
+        (Some(rec), None)
+    }
+}
+
+fn not_simulated(verdict: &str, note: String) -> StepEffect {
+    StepEffect {
+        verdict: verdict.to_string(),
+        effect: None,
+        place: None,
+        params: None,
+        simulated: false,
+        note,
+    }
+}
+
+/// The three step receipts of the MPC's constrained step on G0, with `effect` between the MPC
+/// and G0 when given, and the step (None: the simulation failed; its receipts say why).
+fn step_receipts(
+    c: &PipelineConfig,
+    inp: &ControlStageInputs<'_>,
+    d: &MpcDesign,
+    limits: &ReceiptLimits,
+    samples: usize,
+    effect: Option<&crate::gap::effect::Effect>,
+) -> Result<(Vec<Receipt>, Option<MpcStep>)> {
+    let k = &c.control;
+    let ts = inp.model.ts;
+    let mut rs = Receipts::default();
+    let with = effect.map_or(String::new(), |e| {
+        let p: Vec<String> = e
+            .params()
+            .iter()
+            .map(|(n, v)| format!("{n} = {}", fmt_num(*v)))
+            .collect();
+        format!(
+            "with the diagnosed {} ({}) in the loop: ",
+            e.kind(),
+            p.join(", ")
+        )
+    });
+    let r = k.reference_amplitude;
+    let step = match finding(d.closed_loop_step_with(inp.model, effect, r, samples, 0.02))? {
         Ok(s) => s,
         Err(e) => {
             push_failed_step_receipts(
@@ -217,15 +414,9 @@ pub(super) fn mpc_receipts(
                     "MPC step overshoot",
                     "MPC step settling time",
                 ],
-                &e,
+                &format!("{with}{e}"),
             );
-            return Ok(MpcReceipts {
-                receipts: rs,
-                law,
-                pole_modulus,
-                bandwidth_hz,
-                step: None,
-            });
+            return Ok((rs.receipts, None));
         }
     };
     let s = &step.step;
@@ -241,7 +432,7 @@ pub(super) fn mpc_receipts(
         1.0 + 1e-9,
         "1",
         format!(
-            "step of {} to rails ±{} {unit}, rate limit {} {unit}/sample: max |u| {}, max |Δu| \
+            "{with}step of {} to rails ±{} {unit}, rate limit {} {unit}/sample: max |u| {}, max |Δu| \
              {}; {} samples at the rail; raw ADMM U₀ at most {} {unit} outside the box before \
              the clamp; host simulation of the fixed-budget law ({} ADMM iterations, N = {}), \
              ts = {ts} s",
@@ -263,7 +454,7 @@ pub(super) fn mpc_receipts(
         Comparison::AtMost,
         limits.overshoot_pct_max,
         "%",
-        format!("rise time 10–90 %: {:?} s", s.rise_time_s),
+        format!("{with}rise time 10–90 %: {:?} s", s.rise_time_s),
     ));
     rs.push(Receipt::new(
         ReceiptKind::StepSettlingTime,
@@ -273,19 +464,13 @@ pub(super) fn mpc_receipts(
         limits.settling_time_s_max,
         "s",
         format!(
-            "simulated {} s; final error {} (no integral action: offset-free only on the \
+            "{with}simulated {} s; final error {} (no integral action: offset-free only on the \
              model itself)",
             fmt_num(s.t.last().copied().unwrap_or(0.0)),
             fmt_num(s.final_error)
         ),
     ));
-    Ok(MpcReceipts {
-        receipts: rs,
-        law,
-        pole_modulus,
-        bandwidth_hz,
-        step: Some(step),
-    })
+    Ok((rs.receipts, Some(step)))
 }
 
 /// The MPC as a codegen block (None unless an MPC was designed): the prediction model's
@@ -338,5 +523,74 @@ pub fn mpc_state_controller(
         }),
         saturation: None,
         pid_notch: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::effect_from_verdict;
+    use crate::gap::effect::Effect;
+    use crate::gap::report::VerdictEffect;
+
+    fn ve(effect: &str, place: &str, params: &[(&str, f64)]) -> VerdictEffect {
+        VerdictEffect {
+            effect: effect.into(),
+            place: place.into(),
+            params: params.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
+            share: 1.0,
+        }
+    }
+
+    #[test]
+    fn only_one_effect_the_simulation_can_place_is_simulated() {
+        // No effect: no record (receipts.json unchanged).
+        assert!(matches!(
+            effect_from_verdict("none", &[], None),
+            (None, None)
+        ));
+        assert!(matches!(
+            effect_from_verdict("unexplained", &[], None),
+            (None, None)
+        ));
+        // A dead zone at the drive: simulated, with its fitted width.
+        let (rec, e) = effect_from_verdict(
+            "deadzone",
+            &[ve("deadzone", "drive", &[("width", 0.02)])],
+            None,
+        );
+        assert_eq!(e, Some(Effect::Deadzone { width: 0.02 }));
+        let rec = rec.unwrap();
+        assert!(rec.simulated && rec.place.as_deref() == Some("drive"));
+        // Friction at the motor with the output as velocity: simulated; with a differentiated
+        // position output (the simulation's law takes the output's sign): not.
+        let f = [ve("coulomb_friction", "motor", &[("level", 0.01)])];
+        assert_eq!(
+            effect_from_verdict("coulomb_friction", &f, Some("output")).1,
+            Some(Effect::CoulombFriction { level: 0.01 })
+        );
+        let (rec, e) = effect_from_verdict("coulomb_friction", &f, Some("output_derivative"));
+        assert!(e.is_none());
+        let rec = rec.unwrap();
+        assert!(
+            !rec.simulated && rec.note.contains("output_derivative"),
+            "{}",
+            rec.note
+        );
+        // Backlash between the inertias is not at the plant input: not simulated.
+        let (rec, e) = effect_from_verdict(
+            "backlash",
+            &[ve("backlash", "drivetrain", &[("gap", 0.01)])],
+            None,
+        );
+        assert!(e.is_none() && !rec.unwrap().simulated);
+        // Two effects: the simulation takes one; recorded, not simulated.
+        let two = [
+            ve("deadzone", "drive", &[("width", 0.02)]),
+            ve("coulomb_friction", "motor", &[("level", 0.01)]),
+        ];
+        let (rec, e) = effect_from_verdict("deadzone+coulomb_friction", &two, None);
+        assert!(e.is_none());
+        let rec = rec.unwrap();
+        assert!(!rec.simulated && rec.effect.is_none() && rec.note.contains("2 effects"));
     }
 }

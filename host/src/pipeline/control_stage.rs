@@ -348,6 +348,14 @@ pub struct ControlOutcome {
     /// name are in `replaced_pid_receipts`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub not_applicable: Vec<NotApplicable>,
+    /// `mpc`: the gap verdict's effect and whether the step receipts simulate it in the loop
+    /// (absent when the run diagnosed no effect; [`super::control_mpc::StepEffect`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub step_effect: Option<super::control_mpc::StepEffect>,
+    /// `mpc` with the effect in the loop: the step receipts on the linear G0 (the plant the
+    /// other methods' step receipts use), for comparison; absent otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub linear_step_receipts: Vec<Receipt>,
     /// Margins of the chosen loop.
     pub margins: Option<Margins>,
     /// Loop curves for the report (not written to JSON).
@@ -597,6 +605,8 @@ pub(super) struct ControlStageInputs<'a> {
     pub fs: f64,
     /// Lowest ETFE bin above 0, Hz (bottom of the curves' grid).
     pub f_first_bin: Option<f64>,
+    /// The run's gap diagnosis, when it ran (the MPC simulates its verdict's effect).
+    pub gap: Option<&'a crate::gap::GapReport>,
 }
 
 impl ControlStageInputs<'_> {
@@ -635,6 +645,8 @@ pub(super) fn run_control_stage(
         receipts: Receipts::default(),
         replaced_pid_receipts: Vec::new(),
         not_applicable: Vec::new(),
+        step_effect: None,
+        linear_step_receipts: Vec::new(),
         margins: None,
         curves: None,
         step: None,

@@ -532,6 +532,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             baseline: tuning.as_ref().ok(),
             fs,
             f_first_bin: runs[nominal].etfe.freq_hz.get(1).copied(),
+            gap: gap.report(),
         },
         &mut receipts,
     )?
