@@ -419,6 +419,15 @@ fn mpc_step_receipts_simulate_the_diagnosed_friction() {
             .len(),
         3
     );
+    // The report's step figure says the step has the friction in the loop.
+    let figs = ferrosid::report::figures(&run).unwrap();
+    let step = figs.iter().find(|f| f.name == "control_step").unwrap();
+    assert!(
+        step.caption
+            .contains("With the diagnosed coulomb_friction (level "),
+        "{}",
+        step.caption
+    );
 }
 
 /// Without a diagnosis the MPC writes neither `step_effect` nor `linear_step_receipts`.

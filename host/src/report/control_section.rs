@@ -139,11 +139,35 @@ pub(crate) fn figures(run: &PipelineRun) -> Result<Vec<Figure>> {
                 fmt_num(s.overshoot_pct),
                 s.settling_time_s
                     .map_or("not reached".into(), |t| format!("{} s", fmt_num(t)))
-            ),
+            ) + &step_effect_caption(c.step_effect.as_ref()),
             svg: plot::render("control_step", FIG_WIDTH, &[(py, 260), (pu, 220)])?,
         });
     }
     Ok(out)
+}
+
+/// The caption's note on the diagnosed effect an MPC step simulates between the controller and
+/// G0 (empty when none is simulated: the step is G0's).
+fn step_effect_caption(e: Option<&crate::pipeline::control_mpc::StepEffect>) -> String {
+    match e {
+        Some(e) if e.simulated => {
+            let params = e.params.as_ref().map_or(String::new(), |p| {
+                let v: Vec<String> = p
+                    .iter()
+                    .map(|(k, v)| format!("{k} {}", fmt_num(*v)))
+                    .collect();
+                format!(" ({})", v.join(", "))
+            });
+            format!(
+                " With the diagnosed {}{} at {} in the loop; the command is the controller's, \
+                 before the effect (the same step on G0 alone: control.linear_step_receipts).",
+                e.effect.as_deref().unwrap_or("effect"),
+                params,
+                e.place.as_deref().unwrap_or("?")
+            )
+        }
+        _ => String::new(),
+    }
 }
 
 /// Writes the section (nothing for `pid`).
