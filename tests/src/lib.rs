@@ -129,6 +129,56 @@ pub fn image_target_dir() -> PathBuf {
     repo_root().join("target").join("qemu")
 }
 
+/// Builds bin `bin` of the image crate (feature of the same name) in release around the
+/// generated module `module`, handed over in the environment variable `model_env`, in
+/// `target_dir` (one directory per variant so builds never overwrite each other); returns the
+/// ELF. The outer cargo's target and flags are cleared so the nested build targets the M4F.
+pub fn build_model_image(bin: &str, model_env: &str, module: &Path, target_dir: &Path) -> PathBuf {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut cmd = std::process::Command::new(cargo);
+    cmd.args([
+        "build",
+        "--release",
+        "--target",
+        TARGET,
+        "--features",
+        bin,
+        "--bin",
+        bin,
+    ])
+    .arg("--manifest-path")
+    .arg(image_manifest());
+    for var in [
+        "CARGO_BUILD_TARGET",
+        "CARGO_BUILD_RUSTFLAGS",
+        "RUSTFLAGS",
+        "CARGO_ENCODED_RUSTFLAGS",
+        "CARGO_TARGET_DIR",
+        "CARGO_BUILD_TARGET_DIR",
+    ] {
+        cmd.env_remove(var);
+    }
+    cmd.env("CARGO_TARGET_DIR", target_dir)
+        .env("DEFMT_LOG", "info")
+        .env(model_env, module)
+        .stdin(std::process::Stdio::null());
+    let out = cmd.output().expect("start cargo");
+    assert!(
+        out.status.success(),
+        "building the {bin} image failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    target_dir.join(TARGET).join("release").join(bin)
+}
+
+/// The number after `key=` in a whitespace-separated log line (panics naming the key).
+pub fn log_field(text: &str, key: &str) -> f64 {
+    text.split_whitespace()
+        .find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no {key}= in {text:?}"))
+}
+
 /// Path of the release ELF of image `bin` (after [`build_images`]).
 pub fn image_path(bin: &str) -> PathBuf {
     image_target_dir().join(TARGET).join("release").join(bin)

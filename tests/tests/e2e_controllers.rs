@@ -16,11 +16,10 @@
 //!
 //! Needs qemu-system-arm, llvm-size and the thumbv7em-none-eabihf target (scripts/setup.sh).
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun};
 use ferrosid_tests::{
-    decode_defmt, image_manifest, image_size, repo_root, run_qemu, RunOptions, TARGET,
+    build_model_image, decode_defmt, image_size, log_field, repo_root, run_qemu, RunOptions,
 };
 
 /// Tolerance of the target trajectory against the host's f64 prediction, as a fraction of the
@@ -49,52 +48,6 @@ fn run(extra: &str) -> PipelineRun {
     let t = t.replace(anchor, &format!("{anchor}{extra}\n"));
     let cfg = LoadedConfig::from_text(&example_path(), &t).unwrap();
     run_pipeline(&cfg, &|_| {}).unwrap()
-}
-
-/// Builds the `ctl` image around the generated module `module` in `target_dir`.
-fn build_image(module: &Path, target_dir: &Path) -> PathBuf {
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let mut cmd = Command::new(cargo);
-    cmd.args([
-        "build",
-        "--release",
-        "--target",
-        TARGET,
-        "--features",
-        "ctl",
-        "--bin",
-        "ctl",
-    ])
-    .arg("--manifest-path")
-    .arg(image_manifest());
-    for var in [
-        "CARGO_BUILD_TARGET",
-        "CARGO_BUILD_RUSTFLAGS",
-        "RUSTFLAGS",
-        "CARGO_ENCODED_RUSTFLAGS",
-        "CARGO_TARGET_DIR",
-        "CARGO_BUILD_TARGET_DIR",
-    ] {
-        cmd.env_remove(var);
-    }
-    cmd.env("CARGO_TARGET_DIR", target_dir)
-        .env("DEFMT_LOG", "info")
-        .env("FERROSID_CTL_MODEL", module)
-        .stdin(Stdio::null());
-    let out = cmd.output().expect("start cargo");
-    assert!(
-        out.status.success(),
-        "building the ctl image failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    target_dir.join(TARGET).join("release").join("ctl")
-}
-
-fn field(text: &str, key: &str) -> f64 {
-    text.split_whitespace()
-        .find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no {key}= in {text:?}"))
 }
 
 /// What one run of the image gave.
@@ -190,7 +143,7 @@ fn compare(
         eu <= TOL_U * lim,
         "{name}, r = {r}: u differs from the host by {eu}"
     );
-    let (mean, max) = (field(&t.icount, "mean"), field(&t.icount, "max"));
+    let (mean, max) = (log_field(&t.icount, "mean"), log_field(&t.icount, "max"));
     assert!(mean > 0.0 && max >= mean, "{}", t.icount);
     (ey, eu, at_rail)
 }
@@ -233,7 +186,7 @@ fn check(name: &str, extra: &str, law: &str) {
     if std::fs::read_to_string(&module).ok().as_deref() != Some(files.rust_module.as_str()) {
         std::fs::write(&module, &files.rust_module).unwrap();
     }
-    let elf = build_image(&module, &target);
+    let elf = build_model_image("ctl", "FERROSID_CTL_MODEL", &module, &target);
     let size = image_size(&elf).unwrap();
     eprintln!(
         "{name}: flash {} B, static RAM {} B (text {}, data {}, bss {})",

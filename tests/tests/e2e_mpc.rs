@@ -12,11 +12,10 @@
 //!
 //! Needs qemu-system-arm, llvm-size and the thumbv7em-none-eabihf target (scripts/setup.sh).
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun};
 use ferrosid_tests::{
-    decode_defmt, image_manifest, image_size, repo_root, run_qemu, RunOptions, TARGET,
+    build_model_image, decode_defmt, image_size, log_field, repo_root, run_qemu, RunOptions,
 };
 
 /// Tolerance of the target trajectory against the host's f64 prediction, as a fraction of the
@@ -49,52 +48,6 @@ fn mpc_run(n: usize) -> PipelineRun {
     run_pipeline(&cfg, &|_| {}).unwrap()
 }
 
-/// Builds the `mpc` image around the generated module `module` in `target_dir`.
-fn build_mpc_image(module: &Path, target_dir: &Path) -> PathBuf {
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let mut cmd = Command::new(cargo);
-    cmd.args([
-        "build",
-        "--release",
-        "--target",
-        TARGET,
-        "--features",
-        "mpc",
-        "--bin",
-        "mpc",
-    ])
-    .arg("--manifest-path")
-    .arg(image_manifest());
-    for var in [
-        "CARGO_BUILD_TARGET",
-        "CARGO_BUILD_RUSTFLAGS",
-        "RUSTFLAGS",
-        "CARGO_ENCODED_RUSTFLAGS",
-        "CARGO_TARGET_DIR",
-        "CARGO_BUILD_TARGET_DIR",
-    ] {
-        cmd.env_remove(var);
-    }
-    cmd.env("CARGO_TARGET_DIR", target_dir)
-        .env("DEFMT_LOG", "info")
-        .env("FERROSID_MPC_MODEL", module)
-        .stdin(Stdio::null());
-    let out = cmd.output().expect("start cargo");
-    assert!(
-        out.status.success(),
-        "building the mpc image failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    target_dir.join(TARGET).join("release").join("mpc")
-}
-
-fn field(text: &str, key: &str) -> f64 {
-    text.split_whitespace()
-        .find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('=')))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no {key}= in {text:?}"))
-}
-
 fn check_horizon(n: usize) {
     let run = mpc_run(n);
     let c = run.control.as_ref().expect("control block");
@@ -116,7 +69,7 @@ fn check_horizon(n: usize) {
     if std::fs::read_to_string(&module).ok().as_deref() != Some(files.rust_module.as_str()) {
         std::fs::write(&module, &files.rust_module).unwrap();
     }
-    let elf = build_mpc_image(&module, &dir);
+    let elf = build_model_image("mpc", "FERROSID_MPC_MODEL", &module, &dir);
     check_run(&run, &elf, n, false);
     // The same loop with nalgebra's fixed-size matrices (the comparison of the issue).
     check_run(&run, &elf, n, true);
@@ -164,7 +117,7 @@ fn check_run(run: &PipelineRun, elf: &Path, n: usize, nalgebra: bool) {
     let icount = text("ICOUNT ");
     let stack = text("STACK ");
     assert_eq!(q.exit_code, 0, "image verdict: {rails}");
-    assert_eq!(field(&rails, "crossed"), 0.0, "{rails}");
+    assert_eq!(log_field(&rails, "crossed"), 0.0, "{rails}");
     assert_eq!(trace.len(), 1500);
     // Rails and rate limit, every sample, from the trace (independent of the image's check).
     let (lim, du_max) = (k.actuator_limit, d.spec.du_max);
@@ -214,7 +167,7 @@ fn check_run(run: &PipelineRun, elf: &Path, n: usize, nalgebra: bool) {
         eu <= TOL_U * lim,
         "N = {n}: u differs from the host by {eu}"
     );
-    let (mean, max) = (field(&icount, "mean"), field(&icount, "max"));
+    let (mean, max) = (log_field(&icount, "mean"), log_field(&icount, "max"));
     assert!(mean > 0.0 && max >= mean, "{icount}");
 }
 
