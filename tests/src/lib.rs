@@ -506,6 +506,24 @@ fn run_tool(tool: &str, args: &[&std::ffi::OsStr], stdin: Option<&str>) -> Resul
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
+/// The panic sites of `elf` ([`panic_sites`]) whose innermost frame outside the standard
+/// library lies in a file whose path contains one of `ours`, as display strings (the scans
+/// assert this is empty; sites inside dependencies are not ours to fix).
+pub fn our_panic_sites(elf: &Path, ours: &[&str]) -> Result<Vec<String>, Error> {
+    Ok(panic_sites(elf)?
+        .iter()
+        .filter(|s| {
+            let loc = s
+                .frames
+                .iter()
+                .find(|(_, loc)| !loc.starts_with("/rustc/"))
+                .map_or("", |(_, loc)| loc.as_str());
+            ours.iter().any(|o| loc.contains(o))
+        })
+        .map(|s| s.to_string())
+        .collect())
+}
+
 /// Every branch to a panic entry point in `elf` (from `llvm-objdump -d -C`), each attributed to
 /// its source frames with `llvm-symbolizer -i` (the images carry full debug information).
 pub fn panic_sites(elf: &Path) -> Result<Vec<PanicSite>, Error> {

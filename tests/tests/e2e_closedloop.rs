@@ -29,7 +29,7 @@ use ferrosid_tests::closedloop::{
     lag_aware_feedforward, lag_pid, lag_plant_continuous, plant_continuous, run, ClosedLoopRun,
     INERTIA, LAG, TS,
 };
-use ferrosid_tests::{image_size, panic_sites, repo_root};
+use ferrosid_tests::{image_size, our_panic_sites, repo_root};
 
 /// Dead zone full width, input units.
 const DEAD_ZONE: f64 = 0.2;
@@ -512,23 +512,16 @@ fn closedloop_code_has_no_panic_path() {
     // As the power-up image's scan: no branch to core's panic entry points whose innermost
     // frame outside the standard library lies in the application, the generated module or
     // the firmware's control module.
-    let sites = panic_sites(elf()).unwrap_or_else(|e| panic!("{e}"));
-    let ours: Vec<String> = sites
-        .iter()
-        .filter(|s| {
-            let loc = s
-                .frames
-                .iter()
-                .find(|(_, loc)| !loc.starts_with("/rustc/"))
-                .map(|(_, loc)| loc.clone())
-                .unwrap_or_default();
-            loc.contains("firmware/app/src")
-                || loc.contains("flashed_model.rs")
-                || loc.contains("firmware/src/control")
-                || loc.contains("firmware/src/check")
-        })
-        .map(|s| s.to_string())
-        .collect();
+    let ours = our_panic_sites(
+        elf(),
+        &[
+            "firmware/app/src",
+            "flashed_model.rs",
+            "firmware/src/control",
+            "firmware/src/check",
+        ],
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     assert!(ours.is_empty(), "panic paths:\n{}", ours.join("\n"));
 }
 

@@ -24,7 +24,7 @@ use ferrosid_tests::closedloop::{
     build_check_image, check_codegen_input, lag_aware_feedforward, lag_pid, lag_plant_continuous,
     reference_estimate, run_check, CheckRow, CheckRun, LAG, LAG_COULOMB, TS,
 };
-use ferrosid_tests::{image_size, panic_sites, repo_root};
+use ferrosid_tests::{image_size, our_panic_sites, repo_root};
 use num_complex::Complex64;
 
 /// Welch segment = multisine period, samples (1.953 Hz lines at 1 kHz).
@@ -221,23 +221,16 @@ fn closed_loop_check_cost_and_size() {
 
 #[test]
 fn check_code_has_no_panic_path() {
-    let sites = panic_sites(elf()).unwrap_or_else(|e| panic!("{e}"));
-    let ours: Vec<String> = sites
-        .iter()
-        .filter(|s| {
-            let loc = s
-                .frames
-                .iter()
-                .find(|(_, loc)| !loc.starts_with("/rustc/"))
-                .map(|(_, loc)| loc.clone())
-                .unwrap_or_default();
-            loc.contains("firmware/app/src")
-                || loc.contains("flashed_model.rs")
-                || loc.contains("firmware/src/check")
-                || loc.contains("firmware/src/control")
-        })
-        .map(|s| s.to_string())
-        .collect();
+    let ours = our_panic_sites(
+        elf(),
+        &[
+            "firmware/app/src",
+            "flashed_model.rs",
+            "firmware/src/control",
+            "firmware/src/check",
+        ],
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     assert!(ours.is_empty(), "panic paths:\n{}", ours.join("\n"));
 }
 
