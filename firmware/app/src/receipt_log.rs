@@ -1,7 +1,7 @@
 //! The receipt's log lines, shared by the `powerup` and `closedloop` images (`#[path]` module:
 //! one definition of the `RECEIPT` and `VERDICT` formats the host parses, see
 //! `ferrosid_frame::RECEIPT_FIELDS`).
-use ferrosid_powerup::{CheckResult, Overall, Verdict};
+use ferrosid_powerup::{failed_hz, CheckResult, Overall};
 
 /// One `RECEIPT` line per check frequency.
 pub fn rows(results: &[CheckResult]) {
@@ -27,23 +27,14 @@ pub fn rows(results: &[CheckResult]) {
 /// verdict for the exit status.
 pub fn verdict<const C: usize>(results: &[CheckResult; C], min_checked: usize) -> Overall {
     let overall = Overall::from_checks(results, min_checked);
-    let mut failed = [0.0f32; C];
-    let mut n_failed = 0;
-    for r in results {
-        if matches!(r.verdict, Verdict::Fail | Verdict::Undefined) {
-            if let Some(slot) = failed.get_mut(n_failed) {
-                *slot = r.hz;
-                n_failed += 1;
-            }
-        }
-    }
+    let failed = failed_hz(results);
     let checked = results.iter().filter(|r| r.verdict.counts()).count();
     defmt::println!(
         "VERDICT {=str} checked={=usize}/{=usize} failed_hz={=[?]}",
         overall.as_str(),
         checked,
         C,
-        failed.get(..n_failed).unwrap_or(&[])
+        failed.as_slice()
     );
     overall
 }

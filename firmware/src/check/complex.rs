@@ -48,9 +48,19 @@ impl C32 {
         };
         (q.re.is_finite() && q.im.is_finite()).then_some(q)
     }
-    /// `e^{jθ}` for `θ = 2π·num/den`: exact rational range reduction and an `f64` series
-    /// ([`crate::trig::cos_frac`], error below 1e-15), rounded once to `f32`.
+    /// `e^{jθ}` for `θ = 2π·num/den`. For a power-of-two `den` (every Welch segment length)
+    /// `num/den` of a turn is an exact 32-bit phase and the firmware's oscillator table gives
+    /// it ([`crate::trig::cos_turns`], error below 2.5e-7, about 50 instructions on the M4F);
+    /// otherwise exact rational range reduction and an `f64` series ([`crate::trig::cos_frac`],
+    /// error below 1e-15, rounded once to `f32`; about 5,400 instructions, software `f64`).
+    /// micromath's `sin`/`cos` (2e-3 rad) was measured too and rejected: README
+    /// "Design-card crates on the target".
     pub fn unit_circle(num: u32, den: u32) -> Self {
+        if den.is_power_of_two() {
+            // num·2^32/den mod 2^32; den = 1 gives shift 32: phase 0 (a whole number of turns).
+            let phase = num.checked_shl(32 - den.trailing_zeros()).unwrap_or(0);
+            return Self::new(crate::trig::cos_turns(phase), crate::trig::sin_turns(phase));
+        }
         let (n, d) = (u64::from(num), u64::from(den.max(1)));
         Self::new(
             crate::trig::cos_frac(n, d) as f32,

@@ -4,11 +4,13 @@
 //!
 //! * [`C32`]: a minimal `f32` complex number.
 //! * [`model_response`]: the flashed discrete model's frequency response
-//!   `G0(z) = C (zI − A)⁻¹ B + D` at `z = e^{jθ}` (complex Gaussian elimination with partial
-//!   pivoting in `f32`, no inverse); [`weight_magnitude`]: `|W_m(jω)|` from its coefficients.
+//!   `G0(z) = C (zI − A)⁻¹ B + D` at `z = e^{jθ}` (nalgebra's fixed-size complex LU with
+//!   partial pivoting in `f32`, one solve, no inverse); [`weight_magnitude`]: `|W_m(jω)|` from
+//!   its coefficients.
 //! * [`check_bin`] / [`judge`]: one check frequency, `|G_meas − G0| / |G0| <= |W_m|` where the
 //!   coherence passes the gate and the estimate resolves a deviation of size |W_m|
-//!   ([`RESOLUTION_SIGMAS`]); [`Overall`]: the verdict over all check frequencies.
+//!   ([`RESOLUTION_SIGMAS`]); [`Overall`]: the verdict over all check frequencies;
+//!   [`failed_hz`]: the failing frequencies as a `heapless::Vec`.
 //! * [`CheckConfig`] (validated settings, borrowed from the generated module) and
 //!   [`evaluate`]: every check frequency of a configuration from a measurement callback —
 //!   the open-loop mode measures H1 of a `Welch` (multisine at the plant input), the
@@ -30,7 +32,7 @@ pub use closed_loop::{ratio_random_error, ClosedLoopEstimator};
 pub use complex::C32;
 pub use model::{model_response, weight_magnitude};
 pub use verdict::{
-    check_bin, h1_random_error, judge, CheckResult, Overall, Verdict, RESOLUTION_SIGMAS,
+    check_bin, failed_hz, h1_random_error, judge, CheckResult, Overall, Verdict, RESOLUTION_SIGMAS,
 };
 
 use core::fmt;
@@ -179,7 +181,10 @@ pub fn evaluate<const C: usize, const NS: usize, const M: usize, const P: usize>
     model: &Model<'_, NS, M, P>,
     weight: &Weight<'_>,
     mut measure: impl FnMut(usize) -> Measured,
-) -> [CheckResult; C] {
+) -> [CheckResult; C]
+where
+    nalgebra::Const<NS>: nalgebra::DimMin<nalgebra::Const<NS>, Output = nalgebra::Const<NS>>,
+{
     let mut out = [CheckResult::EMPTY; C];
     for ((r, &bin), &hz) in out.iter_mut().zip(cfg.bins.iter()).zip(cfg.hz.iter()) {
         let z = C32::unit_circle(u32::from(bin), cfg.n as u32);

@@ -158,3 +158,112 @@ fn closed_loop_ratio_recovers_the_plant_where_h1_is_biased() {
         "naive H1 unexpectedly unbiased: {worst_naive}"
     );
 }
+
+/// `G(z) = c1/(z − p1) + c2/(z − p2) + d` in f64 (the modal form's closed form).
+fn modal_response(p: [f64; 2], c: [f64; 2], d: f64, z: (f64, f64)) -> (f64, f64) {
+    let mut g = (d, 0.0);
+    for (pk, ck) in p.iter().zip(c.iter()) {
+        let (dr, di) = (z.0 - pk, z.1);
+        let n2 = dr * dr + di * di;
+        g.0 += ck * dr / n2;
+        g.1 -= ck * di / n2;
+    }
+    g
+}
+
+/// The nalgebra evaluation against the closed form of a two-pole modal model, given to it in a
+/// dense realisation (A = T·diag(p)·T⁻¹, B = T·1, C = c·T⁻¹ with T = [[1, 2], [0.5, 3]],
+/// det T = 2), at every bin of a 256-point period: relative error below 1e-5.
+#[test]
+fn model_response_matches_the_closed_form_of_a_dense_realisation() {
+    let (p, cm, dd) = ([0.9f64, -0.3], [0.7f64, 1.3], 0.25f64);
+    // T and T⁻¹ = [[3, −2], [−0.5, 1]] / 2 (exact in binary).
+    let t = [[1.0f64, 2.0], [0.5, 3.0]];
+    let ti = [[1.5f64, -1.0], [-0.25, 0.5]];
+    let mut a = [[0.0f32; 2]; 2];
+    for i in 0..2 {
+        for j in 0..2 {
+            a[i][j] = (t[i][0] * p[0] * ti[0][j] + t[i][1] * p[1] * ti[1][j]) as f32;
+        }
+    }
+    let b = [[(t[0][0] + t[0][1]) as f32], [(t[1][0] + t[1][1]) as f32]];
+    let c = [[
+        (cm[0] * ti[0][0] + cm[1] * ti[1][0]) as f32,
+        (cm[0] * ti[0][1] + cm[1] * ti[1][1]) as f32,
+    ]];
+    let d = [[dd as f32]];
+    let mut worst = 0.0f64;
+    for k in 0..128u32 {
+        let th = 2.0 * std::f64::consts::PI * f64::from(k) / 256.0;
+        let z = C32::unit_circle(k, 256);
+        let g = model_response(&a, &b, &c, &d, z, 0, 0).expect("defined off the poles");
+        let want = modal_response(p, cm, dd, (th.cos(), th.sin()));
+        let err = (f64::from(g.re) - want.0).hypot(f64::from(g.im) - want.1) / want.0.hypot(want.1);
+        worst = worst.max(err);
+    }
+    assert!(worst < 1e-5, "worst relative error {worst:e}");
+}
+
+/// At a pole `zI − A` is singular: `None` (the check's Undefined), as for an out-of-range
+/// input or output.
+#[test]
+fn model_response_is_undefined_at_a_pole_and_for_bad_indices() {
+    let a = [[0.5f32, 0.0], [0.0, -0.25]];
+    let b = [[1.0f32], [1.0]];
+    let c = [[1.0f32, 1.0]];
+    let d = [[0.0f32]];
+    assert_eq!(
+        model_response(&a, &b, &c, &d, C32::new(0.5, 0.0), 0, 0),
+        None
+    );
+    assert_eq!(
+        model_response(&a, &b, &c, &d, C32::new(-0.25, 0.0), 0, 0),
+        None
+    );
+    let z = C32::new(0.0, 1.0);
+    assert!(model_response(&a, &b, &c, &d, z, 0, 0).is_some());
+    assert_eq!(model_response(&a, &b, &c, &d, z, 1, 0), None);
+    assert_eq!(model_response(&a, &b, &c, &d, z, 0, 1), None);
+}
+
+/// `unit_circle` against f64 cos/sin: the table path (power-of-two denominators, numerators
+/// beyond one turn included) within 2.5e-7, the series path (other denominators) within the
+/// f32 rounding, and den 1 (a whole number of turns) exactly 1.
+#[test]
+fn unit_circle_matches_f64_on_both_paths() {
+    let mut worst = [0.0f64; 2];
+    for (path, den) in [(0usize, 64u32), (0, 512), (0, 4096), (1, 1000), (1, 3)] {
+        for num in (0..3 * den).step_by(1 + den as usize / 256) {
+            let th = 2.0 * std::f64::consts::PI * f64::from(num) / f64::from(den);
+            let z = C32::unit_circle(num, den);
+            let e = (f64::from(z.re) - th.cos()).hypot(f64::from(z.im) - th.sin());
+            worst[path] = worst[path].max(e);
+        }
+    }
+    assert!(worst[0] < 2.5e-7, "table path {:e}", worst[0]);
+    assert!(worst[1] < 1e-7, "series path {:e}", worst[1]);
+    assert_eq!(C32::unit_circle(7, 1), C32::new(1.0, 0.0));
+}
+
+/// `failed_hz`: the failed and undefined frequencies, in order, nothing else.
+#[test]
+fn failed_hz_lists_failed_and_undefined_in_order() {
+    let mut r = [CheckResult::EMPTY; 5];
+    let verdicts = [
+        Verdict::Pass,
+        Verdict::Fail,
+        Verdict::Skipped,
+        Verdict::Undefined,
+        Verdict::Unresolved,
+    ];
+    for (i, (ri, v)) in r.iter_mut().zip(verdicts).enumerate() {
+        ri.hz = 10.0 * (i + 1) as f32;
+        ri.verdict = v;
+    }
+    assert_eq!(failed_hz(&r).as_slice(), &[20.0, 40.0]);
+    r[1].verdict = Verdict::Pass;
+    r[3].verdict = Verdict::Pass;
+    assert!(failed_hz(&r).is_empty());
+    let all = [CheckResult::EMPTY; 3];
+    assert_eq!(failed_hz(&all).len(), 3);
+}

@@ -165,6 +165,19 @@ pub fn judge(
     r
 }
 
+/// The frequencies (Hz) of the check results that failed or are undefined, in order: the
+/// `VERDICT` line's `failed_hz` list (capacity `C`, so every one fits).
+pub fn failed_hz<const C: usize>(results: &[CheckResult; C]) -> heapless::Vec<f32, C> {
+    let mut failed = heapless::Vec::new();
+    for r in results {
+        if matches!(r.verdict, Verdict::Fail | Verdict::Undefined) {
+            // Cannot be full: at most C of the C results are pushed.
+            let _ = failed.push(r.hz);
+        }
+    }
+    failed
+}
+
 /// The receipt's verdict over all check frequencies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Overall {
