@@ -4,9 +4,8 @@
 //!
 //! * [`C32`]: a minimal `f32` complex number.
 //! * [`model_response`]: the flashed discrete model's frequency response
-//!   `G0(z) = C (zI − A)⁻¹ B + D` at `z = e^{jθ}` (nalgebra's fixed-size complex LU with
-//!   partial pivoting in `f32`, one solve, no inverse); [`weight_magnitude`]: `|W_m(jω)|` from
-//!   its coefficients.
+//!   `G0(z) = C (zI − A)⁻¹ B + D` at `z = e^{jθ}` (complex Gaussian elimination with partial
+//!   pivoting in `f32`, no inverse); [`weight_magnitude`]: `|W_m(jω)|` from its coefficients.
 //! * [`check_bin`] / [`judge`]: one check frequency, `|G_meas − G0| / |G0| <= |W_m|` where the
 //!   coherence passes the gate and the estimate resolves a deviation of size |W_m|
 //!   ([`RESOLUTION_SIGMAS`]); [`Overall`]: the verdict over all check frequencies;
@@ -181,10 +180,7 @@ pub fn evaluate<const C: usize, const NS: usize, const M: usize, const P: usize>
     model: &Model<'_, NS, M, P>,
     weight: &Weight<'_>,
     mut measure: impl FnMut(usize) -> Measured,
-) -> [CheckResult; C]
-where
-    nalgebra::Const<NS>: nalgebra::DimMin<nalgebra::Const<NS>, Output = nalgebra::Const<NS>>,
-{
+) -> [CheckResult; C] {
     let mut out = [CheckResult::EMPTY; C];
     for ((r, &bin), &hz) in out.iter_mut().zip(cfg.bins.iter()).zip(cfg.hz.iter()) {
         let z = C32::unit_circle(u32::from(bin), cfg.n as u32);

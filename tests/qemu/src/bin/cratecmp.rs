@@ -3,9 +3,9 @@
 //!
 //! * **Model evaluation** `G0 = C (zI − A)⁻¹ B + D` at the 16 check bins of three discrete models
 //!   (`eval_models.rs`, 2, 4 and 6 states, written by `tests/qemu/ref/eval_models.py` with a
-//!   numpy complex128 reference of the same f32 matrices): the firmware's
-//!   `ferrosid_firmware::check::model_response` (nalgebra's fixed-size complex LU) against the
-//!   hand-written complex Gaussian elimination it replaced (`eval_alt.rs`).
+//!   numpy complex128 reference of the same f32 matrices): the firmware's hand-written complex
+//!   Gaussian elimination (`ferrosid_firmware::check::model_response`) against nalgebra's
+//!   fixed-size complex LU and QR (`eval_alt.rs`).
 //! * **The unit-circle point** `z = e^{j2π·bin/N}` of each check bin: the firmware's
 //!   `C32::unit_circle` (now the oscillator table `trig::cos_turns` for power-of-two N) against
 //!   the f64 series it used before (`trig::cos_frac`), micromath's f32 `cos`/`sin` and libm's
@@ -38,7 +38,7 @@ mod eval_alt;
 #[path = "../eval_models.rs"]
 mod eval_models;
 
-use eval_alt::model_response_hand;
+use eval_alt::model_response_nalgebra;
 use eval_models::{axis2, threemass6, twomass4, BINS, N};
 
 /// Check bins per model.
@@ -142,20 +142,29 @@ fn per_bin(ic: &mut InstructionCounter, ipt: f64, mut f: impl FnMut(usize)) -> f
     (f64::from(t) - f64::from(e)) * ipt / f64::from(SWEEPS * NB as u32)
 }
 
-/// One evaluation by the hand-written elimination, kept out of line so that its code is one
-/// symbol (`eval_hand`) whose size the host test reads.
+/// One evaluation by the firmware's hand-written elimination, kept out of line so that its
+/// code is one symbol (`eval_hand`, the callee inlined or not) whose size the host test reads.
 #[inline(never)]
 fn eval_hand<const NS: usize>(case: &Case<NS>, z: C32) -> Option<C32> {
-    model_response_hand(case.a, case.b, case.c, case.d, z, 0, 0)
+    model_response(case.a, case.b, case.c, case.d, z, 0, 0)
 }
 
-/// One evaluation by the firmware's (nalgebra) `model_response`, out of line (`eval_nalgebra`).
+/// One evaluation by nalgebra's LU, out of line (`eval_nalgebra`).
 #[inline(never)]
 fn eval_nalgebra<const NS: usize>(case: &Case<NS>, z: C32) -> Option<C32>
 where
     nalgebra::Const<NS>: nalgebra::DimMin<nalgebra::Const<NS>, Output = nalgebra::Const<NS>>,
 {
-    model_response(case.a, case.b, case.c, case.d, z, 0, 0)
+    model_response_nalgebra(case.a, case.b, case.c, case.d, z, 0, 0)
+}
+
+/// One evaluation by nalgebra's QR, out of line (`eval_qr`).
+#[inline(never)]
+fn eval_qr<const NS: usize>(case: &Case<NS>, z: C32) -> Option<C32>
+where
+    nalgebra::Const<NS>: nalgebra::DimMin<nalgebra::Const<NS>, Output = nalgebra::Const<NS>>,
+{
+    eval_alt::model_response_qr(case.a, case.b, case.c, case.d, z, 0, 0)
 }
 
 /// Model evaluation, hand-written against nalgebra, and G0's error with each way of getting z.
@@ -175,6 +184,11 @@ where
         g[i % NB] = black_box(eval_nalgebra(black_box(case), z[i % NB]))
     });
     report(case.name, "nalgebra", instr, max_rel(case, &g), "rel");
+    let mut g = [None; NB];
+    let instr = per_bin(ic, ipt, |i| {
+        g[i % NB] = black_box(eval_qr(black_box(case), z[i % NB]))
+    });
+    report(case.name, "nalgebra_qr", instr, max_rel(case, &g), "rel");
     // G0 error when z comes from each trig variant (the firmware's solve in all four).
     for (variant, zf) in [
         ("z_table", z_exact as fn(u32) -> C32),
