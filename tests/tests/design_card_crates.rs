@@ -8,6 +8,9 @@
 //! Run: `cargo test -p ferrosid-tests --test design_card_crates -- --nocapture`.
 //! Needs qemu-system-arm, llvm-nm and the thumbv7em-none-eabihf target (scripts/setup.sh).
 
+// Matrix loops index several arrays at once: indices read clearer than iterator chains.
+#![allow(clippy::needless_range_loop)]
+
 use std::process::Command;
 use std::sync::OnceLock;
 use std::time::Duration;

@@ -11,6 +11,8 @@ use nalgebra::{Complex, Const, DimMin, SMatrix, SVector};
 /// `G(z)` from `input` to `output` with nalgebra's fixed-size complex LU with partial pivoting
 /// (pivot: the largest `|re| + |im|`), one solve; `None` for a pivot of `|re| + |im|` at most
 /// `N·ε·max|(zI − A)ᵢⱼ|` (z at a pole), an out-of-range input/output or a non-finite result.
+// `!(x > tiny)` is deliberate: it rejects NaN, as in the firmware's check.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 pub fn model_response_nalgebra<const N: usize, const M: usize, const P: usize>(
     a: &[[f32; N]; N],
     b: &[[f32; M]; N],
