@@ -27,6 +27,46 @@ fn scaled_poles(poles: &[Complex64], ts: f64, alpha: f64) -> Vec<Complex64> {
         .collect()
 }
 
+/// `start`'s poles with its real pole nearest z = 1 moved to exactly 1 when `sim` (the sim's
+/// poles in modal form, [`modal_stand_in`]) has an integrator: the structure the re-fit keeps
+/// (an integrator is fixed in every fit, and the place of friction follows from it), which a
+/// stabilised N4SID start would otherwise replace by a slow stable pole.
+fn with_integrator_of(start: &[Complex64], sim: &[Complex64]) -> Vec<Complex64> {
+    let mut p = start.to_vec();
+    if !sim.iter().any(|z| *z == Complex64::new(1.0, 0.0)) {
+        return p;
+    }
+    let nearest = p
+        .iter()
+        .enumerate()
+        .filter(|(_, z)| z.im.abs() <= 1e-9 * z.norm())
+        .max_by(|a, b| a.1.re.total_cmp(&b.1.re))
+        .map(|(i, _)| i);
+    if let Some(i) = nearest {
+        p[i] = Complex64::new(1.0, 0.0);
+    }
+    p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn n4sid_start_gets_the_sims_integrator_only_when_the_sim_has_one() {
+        let c = |re: f64, im: f64| Complex64::new(re, im);
+        let start = [c(0.9, 0.1), c(0.9, -0.1), c(0.9977, 0.0), c(0.5, 0.0)];
+        let sim = modal_stand_in(&[c(1.0 - 1e-12, 0.0), c(0.98, 0.0)]);
+        let p = with_integrator_of(&start, &sim);
+        assert_eq!(p[2], c(1.0, 0.0));
+        assert_eq!([p[0], p[1], p[3]], [start[0], start[1], start[3]]);
+        // No integrator in the sim: the start is left as it is.
+        assert_eq!(with_integrator_of(&start, &[c(0.98, 0.0)]), start.to_vec());
+        // Only complex poles: nothing to move.
+        assert_eq!(with_integrator_of(&start[..2], &sim), start[..2].to_vec());
+    }
+}
+
 /// Output-error re-fit of the linear part (see [`crate::gap`] docs): starts from the sim's
 /// poles, after a scan of a common frequency scale factor 0.6..1.6, and from N4SID at the
 /// sim's order on each training log; keeps the lowest training cost.
@@ -70,6 +110,7 @@ fn linear_refit(
         };
         match n4sid_slices(ts, &[u.as_slice()], &[y.as_slice()], &opts)
             .and_then(|r| r.model.poles())
+            .map(|p| with_integrator_of(&p, poles))
             .and_then(|p| ModalModel::from_poles(ts, &p, use_d))
         {
             Ok(m) => starts.push((m, "n4sid")),

@@ -28,6 +28,6 @@ pub mod structure;
 pub mod verdict;
 
 pub use diagnose::{diagnose, Diagnosis, GapOptions};
-pub use reading::diagnose_at_operating_point;
 pub use effect::{Effect, EffectKind};
+pub use reading::diagnose_at_operating_point;
 pub use report::GapReport;

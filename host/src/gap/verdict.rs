@@ -144,28 +144,34 @@ pub fn effective_samples(r: &[f64]) -> f64 {
 /// Λ = Σ_logs N_eff · ln(SSE_simple / SSE_rich), with N_eff the [`effective_samples`] of the
 /// simple model's residual on that log (Gaussian residuals, variance unknown; the effective
 /// count keeps correlated model error from passing as evidence). Under the simple model Λ is
-/// about χ² with one degree of freedom per extra parameter.
+/// about χ² with one degree of freedom per extra parameter. With `drift_window` (a model with
+/// an integrator) the residuals are taken drift-free ([`crate::gap::drift::detrended`]), the
+/// metric the models were fitted in: a free run's drift would otherwise swamp both sums and
+/// shrink N_eff to a handful of samples.
 pub fn nested_likelihood_ratio(
     simple: &AugmentedModel,
     rich: &AugmentedModel,
     u: &[Vec<f64>],
     y: &[Vec<f64>],
     warmup: usize,
+    drift_window: Option<usize>,
 ) -> Result<f64> {
+    let residual = |m: &AugmentedModel, ul: &[f64], yl: &[f64]| -> Result<Vec<f64>> {
+        let r: Vec<f64> = yl
+            .iter()
+            .zip(&m.simulate(ul)?)
+            .skip(warmup)
+            .map(|(a, b)| a - b)
+            .collect();
+        Ok(match drift_window {
+            Some(w) => crate::gap::drift::detrended(&r, w),
+            None => r,
+        })
+    };
     let mut lr = 0.0;
     for (ul, yl) in u.iter().zip(y) {
-        let rs: Vec<f64> = yl
-            .iter()
-            .zip(&simple.simulate(ul)?)
-            .skip(warmup)
-            .map(|(a, b)| a - b)
-            .collect();
-        let rr: Vec<f64> = yl
-            .iter()
-            .zip(&rich.simulate(ul)?)
-            .skip(warmup)
-            .map(|(a, b)| a - b)
-            .collect();
+        let rs = residual(simple, ul, yl)?;
+        let rr = residual(rich, ul, yl)?;
         let (ss, sr) = (
             rs.iter().map(|v| v * v).sum::<f64>(),
             rr.iter().map(|v| v * v).sum::<f64>(),

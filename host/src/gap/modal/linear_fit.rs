@@ -3,6 +3,7 @@
 //! normal equations accumulated over the free-run states; and the Levenberg–Marquardt output-error
 //! refinement of the poles on the projected residual.
 use super::{FitSet, ModalModel, Stepper};
+use crate::gap::drift::detrended;
 use crate::lti::solve_square;
 use faer::Mat;
 
@@ -136,12 +137,19 @@ impl ModalModel {
 
     /// [`Self::fit_linear_params_masked`] with the inputs `w` (one per log) in place of
     /// `set.w`: the same result as on `set.with_input(w)`, without copying the outputs.
+    ///
+    /// With `set.drift_window` the step minimises the drift-free cost instead (the metric of
+    /// an integrating model, [`crate::gap::drift::scored_sse`]): see
+    /// [`Self::fit_linear_params_drift_free`].
     pub fn fit_linear_params_with_input(
         &mut self,
         set: &FitSet,
         w: &[Vec<f64>],
         mask: Option<&[Vec<bool>]>,
     ) -> Option<f64> {
+        if let Some(win) = set.drift_window.filter(|&win| win >= 3) {
+            return self.fit_linear_params_drift_free(set, w, mask, win);
+        }
         let k = self.n_regressors();
         let mut g = Mat::<f64>::zeros(k, k);
         let mut h = Mat::<f64>::zeros(k, 1);
@@ -175,8 +183,98 @@ impl ModalModel {
         Some(cost)
     }
 
+    /// The variable-projection step in the drift-free metric: the residues and feedthrough
+    /// minimise Σ weight·‖detrended(y − Φc)‖² over the scored (and kept) samples, which is
+    /// linear least squares in the detrended regressors because [`detrended`] is linear (each
+    /// regressor column is simulated, stored and detrended per log: O(K·N) memory). The
+    /// detrended offset column is zero, so the offset is not in that problem: it is set to
+    /// the weighted mean of the plain residual y − Φc (the level a plot of the free run needs;
+    /// no drift-free cost depends on it). Returns the drift-free cost; `None` as
+    /// [`Self::fit_linear_params_with_input`].
+    fn fit_linear_params_drift_free(
+        &mut self,
+        set: &FitSet,
+        w: &[Vec<f64>],
+        mask: Option<&[Vec<bool>]>,
+        window: usize,
+    ) -> Option<f64> {
+        let k = self.n_regressors() - 1; // without the offset
+        let mut g = Mat::<f64>::zeros(k, k);
+        let mut h = Mat::<f64>::zeros(k, 1);
+        let mut yy = 0.0;
+        // Per log: weight, Σy, Σφ_i and count over the kept samples (for the offset).
+        let mut level: Vec<(f64, f64, Vec<f64>, f64)> = Vec::with_capacity(set.y.len());
+        let st = self.stepper();
+        let mut phi = vec![0.0; k + 1];
+        for (l, ((w, y), &wt)) in w.iter().zip(&set.y).zip(&set.weight).enumerate() {
+            let n = y.len().min(w.len());
+            if n <= set.warmup {
+                continue;
+            }
+            let keep = mask.and_then(|m| m.get(l)).map(Vec::as_slice);
+            let kept = |t: usize| keep.is_none_or(|m| m.get(t).copied().unwrap_or(true));
+            let mut cols = vec![Vec::with_capacity(n - set.warmup); k];
+            let mut x = self.zero_state();
+            for (t, &wk) in w[..n].iter().enumerate() {
+                if t >= set.warmup {
+                    self.regressors(&x, wk, &mut phi);
+                    for (c, &p) in cols.iter_mut().zip(&phi[..k]) {
+                        c.push(p);
+                    }
+                }
+                st.step(&mut x, wk);
+            }
+            let yd = detrended(&y[set.warmup..n], window);
+            let cd: Vec<Vec<f64>> = cols.iter().map(|c| detrended(c, window)).collect();
+            let (mut sy, mut sphi, mut cnt) = (0.0, vec![0.0; k], 0.0);
+            for (j, &yj) in yd.iter().enumerate() {
+                if !kept(set.warmup + j) {
+                    continue;
+                }
+                for i in 0..k {
+                    let pi = cd[i][j];
+                    h[(i, 0)] += wt * pi * yj;
+                    for jj in i..k {
+                        g[(i, jj)] += wt * pi * cd[jj][j];
+                    }
+                    sphi[i] += cols[i][j];
+                }
+                yy += wt * yj * yj;
+                sy += y[set.warmup + j];
+                cnt += 1.0;
+            }
+            level.push((wt, sy, sphi, cnt));
+        }
+        for i in 0..k {
+            for j in 0..i {
+                g[(i, j)] = g[(j, i)];
+            }
+        }
+        let c = solve_scaled(&g, &h)?;
+        let quad: f64 = (0..k)
+            .map(|i| c[i] * ((0..k).map(|j| g[(i, j)] * c[j]).sum::<f64>() - 2.0 * h[(i, 0)]))
+            .sum();
+        let cost = (yy + quad).max(0.0);
+        let (num, den) = level
+            .iter()
+            .fold((0.0, 0.0), |(a, b), (wt, sy, sphi, cnt)| {
+                let fitted: f64 = c.iter().zip(sphi).map(|(ci, si)| ci * si).sum();
+                (a + wt * (sy - fitted), b + wt * cnt)
+            });
+        let offset = if den > 0.0 { num / den } else { 0.0 };
+        if !(cost.is_finite() && offset.is_finite()) {
+            return None;
+        }
+        let mut all = c;
+        all.push(offset);
+        self.set_linear_params(&all);
+        Some(cost)
+    }
+
     /// Weighted residual vector √weight·(y − ŷ) after the variable-projection step (for
-    /// Levenberg–Marquardt).
+    /// Levenberg–Marquardt); with `set.drift_window` the residual of each log has its local
+    /// linear trend removed ([`detrended`]), the metric every candidate of an integrating
+    /// model is fitted and scored in, so the linear re-fit minimises the same cost.
     pub fn projected_residuals(&mut self, set: &FitSet) -> Option<Vec<f64>> {
         self.fit_linear_params(set)?;
         let scored: usize = set
@@ -188,19 +286,23 @@ impl ModalModel {
         for ((w, y), &wt) in set.w.iter().zip(&set.y).zip(&set.weight) {
             let sw = wt.sqrt();
             let yh = self.simulate(w);
-            r.extend(
-                y.iter()
-                    .zip(&yh)
-                    .skip(set.warmup)
-                    .map(|(a, b)| sw * (a - b)),
-            );
+            let e = y.iter().zip(&yh).skip(set.warmup).map(|(a, b)| a - b);
+            match set.drift_window {
+                Some(win) => r.extend(
+                    detrended(&e.collect::<Vec<_>>(), win)
+                        .iter()
+                        .map(|v| sw * v),
+                ),
+                None => r.extend(e.map(|v| sw * v)),
+            }
         }
         Some(r)
     }
 
     /// Output-error fit of poles and linear parameters on `set`, starting from the current
     /// poles: Levenberg–Marquardt over the pole parameters (at most `max_iter` steps) with the
-    /// variable-projection step inside. Returns the final cost Σ NRMSE².
+    /// variable-projection step inside. Returns the final cost Σ NRMSE² in the set's metric
+    /// (drift-free with `set.drift_window`).
     pub fn fit_output_error(&mut self, set: &FitSet, max_iter: usize) -> Option<f64> {
         let theta0 = self.pole_params();
         let mut work = self.clone();

@@ -408,75 +408,18 @@ pub fn select_effects(
         ));
     }
     if let Some(first) = selected_models.first().cloned().filter(|_| try_pairs) {
-        let k1 = kind_of(&first);
-        let partners: Vec<Candidate> = singles
-            .iter()
-            .skip(1)
-            .filter(|s| s.improvement >= 0.5 * opts.margin)
-            .filter_map(|s| {
-                s.effects
-                    .first()
-                    .map(|p| Candidate::new(p.effect.kind(), p.place))
-            })
-            .filter(|c| {
-                Some(c.kind) != k1 && !(c.kind.is_friction() && k1.is_some_and(|k| k.is_friction()))
-            })
-            .filter(|c| c.kind != EffectKind::Quantization && c.kind != EffectKind::Stiction)
-            .take(opts.pair_partners)
-            .collect();
-        let mut partners = partners;
-        if !k1.is_some_and(|k| k.is_friction()) && !partners.iter().any(|c| c.kind.is_friction()) {
-            // Friction is a partner whatever its single score: alone it is fitted against the
-            // gap of the stronger effect too (a saturated drive, a delay), which can pull its
-            // level to zero, so its single score says nothing about it as a second effect.
-            partners.push(Candidate::new(EffectKind::CoulombFriction, Place::Motor));
-        }
-        if k1.is_some_and(|k| k.is_friction())
-            && !partners.iter().any(|c| c.kind == EffectKind::Backlash)
-        {
-            // Likewise play in the drive behind friction: both act at velocity reversals, and
-            // alone the play is fitted against the friction's gap, so its single score says
-            // nothing about it as a second effect.
-            partners.push(Candidate::new(EffectKind::Backlash, Place::Drive));
-        }
-        // Polish the single first, so a pair is credited only with what its second effect
-        // adds (not with further iterations on the first).
-        let first = match joint_fit(
+        let ctx = PairContext {
             td,
-            &Fitted {
-                model: first.model.clone(),
-                train_cost: first.train_cost,
-            },
-            JOINT_MAX_ITER,
-        ) {
-            Some(j) if j.train_cost < first.train_cost => {
-                let s = score(j, val, gap_linear);
-                if s.gap <= first.gap {
-                    selected_models[0] = s.clone();
-                    s
-                } else {
-                    first
-                }
-            }
-            _ => first,
+            singles: &singles,
+            sim_poles,
+            hints: &hints,
+            val,
+            gap_linear,
+            opts,
         };
-        let base = first.model.clone();
-        for c in partners {
-            if c.place.needs_two_mass()
-                && base.two_mass.is_none()
-                && base.motor_friction().is_some()
-            {
-                continue;
-            }
-            let t0 = profile_seconds();
-            let fc = fit_placed(c, td, std::slice::from_ref(&base), None, sim_poles, &hints);
-            if std::env::var_os("GAP_PROFILE").is_some() {
-                eprintln!("profile: pair + {c} {:.3} s (cpu)", profile_seconds() - t0);
-            }
-            if let Some(f) = fc {
-                pairs.push(score(f, val, gap_linear));
-            }
-        }
+        let first = ctx.polish(first);
+        selected_models[0] = first.clone();
+        pairs = ctx.pairs_on(&first);
         pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
         if let Some(p) = pairs.first().cloned() {
             let rel = (first.gap - p.gap) / first.gap;
@@ -489,7 +432,7 @@ pub fn select_effects(
                 let p = pair_stiction_variant(
                     p,
                     td,
-                    &base,
+                    &first.model,
                     sim_poles,
                     &hints,
                     (val, gap_linear),
@@ -555,6 +498,105 @@ pub fn select_effects(
         dwell,
         notes,
     })
+}
+
+/// What the pair stage of [`select_effects`] shares between the singles it grows pairs from.
+struct PairContext<'a> {
+    td: &'a TrainData,
+    singles: &'a [Scored],
+    sim_poles: &'a [Complex64],
+    hints: &'a FitHints,
+    val: Val<'a>,
+    gap_linear: f64,
+    opts: &'a SelectOptions,
+}
+
+impl PairContext<'_> {
+    /// `single` refined jointly before pairs grow from it, so a pair is credited only with
+    /// what its second effect adds (not with further iterations on the first); kept only when
+    /// it does not score worse on validation.
+    fn polish(&self, single: Scored) -> Scored {
+        let f = Fitted {
+            model: single.model.clone(),
+            train_cost: single.train_cost,
+        };
+        match joint_fit(self.td, &f, JOINT_MAX_ITER) {
+            Some(j) if j.train_cost < single.train_cost => {
+                let s = score(j, self.val, self.gap_linear);
+                if s.gap <= single.gap {
+                    s
+                } else {
+                    single
+                }
+            }
+            _ => single,
+        }
+    }
+
+    /// The second effects tried on top of `first`: the next best singles of other kinds (at
+    /// most `pair_partners`, each reaching half the margin alone), Coulomb friction at the motor whatever its
+    /// single score (alone it is fitted against the gap of the stronger effect too, a
+    /// saturated drive, a delay, which can pull its level to zero), and play in the drive
+    /// behind friction (both act at velocity reversals, and alone the play is fitted against
+    /// the friction's gap).
+    fn partners(&self, first: &Scored) -> Vec<Candidate> {
+        let k1 = kind_of(first);
+        let friction1 = k1.is_some_and(|k| k.is_friction());
+        let mut partners: Vec<Candidate> = self
+            .singles
+            .iter()
+            .filter(|s| s.improvement >= 0.5 * self.opts.margin)
+            .filter_map(|s| {
+                s.effects
+                    .first()
+                    .map(|p| Candidate::new(p.effect.kind(), p.place))
+            })
+            .filter(|c| {
+                Some(c.kind) != k1
+                    && !(c.kind.is_friction() && friction1)
+                    && c.kind != EffectKind::Quantization
+                    && c.kind != EffectKind::Stiction
+            })
+            .take(self.opts.pair_partners)
+            .collect();
+        if !friction1 && !partners.iter().any(|c| c.kind.is_friction()) {
+            partners.push(Candidate::new(EffectKind::CoulombFriction, Place::Motor));
+        }
+        if friction1 && !partners.iter().any(|c| c.kind == EffectKind::Backlash) {
+            partners.push(Candidate::new(EffectKind::Backlash, Place::Drive));
+        }
+        partners
+    }
+
+    /// Every partner of `first` ([`Self::partners`]) fitted on top of it and scored.
+    fn pairs_on(&self, first: &Scored) -> Vec<Scored> {
+        let base = &first.model;
+        let mut pairs = Vec::new();
+        for c in self.partners(first) {
+            if c.place.needs_two_mass()
+                && base.two_mass.is_none()
+                && base.motor_friction().is_some()
+            {
+                continue;
+            }
+            let t0 = profile_seconds();
+            let fc = fit_placed(
+                c,
+                self.td,
+                std::slice::from_ref(base),
+                None,
+                self.sim_poles,
+                self.hints,
+            );
+            if std::env::var_os("GAP_PROFILE").is_some() {
+                eprintln!("profile: pair + {c} {:.3} s (cpu)", profile_seconds() - t0);
+            }
+            if let Some(f) = fc {
+                pairs.push(score(f, self.val, self.gap_linear));
+            }
+        }
+        pairs
+    }
 }
 
 /// A selected pair with Coulomb friction at the motor against its stiction variant (started

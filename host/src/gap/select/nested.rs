@@ -79,6 +79,7 @@ pub(super) fn resolve_nested(
         &td.u,
         &td.base.y,
         td.base.warmup,
+        td.base.drift_window,
     )
     .unwrap_or(0.0);
     let band = ratio.0 >= MIN_STICK_BAND;
