@@ -87,6 +87,8 @@ mod pipeline_control;
 mod pipeline_end_to_end;
 #[path = "pipeline_gap.rs"]
 mod pipeline_gap;
+#[path = "pipeline_methods.rs"]
+mod pipeline_methods;
 #[path = "pipeline_physical.rs"]
 mod pipeline_physical;
 #[path = "preprocess_record.rs"]

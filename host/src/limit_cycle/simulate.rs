@@ -125,6 +125,34 @@ impl NlState {
     }
 }
 
+/// The control law stepped: the PID (with the compensation) or a general controller (its
+/// last command kept for `nl_input`).
+enum Law {
+    Pid(ControlStep),
+    General(crate::synth::sim::DiscreteLaw, f64),
+}
+
+impl Law {
+    fn step(&mut self, r: f64, y: f64) -> f64 {
+        match self {
+            Law::Pid(c) => c.step(r, y),
+            Law::General(law, u) => {
+                *u = law.step(r - y, f64::INFINITY);
+                *u
+            }
+        }
+    }
+    fn pre_inverse_command(&self) -> f64 {
+        match self {
+            Law::Pid(c) => c.pre_inverse_command(),
+            Law::General(_, u) => *u,
+        }
+    }
+    fn compensated(&self) -> bool {
+        matches!(self, Law::Pid(c) if c.compensated())
+    }
+}
+
 /// Simulates the loop `lp` with `nl` (see the module docs), with `comp` in the control law when
 /// given and enabled. Errors for invalid parameters, a compensation that fails validation (its
 /// field named), a bad spec, or a diverging simulation (non-finite state).
@@ -148,7 +176,15 @@ pub fn simulate(
         )));
     }
     let n_samples = n_samples.round() as usize;
-    let mut ctl = ControlStep::new(&lp.controller, comp)?;
+    let mut ctl = match &lp.general {
+        None => Law::Pid(ControlStep::new(&lp.controller, comp)?),
+        Some(_) if comp.is_some_and(|c| c.enabled) => {
+            return Err(Error::InvalidArgument(
+                "limit-cycle simulation: a compensation is only simulated with the PID law".into(),
+            ))
+        }
+        Some(g) => Law::General(g.law.clone(), 0.0),
+    };
     let friction = matches!(nl.site, Site::Velocity);
     // Linear dynamics: sub-stepped continuous plant for friction when available.
     let (sys, m) = match (&lp.plant_continuous, friction) {
