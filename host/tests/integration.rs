@@ -83,6 +83,8 @@ mod pipeline_codegen;
 mod pipeline_compensation;
 #[path = "pipeline_control.rs"]
 mod pipeline_control;
+#[path = "pipeline_control_cycles.rs"]
+mod pipeline_control_cycles;
 #[path = "pipeline_end_to_end.rs"]
 mod pipeline_end_to_end;
 #[path = "pipeline_gap.rs"]
