@@ -102,6 +102,19 @@ fn each_method_has_the_limit_cycle_receipts_of_its_own_loop() {
         .expect("limit_cycle not applicable to the MPC");
     assert!(na.reason.contains("LTI controller"), "{}", na.reason);
     assert_eq!(cycles(&c.replaced_pid_receipts), pid);
+    // The comparison table marks the MPC's step as simulated with the friction, no other.
+    let rows = ferrosid::pipeline::control_methods::comparison_rows(&run);
+    for r in &rows {
+        match r.method {
+            ControlMethod::Mpc => assert_eq!(
+                r.step_effect.as_deref(),
+                Some("coulomb_friction at motor"),
+                "{:?}",
+                c.step_effect
+            ),
+            _ => assert!(r.step_effect.is_none(), "{}", r.method.name()),
+        }
+    }
     // The receipts file of the MPC says the same.
     let docs = ferrosid::pipeline::control_methods::method_documents(&run).unwrap();
     let (_, json) = docs.iter().find(|(f, _)| f == "receipts.mpc.json").unwrap();

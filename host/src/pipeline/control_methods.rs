@@ -275,6 +275,10 @@ pub struct ComparisonRow {
     pub step_overshoot_pct: Option<f64>,
     /// `step_settling_time`, s.
     pub step_settling_s: Option<f64>,
+    /// The diagnosed effect the step receipts simulate in the loop (`mpc` with
+    /// `control.step_effect.simulated`: `effect at place`); None: the step is on G0 alone, as
+    /// the other methods' (`control.linear_step_receipts` then has the MPC's G0 step).
+    pub step_effect: Option<String>,
     /// The controller's structure (None without a controller).
     pub structure: Option<Structure>,
     /// States of the controller that runs (None: no controller, or not an LTI controller).
@@ -357,6 +361,18 @@ fn row(run: &PipelineRun, m: &MethodRun, primary: bool) -> ComparisonRow {
         actuator_limit: k.actuator_limit,
         step_overshoot_pct: value(ReceiptKind::StepOvershoot),
         step_settling_s: value(ReceiptKind::StepSettlingTime),
+        step_effect: m
+            .control
+            .as_ref()
+            .and_then(|c| c.step_effect.as_ref())
+            .filter(|e| e.simulated)
+            .map(|e| {
+                format!(
+                    "{} at {}",
+                    e.effect.as_deref().unwrap_or("effect"),
+                    e.place.as_deref().unwrap_or("?")
+                )
+            }),
         target_cost: structure.as_ref().and_then(measured_cost),
         structure,
         controller_order: order,

@@ -69,10 +69,9 @@ pub(crate) fn render(h: &mut String, run: &PipelineRun) {
     for r in &rows {
         let cost = r.target_cost.map_or("not measured".into(), |c| {
             format!(
-                "{}{} ({})",
-                fmt_num(c.mean),
-                c.max
-                    .map_or(String::new(), |m| format!(" / max {}", fmt_num(m))),
+                "{:.0}{} ({})",
+                c.mean,
+                c.max.map_or(String::new(), |m| format!(" / max {m:.0}")),
                 c.source
             )
         });
@@ -107,7 +106,10 @@ pub(crate) fn render(h: &mut String, run: &PipelineRun) {
             num(r.peak_control_effort),
             esc(&fmt_num(r.actuator_limit)),
             esc(&sig.input_unit),
-            num(r.step_overshoot_pct),
+            num(r.step_overshoot_pct)
+                + &r.step_effect.as_ref().map_or(String::new(), |e| {
+                    format!("<br><span class=\"note\">with {}</span>", esc(e))
+                }),
             num(r.step_settling_s),
             esc(&structure_text(r)),
             esc(&cost),
