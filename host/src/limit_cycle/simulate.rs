@@ -133,6 +133,17 @@ enum Law {
 }
 
 impl Law {
+    /// The loop's law: its general controller when it has one (a compensation is refused
+    /// there), else the PID with `comp`.
+    fn new(lp: &LureLoop, comp: Option<&Compensation>) -> Result<Self> {
+        match &lp.general {
+            None => Ok(Law::Pid(ControlStep::new(&lp.controller, comp)?)),
+            Some(_) if comp.is_some_and(|c| c.enabled) => Err(Error::InvalidArgument(
+                "limit-cycle simulation: a compensation is only simulated with the PID law".into(),
+            )),
+            Some(g) => Ok(Law::General(g.law.clone(), 0.0)),
+        }
+    }
     fn step(&mut self, r: f64, y: f64) -> f64 {
         match self {
             Law::Pid(c) => c.step(r, y),
@@ -176,15 +187,7 @@ pub fn simulate(
         )));
     }
     let n_samples = n_samples.round() as usize;
-    let mut ctl = match &lp.general {
-        None => Law::Pid(ControlStep::new(&lp.controller, comp)?),
-        Some(_) if comp.is_some_and(|c| c.enabled) => {
-            return Err(Error::InvalidArgument(
-                "limit-cycle simulation: a compensation is only simulated with the PID law".into(),
-            ))
-        }
-        Some(g) => Law::General(g.law.clone(), 0.0),
-    };
+    let mut ctl = Law::new(lp, comp)?;
     let friction = matches!(nl.site, Site::Velocity);
     // Linear dynamics: sub-stepped continuous plant for friction when available.
     let (sys, m) = match (&lp.plant_continuous, friction) {
