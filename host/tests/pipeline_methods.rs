@@ -194,6 +194,71 @@ fn several_methods_give_each_single_runs_receipts_and_a_comparison_table() {
     assert!(!ferrosid::report::render_html(&singles[2].1, &[])
         .unwrap()
         .contains("control-comparison"));
+    files_generate_each_methods_controller(&multi, &singles);
+}
+
+/// `ferrosid codegen --control` arguments for the files of `dir`.
+fn codegen_args(dir: &Path, control: &Path) -> ferrosid::cli::codegen::Args {
+    use clap::Parser;
+    let p = |f: &str| dir.join(f).into_os_string();
+    let cli = ferrosid::cli::Cli::try_parse_from([
+        "ferrosid".into(),
+        "codegen".into(),
+        "--model".into(),
+        p("model.json"),
+        "--wm".into(),
+        p("wm.json"),
+        "--control".into(),
+        control.as_os_str().to_owned(),
+        "--out-dir".into(),
+        p("gen"),
+    ])
+    .unwrap();
+    let ferrosid::cli::Command::Codegen(a) = cli.command else {
+        panic!("codegen arguments")
+    };
+    a
+}
+
+/// The output directory of the multi-method run: every `receipts.<method>.json` gives, through
+/// `ferrosid codegen --control`, the controller block of that method's own run; a later
+/// single-method run into the same directory removes them.
+fn files_generate_each_methods_controller(
+    multi: &PipelineRun,
+    singles: &[(ControlMethod, PipelineRun)],
+) {
+    let dir = std::env::temp_dir().join(format!("ferrosid-methods-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    ferrosid::output::write_outputs(multi, &dir).unwrap();
+    for (m, single) in &singles[1..] {
+        let file = dir.join(format!("receipts.{}.json", m.name()));
+        let input = ferrosid::cli::codegen::build_input(&codegen_args(&dir, &file)).unwrap();
+        let own = single.codegen_parts().unwrap().state_controller.unwrap();
+        let read = input.state_controller.expect("block from the file");
+        // Everything but the note (which names the file it was read from).
+        let m = m.name();
+        assert_eq!(read.method, own.method, "{m}");
+        assert_eq!(read.matrices, own.matrices, "{m}: matrices");
+        assert_eq!(
+            read.saturation, own.saturation,
+            "{m}: rails / anti-windup gain"
+        );
+        assert_eq!(read.pid_notch, own.pid_notch, "{m}: PID + notch block");
+        assert_eq!(read.mpc, own.mpc, "{m}: MPC data");
+    }
+    // The primary (pid) file has no controller block.
+    let input =
+        ferrosid::cli::codegen::build_input(&codegen_args(&dir, &dir.join("receipts.json")))
+            .unwrap();
+    assert!(input.state_controller.is_none());
+    ferrosid::output::write_outputs(&singles[0].1, &dir).unwrap();
+    for m in ["loopshape", "hinf", "mpc"] {
+        assert!(
+            !dir.join(format!("receipts.{m}.json")).exists(),
+            "{m} stale file removed"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
