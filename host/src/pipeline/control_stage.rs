@@ -26,7 +26,9 @@
 //! peak control effort and the saturated step — are computed on the sampled loop of G0 and the
 //! chosen controller and replace the PID's in `receipts.json` (the PID's are kept in the
 //! `control` block as `replaced_pid_receipts`). The model receipts (ETFE phase,
-//! cross-validation, audit) are unchanged.
+//! cross-validation, audit) are unchanged. When the compensation stage analysed limit cycles,
+//! the `limit_cycle` receipts are the chosen loop's too ([`super::control_cycles`]; for `mpc`
+//! not applicable). Several methods in one run: [`super::control_methods`].
 use super::config::{LoadedConfig, PipelineConfig};
 use super::control_mpc::{mpc_codegen_block, run_mpc, MAX_MPC_HORIZON, MAX_MPC_ITERATIONS};
 use super::fmt_num;
