@@ -25,6 +25,7 @@ pub const OUTPUT_FILES: [&str; 6] = [
 pub fn output_paths() -> Vec<PathBuf> {
     OUTPUT_FILES
         .iter()
+        .chain(&crate::pipeline::control_methods::METHOD_RECEIPT_FILES)
         .map(PathBuf::from)
         .chain(
             crate::report::FIGURE_NAMES
@@ -66,6 +67,14 @@ pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<Pa
     let mut written = Vec::new();
     let doc = ReceiptsDocument::from_run(run);
     written.push(out.write(Path::new("receipts.json"), &doc.to_json()?)?);
+    // `[control] methods`: the other methods' receipts, each as its own run would write it.
+    let per_method = crate::pipeline::control_methods::method_documents(run)?;
+    for name in crate::pipeline::control_methods::METHOD_RECEIPT_FILES {
+        match per_method.iter().find(|(f, _)| f == name) {
+            Some((f, json)) => written.push(out.write(Path::new(f), json)?),
+            None => out.remove_stale(Path::new(name))?,
+        }
+    }
     written.push(out.write(Path::new("model.json"), &json_pretty(&run.model_file())?)?);
     match run.tuned() {
         Some(t) => written.push(out.write(Path::new("pid.json"), &json_pretty(t)?)?),

@@ -83,10 +83,14 @@ mod pipeline_codegen;
 mod pipeline_compensation;
 #[path = "pipeline_control.rs"]
 mod pipeline_control;
+#[path = "pipeline_control_cycles.rs"]
+mod pipeline_control_cycles;
 #[path = "pipeline_end_to_end.rs"]
 mod pipeline_end_to_end;
 #[path = "pipeline_gap.rs"]
 mod pipeline_gap;
+#[path = "pipeline_methods.rs"]
+mod pipeline_methods;
 #[path = "pipeline_physical.rs"]
 mod pipeline_physical;
 #[path = "preprocess_record.rs"]

@@ -33,6 +33,7 @@ use crate::gap::fit::VelocitySource;
 use crate::gap::place::{Place, PlacedEffect};
 use crate::lti::{FreqEvaluator, StateSpace, TransferFunction};
 use crate::robust::pid::DiscretePid;
+use crate::synth::sim::DiscreteLaw;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -153,10 +154,23 @@ pub struct LureLoop {
     /// in input units) through which the friction force enters, e.g. the body's velocity
     /// equation of a motor whose torque lags the command. `None`: at the plant input.
     pub friction_input: Option<Vec<f64>>,
+    /// A general discrete controller in place of the PID ([`LureLoop::with_controller`]):
+    /// the linear part and the simulation use it; `controller` is then not in the loop.
+    pub general: Option<GeneralController>,
     friction_eval: Option<FreqEvaluator>,
     plant_eval: FreqEvaluator,
     plant_continuous_eval: Option<FreqEvaluator>,
     controller_tf: TransferFunction,
+}
+
+/// A general discrete controller of a [`LureLoop`] ([`LureLoop::with_controller`]).
+#[derive(Debug, Clone)]
+pub struct GeneralController {
+    /// The controller u = K·e, discrete at the loop's sample time.
+    pub model: StateSpace,
+    /// The same controller as the law the simulation steps.
+    pub law: DiscreteLaw,
+    eval: FreqEvaluator,
 }
 
 /// The body friction acts on when it acts on the slowest real mode (the gap fit's
@@ -241,6 +255,7 @@ impl LureLoop {
             velocity,
             body: None,
             friction_input: None,
+            general: None,
             friction_eval: None,
             controller_tf,
         })
@@ -336,7 +351,33 @@ impl LureLoop {
 
     /// Controller C(e^{jωT}).
     pub fn controller_response(&self, w_rad_s: f64) -> Result<Complex64> {
-        self.controller_tf.freq_response(w_rad_s)
+        match &self.general {
+            Some(g) => Ok(g.eval.at_rad_s(w_rad_s)?[(0, 0)]),
+            None => self.controller_tf.freq_response(w_rad_s),
+        }
+    }
+
+    /// The loop with the discrete SISO controller `k` (u = K·e at the loop's sample time) in
+    /// place of the PID, stepped in the simulation by `law` (the same controller as a
+    /// [`DiscreteLaw`], run without rails: the PID loop has none either). Errors for a
+    /// continuous or MIMO controller, another sample time or non-finite coefficients.
+    pub fn with_controller(mut self, k: &StateSpace, law: DiscreteLaw) -> Result<Self> {
+        k.validate()?;
+        if !k.is_siso() || !k.is_discrete() || (k.ts - self.ts).abs() > 1e-9 * self.ts {
+            return Err(Error::InvalidArgument(format!(
+                "limit-cycle loop: the controller must be discrete SISO at ts = {} s (got {}x{},                  ts = {} s)",
+                self.ts,
+                k.n_outputs(),
+                k.n_inputs(),
+                k.ts
+            )));
+        }
+        self.general = Some(GeneralController {
+            eval: k.freq_evaluator(),
+            model: k.clone(),
+            law,
+        });
+        Ok(self)
     }
 
     /// The linear part L(e^{jωT}) seen from a nonlinearity at `site` (module table).

@@ -125,6 +125,45 @@ impl NlState {
     }
 }
 
+/// The control law stepped: the PID (with the compensation) or a general controller (its
+/// last command kept for `nl_input`).
+enum Law {
+    Pid(ControlStep),
+    General(crate::synth::sim::DiscreteLaw, f64),
+}
+
+impl Law {
+    /// The loop's law: its general controller when it has one (a compensation is refused
+    /// there), else the PID with `comp`.
+    fn new(lp: &LureLoop, comp: Option<&Compensation>) -> Result<Self> {
+        match &lp.general {
+            None => Ok(Law::Pid(ControlStep::new(&lp.controller, comp)?)),
+            Some(_) if comp.is_some_and(|c| c.enabled) => Err(Error::InvalidArgument(
+                "limit-cycle simulation: a compensation is only simulated with the PID law".into(),
+            )),
+            Some(g) => Ok(Law::General(g.law.clone(), 0.0)),
+        }
+    }
+    fn step(&mut self, r: f64, y: f64) -> f64 {
+        match self {
+            Law::Pid(c) => c.step(r, y),
+            Law::General(law, u) => {
+                *u = law.step(r - y, f64::INFINITY);
+                *u
+            }
+        }
+    }
+    fn pre_inverse_command(&self) -> f64 {
+        match self {
+            Law::Pid(c) => c.pre_inverse_command(),
+            Law::General(_, u) => *u,
+        }
+    }
+    fn compensated(&self) -> bool {
+        matches!(self, Law::Pid(c) if c.compensated())
+    }
+}
+
 /// Simulates the loop `lp` with `nl` (see the module docs), with `comp` in the control law when
 /// given and enabled. Errors for invalid parameters, a compensation that fails validation (its
 /// field named), a bad spec, or a diverging simulation (non-finite state).
@@ -148,7 +187,7 @@ pub fn simulate(
         )));
     }
     let n_samples = n_samples.round() as usize;
-    let mut ctl = ControlStep::new(&lp.controller, comp)?;
+    let mut ctl = Law::new(lp, comp)?;
     let friction = matches!(nl.site, Site::Velocity);
     // Linear dynamics: sub-stepped continuous plant for friction when available.
     let (sys, m) = match (&lp.plant_continuous, friction) {

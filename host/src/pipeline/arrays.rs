@@ -144,6 +144,7 @@ fn configure(
     })?;
     let mut loaded = loaded.without_text();
     loaded.config = config;
+    super::control_methods::apply_primary(&mut loaded.config);
     Ok(loaded)
 }
 

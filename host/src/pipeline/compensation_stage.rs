@@ -157,14 +157,7 @@ pub fn run_compensation_stage(
     pid: &DiscretePid,
     opts: &CompensationStageOptions,
 ) -> Result<CompensationStage> {
-    // The velocity proxy of the verdict's own friction fit (not of another candidate's).
-    let velocity = report.verdict_effects.iter().find_map(|v| {
-        report
-            .effects
-            .iter()
-            .find(|e| e.effect == v.effect && e.place == v.place)
-            .and_then(|e| e.velocity_from.as_deref())
-    });
+    let velocity = verdict_velocity_from(report);
     compensation_stage_from(
         &report.verdict,
         &report.verdict_effects,
@@ -175,6 +168,43 @@ pub fn run_compensation_stage(
         pid,
         opts,
     )
+}
+
+/// The velocity proxy of the verdict's own friction fit (not of another candidate's): the
+/// `velocity_from` of [`compensation_stage_from`].
+pub fn verdict_velocity_from(report: &GapReport) -> Option<&str> {
+    report.verdict_effects.iter().find_map(|v| {
+        report
+            .effects
+            .iter()
+            .find(|e| e.effect == v.effect && e.place == v.place)
+            .and_then(|e| e.velocity_from.as_deref())
+    })
+}
+
+/// The analysed loop of `plant` and `pid` with the friction fit's velocity source
+/// (`velocity_from` as in [`compensation_stage_from`]), and that source.
+pub fn lure_loop(
+    plant: &StateSpace,
+    pid: &DiscretePid,
+    velocity_from: Option<&str>,
+) -> Result<(LureLoop, VelocitySource)> {
+    let (velocity, on_body) = match velocity_from {
+        None | Some("output") => (VelocitySource::Output, false),
+        Some("output_derivative") => (VelocitySource::OutputDerivative, false),
+        Some("output_slowest_mode") => (VelocitySource::Output, true),
+        Some(other) => {
+            return Err(Error::InvalidArgument(format!(
+                "compensation stage: unknown velocity source {other:?} (output, \
+                 output_derivative or output_slowest_mode)"
+            )))
+        }
+    };
+    let mut lp = LureLoop::new(plant, pid, velocity)?;
+    if on_body {
+        lp = lp.with_friction_on_slowest_mode()?;
+    }
+    Ok((lp, velocity))
 }
 
 /// [`run_compensation_stage`] from the parts of a gap report: verdict, its effects, the
@@ -192,17 +222,7 @@ pub fn compensation_stage_from(
     pid: &DiscretePid,
     opts: &CompensationStageOptions,
 ) -> Result<CompensationStage> {
-    let (velocity, on_body) = match velocity_from {
-        None | Some("output") => (VelocitySource::Output, false),
-        Some("output_derivative") => (VelocitySource::OutputDerivative, false),
-        Some("output_slowest_mode") => (VelocitySource::Output, true),
-        Some(other) => {
-            return Err(Error::InvalidArgument(format!(
-                "compensation stage: unknown velocity source {other:?} (output, \
-                 output_derivative or output_slowest_mode)"
-            )))
-        }
-    };
+    let (lp, velocity) = lure_loop(plant, pid, velocity_from)?;
     let mut design = opts.design.clone();
     if velocity == VelocitySource::OutputDerivative {
         if let ferrosid_codegen::VelocitySource::Output = design.velocity {
@@ -215,10 +235,6 @@ pub fn compensation_stage_from(
     }
     let compensation = design_from(verdict, verdict_effects, gap_linear, gap_after, &design)?;
     let placed = parse_verdict(verdict, verdict_effects)?;
-    let mut lp = LureLoop::new(plant, pid, velocity)?;
-    if on_body {
-        lp = lp.with_friction_on_slowest_mode()?;
-    }
     let mut effects = Vec::new();
     let mut not_analysed = Vec::new();
     for pe in &placed {

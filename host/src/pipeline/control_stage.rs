@@ -26,7 +26,9 @@
 //! peak control effort and the saturated step — are computed on the sampled loop of G0 and the
 //! chosen controller and replace the PID's in `receipts.json` (the PID's are kept in the
 //! `control` block as `replaced_pid_receipts`). The model receipts (ETFE phase,
-//! cross-validation, audit) are unchanged.
+//! cross-validation, audit) are unchanged. When the compensation stage analysed limit cycles,
+//! the `limit_cycle` receipts are the chosen loop's too ([`super::control_cycles`]; for `mpc`
+//! not applicable). Several methods in one run: [`super::control_methods`].
 use super::config::{LoadedConfig, PipelineConfig};
 use super::control_mpc::{mpc_codegen_block, run_mpc, MAX_MPC_HORIZON, MAX_MPC_ITERATIONS};
 use super::fmt_num;
@@ -108,18 +110,29 @@ fn method_of_key(key: &str) -> Option<ControlMethod> {
 /// be silently ignored).
 pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
     let k = &cfg.config.control;
+    let methods = super::control_methods::methods_of(&cfg.config);
     for key in cfg.keys_written_in("control") {
         let Some(method) = method_of_key(key) else {
             continue;
         };
-        if k.method != method {
+        if !methods.contains(&method) {
+            let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
             return Err(cfg.key_error(
                 &format!("control.{key}"),
-                format!(
-                    "only used with method = \"{}\" (method is \"{}\")",
-                    method.name(),
-                    k.method.name()
-                ),
+                if k.methods.is_some() {
+                    format!(
+                        "only used with method \"{}\", which control.methods ({}) does not \
+                         list",
+                        method.name(),
+                        names.join(", ")
+                    )
+                } else {
+                    format!(
+                        "only used with method = \"{}\" (method is \"{}\")",
+                        method.name(),
+                        k.method.name()
+                    )
+                },
             ));
         }
     }
@@ -177,7 +190,7 @@ pub(super) fn validate_method_keys(cfg: &LoadedConfig) -> Result<()> {
             ));
         }
     }
-    if let (Some(d), true) = (k.mpc_rate_limit, k.method == ControlMethod::Mpc) {
+    if let (Some(d), true) = (k.mpc_rate_limit, methods.contains(&ControlMethod::Mpc)) {
         if d.is_finite() && d > 2.0 * k.actuator_limit {
             return Err(cfg.key_error(
                 "control.mpc_rate_limit",
@@ -594,6 +607,7 @@ fn hinf_filter(kd: &StateSpace, anti_windup: bool) -> Result<SsFilter> {
 }
 
 /// What the stage needs from the pipeline.
+#[derive(Clone, Copy)]
 pub(super) struct ControlStageInputs<'a> {
     /// G0 (discrete).
     pub model: &'a StateSpace,
@@ -607,6 +621,9 @@ pub(super) struct ControlStageInputs<'a> {
     pub f_first_bin: Option<f64>,
     /// The run's gap diagnosis, when it ran (the MPC simulates its verdict's effect).
     pub gap: Option<&'a crate::gap::GapReport>,
+    /// The compensation stage's decision, when it ran (the chosen loop's `limit_cycle`
+    /// receipts analyse its effects, [`super::control_cycles`]).
+    pub remedy: Option<&'a super::remedy::Decision>,
 }
 
 impl ControlStageInputs<'_> {
@@ -653,13 +670,16 @@ pub(super) fn run_control_stage(
         controller_ss: None,
         mpc: None,
     };
+    let owns_cycles = super::control_cycles::analysed(&inp);
     let designed = match method {
         ControlMethod::Pid => return Ok(None),
         ControlMethod::Loopshape => design_loopshape(c, inp.model, inp.weight)?,
         ControlMethod::Hinf => design_hinf(c, inp.model, inp.weight)?,
         ControlMethod::Mpc => {
             let fc = run_mpc(c, &inp, &mut out)?;
-            out.replaced_pid_receipts = merge(receipts, &out.receipts);
+            out.not_applicable
+                .extend(super::control_cycles::mpc_not_applicable(&inp));
+            out.replaced_pid_receipts = merge(receipts, &out.receipts, owns_cycles);
             return Ok(Some((out, fc)));
         }
     };
@@ -705,6 +725,11 @@ pub(super) fn run_control_stage(
             for r in lr.receipts.receipts {
                 out.receipts.push(r);
             }
+            let cycles =
+                super::control_cycles::chosen_limit_cycles(c, &inp, method, &d.controller, &d.law)?;
+            for r in cycles {
+                out.receipts.push(r);
+            }
             out.status = "designed";
             out.design = Some(d.summary);
             out.controller = Some(StateSpaceData::from(&d.controller));
@@ -716,17 +741,30 @@ pub(super) fn run_control_stage(
             fc
         }
     };
-    out.replaced_pid_receipts = merge(receipts, &out.receipts);
+    out.replaced_pid_receipts = merge(receipts, &out.receipts, owns_cycles);
     Ok(Some((out, fc)))
 }
 
 /// Replaces the loop receipts of `main` by those of `chosen` (in place, by name; a chosen
 /// receipt without a counterpart is appended; a PID loop receipt without a chosen counterpart
-/// is removed) and returns the replaced ones.
-fn merge(main: &mut Receipts, chosen: &Receipts) -> Vec<Receipt> {
+/// is removed) and returns the replaced ones. With `cycles`, the `limit_cycle` receipts (one
+/// per analysed effect, all of that name) are the chosen loop's too: the PID's are replaced
+/// by all of the chosen ones at the place of the first.
+fn merge(main: &mut Receipts, chosen: &Receipts, cycles: bool) -> Vec<Receipt> {
     let mut replaced = Vec::new();
     let mut list = Vec::with_capacity(main.receipts.len());
+    let is_cycle = |r: &Receipt| cycles && r.kind() == Some(ReceiptKind::LimitCycle);
+    let chosen_cycles: Vec<&Receipt> = chosen.receipts.iter().filter(|r| is_cycle(*r)).collect();
+    let mut cycles_placed = false;
     for r in main.receipts.drain(..) {
+        if is_cycle(&r) {
+            if !cycles_placed {
+                list.extend(chosen_cycles.iter().map(|x| (*x).clone()));
+                cycles_placed = true;
+            }
+            replaced.push(r);
+            continue;
+        }
         let is_loop = r.kind().is_some_and(is_loop_kind);
         match chosen.get(&r.name) {
             Some(new) if is_loop => {
@@ -738,7 +776,11 @@ fn merge(main: &mut Receipts, chosen: &Receipts) -> Vec<Receipt> {
         }
     }
     for r in &chosen.receipts {
-        if !list.iter().any(|x| x.name == r.name) {
+        if is_cycle(r) {
+            if !cycles_placed {
+                list.push(r.clone());
+            }
+        } else if !list.iter().any(|x| x.name == r.name) {
             list.push(r.clone());
         }
     }

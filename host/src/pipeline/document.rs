@@ -266,6 +266,10 @@ pub struct ReceiptsDocument {
     /// The `[control] method` stage (absent for `pid`; docs/receipts-schema.md).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub control: Option<super::control_stage::ControlOutcome>,
+    /// `[control] methods` with two or more: one row per method, primary first, and the file
+    /// its receipts are in (absent otherwise; docs/receipts-schema.md).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub comparison: Vec<super::control_methods::ComparisonRow>,
 }
 
 impl WeightSummary {
@@ -402,6 +406,7 @@ impl ReceiptsDocument {
             compensation: run.compensation.clone(),
             physical: run.physical.clone(),
             control: run.control.clone(),
+            comparison: super::control_methods::comparison_rows(run),
         }
     }
 

@@ -29,6 +29,8 @@
 pub mod arrays;
 pub mod compensation_stage;
 pub mod config;
+pub mod control_cycles;
+pub mod control_methods;
 pub mod control_mpc;
 pub mod control_stage;
 pub mod document;
@@ -271,6 +273,9 @@ pub struct PipelineRun {
     pub physical: physical_stage::PhysicalOutcome,
     /// The `[control] method` stage ([`control_stage`]; None for `pid`).
     pub control: Option<control_stage::ControlOutcome>,
+    /// With `[control] methods` of two or more: every method's result, primary first
+    /// ([`control_methods`]); empty otherwise.
+    pub comparison: Vec<control_methods::MethodRun>,
 }
 
 impl PipelineRun {
@@ -524,7 +529,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         }
     }
     progress("control");
-    let control = control_stage::run_control_stage(
+    let (control, comparison) = control_methods::run_methods(
         c,
         control_stage::ControlStageInputs {
             model: &model,
@@ -533,13 +538,12 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
             fs,
             f_first_bin: runs[nominal].etfe.freq_hz.get(1).copied(),
             gap: gap.report(),
+            remedy: compensation.decision(),
         },
         &mut receipts,
-    )?
-    .map(|(outcome, f)| {
-        fc = f;
-        outcome
-    });
+        &mut fc,
+        progress,
+    )?;
     progress("done");
     Ok(PipelineRun {
         title: stages::title(cfg),
@@ -565,6 +569,7 @@ pub fn run_pipeline(cfg: &LoadedConfig, progress: &dyn Fn(&str)) -> Result<Pipel
         compensation,
         physical,
         control,
+        comparison,
     })
 }
 

@@ -25,6 +25,7 @@
 //! `provenance`.
 mod charts;
 mod compensation_section;
+mod control_compare;
 mod control_section;
 mod gap_section;
 mod physical_section;
@@ -185,6 +186,7 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
     sections::validation(&mut h, run, figs);
     sections::controller(&mut h, run);
     control_section::render(&mut h, run, figs);
+    control_compare::render(&mut h, run);
     sections::provenance(&mut h, run);
     Ok(h)
 }

@@ -384,6 +384,12 @@ pub struct Control {
         skip_serializing_if = "super::control_stage::ControlMethod::is_pid"
     )]
     pub method: super::control_stage::ControlMethod,
+    /// Several methods in one run, the first the primary (its receipts are `receipts.json`,
+    /// the others' `receipts.<method>.json`; the report compares them). `method`, when also
+    /// written, must equal the first entry; with `methods` alone `method` is set to it
+    /// ([`super::control_methods`]). Omitted from the settings echo when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub methods: Option<Vec<super::control_stage::ControlMethod>>,
     /// `loopshape`: plant modes with damping ratio below this are notched (default 0.3).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notch_max_damping: Option<f64>,
@@ -628,13 +634,14 @@ impl LoadedConfig {
             .parent()
             .map(Path::to_path_buf)
             .unwrap_or_else(|| PathBuf::from("."));
-        let loaded = Self {
+        let mut loaded = Self {
             path: path.to_path_buf(),
             base_dir,
             text: text.to_string(),
             config,
             keys,
         };
+        super::control_methods::resolve_methods(&mut loaded)?;
         loaded.validate()?;
         Ok(loaded)
     }
