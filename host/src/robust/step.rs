@@ -86,6 +86,75 @@ pub fn saturated_step(
     ctrl: &DiscretePid,
     spec: &StepSpec,
 ) -> Result<StepResponse> {
+    let n_samples = check_step(plant, ctrl, spec)?;
+    let n = plant.n_states();
+    let a: Vec<f64> = (0..n * n).map(|k| plant.a[(k / n, k % n)]).collect();
+    let b: Vec<f64> = (0..n).map(|i| plant.b[(i, 0)]).collect();
+    let c: Vec<f64> = (0..n).map(|j| plant.c[(0, j)]).collect();
+    let d = plant.d[(0, 0)];
+    let (r, lim) = (spec.amplitude, spec.actuator_limit);
+    let mut x = vec![0.0; n];
+    let mut xn = vec![0.0; n];
+    let mut st = DiscretePidState::default();
+    let mut out = StepResponse {
+        ts: plant.ts,
+        amplitude: r,
+        actuator_limit: lim,
+        t: Vec::with_capacity(n_samples),
+        y: Vec::with_capacity(n_samples),
+        u: Vec::with_capacity(n_samples),
+        u_demand: Vec::with_capacity(n_samples),
+        hits_rail: false,
+        samples_at_rail: 0,
+        peak_demand_ratio: 0.0,
+        overshoot_pct: 0.0,
+        settling_time_s: None,
+        rise_time_s: None,
+        final_error: 0.0,
+    };
+    for k in 0..n_samples {
+        let cx: f64 = c.iter().zip(&x).map(|(ci, xi)| ci * xi).sum();
+        let (y, u, v) = if d == 0.0 {
+            let e = r - cx;
+            let mut s2 = st;
+            let (u, v) = ctrl.update_detailed(&mut s2, e, Some(lim), spec.anti_windup);
+            st = s2;
+            (cx, u, v)
+        } else {
+            let e = algebraic_loop_error(ctrl, &st, spec, cx, d, k)?;
+            let (u, v) = ctrl.update_detailed(&mut st, e, Some(lim), spec.anti_windup);
+            (cx + d * u, u, v)
+        };
+        if !(y.is_finite() && v.is_finite()) {
+            return Err(Error::Numerical(format!(
+                "saturated step: the response diverged at t = {} s (unstable loop)",
+                k as f64 * plant.ts
+            )));
+        }
+        for i in 0..n {
+            let mut acc = b[i] * u;
+            for j in 0..n {
+                acc += a[i * n + j] * x[j];
+            }
+            xn[i] = acc;
+        }
+        std::mem::swap(&mut x, &mut xn);
+        if v.abs() >= lim {
+            out.samples_at_rail += 1;
+        }
+        out.peak_demand_ratio = out.peak_demand_ratio.max(v.abs() / lim);
+        out.t.push(k as f64 * plant.ts);
+        out.y.push(y);
+        out.u.push(u);
+        out.u_demand.push(v);
+    }
+    summarise(&mut out, spec);
+    Ok(out)
+}
+
+/// The number of samples to simulate, after checking the plant, the controller's sample time
+/// and the spec.
+fn check_step(plant: &StateSpace, ctrl: &DiscretePid, spec: &StepSpec) -> Result<usize> {
     plant.validate()?;
     if !plant.is_discrete() || !plant.is_siso() {
         return Err(Error::InvalidArgument(
@@ -124,90 +193,52 @@ pub fn saturated_step(
             spec.duration_s, plant.ts
         )));
     }
-    let n_samples = n_samples as usize;
-    let n = plant.n_states();
-    let a: Vec<f64> = (0..n * n).map(|k| plant.a[(k / n, k % n)]).collect();
-    let b: Vec<f64> = (0..n).map(|i| plant.b[(i, 0)]).collect();
-    let c: Vec<f64> = (0..n).map(|j| plant.c[(0, j)]).collect();
-    let d = plant.d[(0, 0)];
+    Ok(n_samples as usize)
+}
+
+/// The tracking error e of sample `k` when the plant feedthrough `d` ≠ 0 closes an algebraic
+/// loop: the root of φ(e) = e − (r − cx − d·u(e)) by bisection (`cx` = C·x, `st` the
+/// controller state before the sample, left unchanged).
+fn algebraic_loop_error(
+    ctrl: &DiscretePid,
+    st: &DiscretePidState,
+    spec: &StepSpec,
+    cx: f64,
+    d: f64,
+    k: usize,
+) -> Result<f64> {
     let (r, lim) = (spec.amplitude, spec.actuator_limit);
-    let mut x = vec![0.0; n];
-    let mut xn = vec![0.0; n];
-    let mut st = DiscretePidState::default();
-    let mut out = StepResponse {
-        ts: plant.ts,
-        amplitude: r,
-        actuator_limit: lim,
-        t: Vec::with_capacity(n_samples),
-        y: Vec::with_capacity(n_samples),
-        u: Vec::with_capacity(n_samples),
-        u_demand: Vec::with_capacity(n_samples),
-        hits_rail: false,
-        samples_at_rail: 0,
-        peak_demand_ratio: 0.0,
-        overshoot_pct: 0.0,
-        settling_time_s: None,
-        rise_time_s: None,
-        final_error: 0.0,
+    let st = *st;
+    // Solve φ(e) = e − (r − cx − d·u(e)) = 0 by bisection.
+    let phi = |e: f64| -> f64 {
+        let mut s2 = st;
+        let (u, _) = ctrl.update_detailed(&mut s2, e, Some(lim), spec.anti_windup);
+        e - (r - cx - d * u)
     };
-    for k in 0..n_samples {
-        let cx: f64 = c.iter().zip(&x).map(|(ci, xi)| ci * xi).sum();
-        let (y, u, v) = if d == 0.0 {
-            let e = r - cx;
-            let mut s2 = st;
-            let (u, v) = ctrl.update_detailed(&mut s2, e, Some(lim), spec.anti_windup);
-            st = s2;
-            (cx, u, v)
-        } else {
-            // Solve φ(e) = e − (r − cx − d·u(e)) = 0 by bisection.
-            let phi = |e: f64| -> f64 {
-                let mut s2 = st;
-                let (u, _) = ctrl.update_detailed(&mut s2, e, Some(lim), spec.anti_windup);
-                e - (r - cx - d * u)
-            };
-            let span = (r - cx).abs() + d.abs() * lim + 1.0;
-            let (mut lo, mut hi) = (r - cx - span, r - cx + span);
-            if phi(lo) > 0.0 || phi(hi) < 0.0 {
-                return Err(Error::Numerical(format!(
-                    "saturated step: algebraic loop through plant feedthrough D = {d} is ill \
-                     posed at sample {k}"
-                )));
-            }
-            for _ in 0..200 {
-                let mid = 0.5 * (lo + hi);
-                if phi(mid) > 0.0 {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
-            let e = 0.5 * (lo + hi);
-            let (u, v) = ctrl.update_detailed(&mut st, e, Some(lim), spec.anti_windup);
-            (cx + d * u, u, v)
-        };
-        if !(y.is_finite() && v.is_finite()) {
-            return Err(Error::Numerical(format!(
-                "saturated step: the response diverged at t = {} s (unstable loop)",
-                k as f64 * plant.ts
-            )));
-        }
-        for i in 0..n {
-            let mut acc = b[i] * u;
-            for j in 0..n {
-                acc += a[i * n + j] * x[j];
-            }
-            xn[i] = acc;
-        }
-        std::mem::swap(&mut x, &mut xn);
-        if v.abs() >= lim {
-            out.samples_at_rail += 1;
-        }
-        out.peak_demand_ratio = out.peak_demand_ratio.max(v.abs() / lim);
-        out.t.push(k as f64 * plant.ts);
-        out.y.push(y);
-        out.u.push(u);
-        out.u_demand.push(v);
+    let span = (r - cx).abs() + d.abs() * lim + 1.0;
+    let (mut lo, mut hi) = (r - cx - span, r - cx + span);
+    if phi(lo) > 0.0 || phi(hi) < 0.0 {
+        return Err(Error::Numerical(format!(
+            "saturated step: algebraic loop through plant feedthrough D = {d} is ill \
+             posed at sample {k}"
+        )));
     }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if phi(mid) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let e = 0.5 * (lo + hi);
+    Ok(e)
+}
+
+/// The summary numbers of a simulated response: rail hits, overshoot, settling and rise time,
+/// final error.
+fn summarise(out: &mut StepResponse, spec: &StepSpec) {
+    let r = spec.amplitude;
     out.hits_rail = out.samples_at_rail > 0;
     let sgn = r.signum();
     let ar = r.abs();
@@ -231,5 +262,4 @@ pub fn saturated_step(
         _ => None,
     };
     out.final_error = r - out.y[out.y.len() - 1];
-    Ok(out)
 }
