@@ -4,15 +4,15 @@
 //! `describing_function`), the simulated loop without and with the compensation (figure
 //! `limit_cycle`) and the receipts before and after the choice. Both figures show the first
 //! analysed effect; the tables list every effect. The section's HTML is `compensation.html`.
+use super::captions::{Caption, SimOutcome};
 use super::{append, filters, Figure, View, FIG_WIDTH};
 use crate::error::Result;
 use crate::pipeline::compensation_stage::EffectCycles;
 use crate::pipeline::remedy::{CompensationOutcome, Decision};
-use crate::pipeline::{fmt_num, PipelineRun};
+use crate::pipeline::PipelineRun;
 use crate::plot::{self, colors, Kind, LegendAt, Panel, Series};
 use crate::robust::receipts::Receipt;
 use askama::Template;
-use std::fmt::Write as _;
 
 /// The section's figures (none unless an effect was analysed).
 pub(crate) fn figures(run: &PipelineRun) -> Result<Vec<Figure>> {
@@ -71,21 +71,11 @@ fn fig_describing(e: &EffectCycles) -> Result<Figure> {
     p.x_range = Some((-r, r));
     p.y_range = Some((-r, r));
     p.legend = LegendAt::LowerLeft;
-    let caption = match e.before.predicted.first() {
-        Some(c) => format!(
-            "Describing function of {}: the loop's linear part meets −1/N(A) at {} Hz, amplitude \
-             {} ({}) — a harmonic-balance solution, confirmed or refuted by the simulation.",
-            e.label,
-            fmt_num(c.freq_hz),
-            fmt_num(c.amplitude),
-            if c.stable { "stable" } else { "unstable" }
-        ),
-        None => format!(
-            "Describing function of {}: −1/N(A) does not meet the loop's linear part; no limit \
-             cycle is predicted.",
-            e.label
-        ),
-    };
+    let caption = Caption::DescribingFunction {
+        label: &e.label,
+        cycle: e.before.predicted.first(),
+    }
+    .text()?;
     Ok(Figure {
         name: "describing_function",
         caption,
@@ -123,26 +113,12 @@ fn fig_cycle(e: &EffectCycles, ts: f64) -> Result<Figure> {
         ));
     }
     p.legend = LegendAt::LowerLeft;
-    let sim = |a: &crate::limit_cycle::LimitCycleAnalysis| match &a.simulated_output {
-        Some(s) if a.simulated_counts() => format!(
-            "a cycle at {} Hz, output half peak-to-peak {}",
-            fmt_num(s.freq_hz),
-            fmt_num(a.output_tail_half_ptp)
-        ),
-        _ => format!(
-            "no counted cycle (output half peak-to-peak {})",
-            fmt_num(a.output_tail_half_ptp)
-        ),
-    };
-    let mut caption = format!(
-        "Simulated closed loop with {} after a start-up kick: without compensation {}",
-        e.label,
-        sim(&e.before)
-    );
-    if let Some(a) = &e.after {
-        let _ = write!(caption, "; with compensation {}", sim(a));
+    let caption = Caption::LimitCycle {
+        label: &e.label,
+        before: SimOutcome::of(&e.before),
+        after: e.after.as_ref().map(SimOutcome::of),
     }
-    caption.push('.');
+    .text()?;
     Ok(Figure {
         name: "limit_cycle",
         caption,

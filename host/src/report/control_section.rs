@@ -5,11 +5,12 @@
 //! plot of L (figure `control_loop`), |S| and |T| against 1/|W_m| (`control_sensitivity`) and
 //! the saturated step (`control_step`). Nothing is rendered for `pid`. The section's HTML is
 //! `control.html`.
+use super::captions::Caption;
 use super::charts::{db, thin};
 use super::{append, filters, Figure, View, FIG_WIDTH};
 use crate::error::Result;
 use crate::pipeline::control_stage::{ControlOutcome, DesignSummary};
-use crate::pipeline::{fmt_num, PipelineRun};
+use crate::pipeline::PipelineRun;
 use crate::plot::{self, colors, Kind, LegendAt, Panel, RefLine, Series};
 use crate::robust::receipts::Receipt;
 use askama::Template;
@@ -51,11 +52,11 @@ pub(crate) fn figures(run: &PipelineRun) -> Result<Vec<Figure>> {
         });
         out.push(Figure {
             name: "control_loop",
-            caption: format!(
-                "Loop transfer L = G0·K of the {m} controller (sampled loop); lowest gain \
-                 crossover {} Hz.",
-                c.gain_crossover_hz.map_or("none".into(), fmt_num)
-            ),
+            caption: Caption::ControlLoop {
+                method: m,
+                crossover_hz: c.gain_crossover_hz,
+            }
+            .text()?,
             svg: plot::render("control_loop", FIG_WIDTH, &[(pm, 260), (pp, 220)])?,
         });
         let mut ps = Panel::new("", "frequency (Hz)", "magnitude (dB)", true, false);
@@ -79,10 +80,7 @@ pub(crate) fn figures(run: &PipelineRun) -> Result<Vec<Figure>> {
         ps.legend = LegendAt::LowerRight;
         out.push(Figure {
             name: "control_sensitivity",
-            caption: format!(
-                "|S| and |T| of the {m} loop against 1/|W_m|: robust stability needs |T| < \
-                 1/|W_m| at every frequency."
-            ),
+            caption: Caption::ControlSensitivity { method: m }.text()?,
             svg: plot::render("control_sensitivity", FIG_WIDTH, &[(ps, 340)])?,
         });
     }
@@ -129,46 +127,18 @@ pub(crate) fn figures(run: &PipelineRun) -> Result<Vec<Figure>> {
         }
         out.push(Figure {
             name: "control_step",
-            caption: format!(
-                "Saturated step of the {} loop: {} {} against rails ±{} {}; overshoot {} %, \
-                 settling {}.",
-                c.method.name(),
-                fmt_num(s.amplitude),
-                sig.output_unit,
-                fmt_num(s.actuator_limit),
-                sig.input_unit,
-                fmt_num(s.overshoot_pct),
-                s.settling_time_s
-                    .map_or("not reached".into(), |t| format!("{} s", fmt_num(t)))
-            ) + &step_effect_caption(c.step_effect.as_ref()),
+            caption: Caption::ControlStep {
+                method: c.method.name(),
+                s,
+                output_unit: &sig.output_unit,
+                input_unit: &sig.input_unit,
+                effect: c.step_effect.as_ref(),
+            }
+            .text()?,
             svg: plot::render("control_step", FIG_WIDTH, &[(py, 260), (pu, 220)])?,
         });
     }
     Ok(out)
-}
-
-/// The caption's note on the diagnosed effect an MPC step simulates between the controller and
-/// G0 (empty when none is simulated: the step is G0's).
-fn step_effect_caption(e: Option<&crate::pipeline::control_mpc::StepEffect>) -> String {
-    match e {
-        Some(e) if e.simulated => {
-            let params = e.params.as_ref().map_or(String::new(), |p| {
-                let v: Vec<String> = p
-                    .iter()
-                    .map(|(k, v)| format!("{k} {}", fmt_num(*v)))
-                    .collect();
-                format!(" ({})", v.join(", "))
-            });
-            format!(
-                " With the diagnosed {}{} at {} in the loop; the command is the controller's, \
-                 before the effect (the same step on G0 alone: control.linear_step_receipts).",
-                e.effect.as_deref().unwrap_or("effect"),
-                params,
-                e.place.as_deref().unwrap_or("?")
-            )
-        }
-        _ => String::new(),
-    }
 }
 
 #[derive(Template)]

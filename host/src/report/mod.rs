@@ -29,6 +29,7 @@
 //! the view its template reads (the run and the figures, with a few helpers) and appends the
 //! rendered section. Every `{{ … }}` is escaped by [`escape::ReportHtml`]; SVG figures are
 //! inlined with `|safe`.
+mod captions;
 mod charts;
 mod compensation_section;
 mod control_section;
