@@ -105,4 +105,24 @@ mod tests {
         let rendered = One { s: &all }.render().expect("render");
         assert_eq!(rendered, format!("[{}]", reference(&all)));
     }
+
+    #[test]
+    fn only_the_inlined_svg_is_unescaped_in_the_report_templates() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("templates/report");
+        let mut unescaped = Vec::new();
+        for entry in std::fs::read_dir(&dir).expect("templates/report") {
+            let path = entry.expect("entry").path();
+            let text = std::fs::read_to_string(&path).expect("template");
+            for (i, line) in text.lines().enumerate() {
+                for (at, _) in line.match_indices("|safe") {
+                    let start = line[..at].rfind("{{").unwrap_or(0);
+                    let expr = line[start..at].trim_start_matches("{{").trim();
+                    if expr != "f.svg" {
+                        unescaped.push(format!("{}:{}: {expr}", path.display(), i + 1));
+                    }
+                }
+            }
+        }
+        assert!(unescaped.is_empty(), "unescaped: {unescaped:#?}");
+    }
 }
