@@ -148,7 +148,7 @@ pub fn saturated_step(
         out.u.push(u);
         out.u_demand.push(v);
     }
-    summarise(&mut out, spec);
+    summarise(&mut out, spec.settle_band);
     Ok(out)
 }
 
@@ -180,17 +180,24 @@ fn check_step(plant: &StateSpace, ctrl: &DiscretePid, spec: &StepSpec) -> Result
             spec.actuator_limit
         )));
     }
+    step_samples(spec, plant.ts)
+}
+
+/// The number of samples of a step of `spec` at sample time `ts`, after checking the settling
+/// band and the duration (the last checks of [`saturated_step`] and of the general
+/// controller's step, `synth::sim::saturated_step_general`).
+pub(crate) fn step_samples(spec: &StepSpec, ts: f64) -> Result<usize> {
     if !(spec.settle_band.is_finite() && spec.settle_band > 0.0 && spec.settle_band < 1.0) {
         return Err(Error::InvalidArgument(format!(
             "saturated step: settling band {} must lie in (0, 1)",
             spec.settle_band
         )));
     }
-    let n_samples = (spec.duration_s / plant.ts).floor();
+    let n_samples = (spec.duration_s / ts).floor();
     if !(n_samples.is_finite() && (2.0..=5e7).contains(&n_samples)) {
         return Err(Error::InvalidArgument(format!(
-            "saturated step: duration {} s at ts = {} s gives {n_samples} samples (need 2..5e7)",
-            spec.duration_s, plant.ts
+            "saturated step: duration {} s at ts = {ts} s gives {n_samples} samples (need 2..5e7)",
+            spec.duration_s
         )));
     }
     Ok(n_samples as usize)
@@ -209,14 +216,26 @@ fn algebraic_loop_error(
 ) -> Result<f64> {
     let (r, lim) = (spec.amplitude, spec.actuator_limit);
     let st = *st;
-    // Solve φ(e) = e − (r − cx − d·u(e)) = 0 by bisection.
     let phi = |e: f64| -> f64 {
         let mut s2 = st;
         let (u, _) = ctrl.update_detailed(&mut s2, e, Some(lim), spec.anti_windup);
         e - (r - cx - d * u)
     };
-    let span = (r - cx).abs() + d.abs() * lim + 1.0;
-    let (mut lo, mut hi) = (r - cx - span, r - cx + span);
+    loop_error_by_bisection(phi, r - cx, d, lim, k)
+}
+
+/// The root of `phi` (φ(e) = e − (r − cx − d·u(e)), increasing when the loop is well posed)
+/// by 200 bisection steps on r − cx ± (|r − cx| + |d|·lim + 1), `r_cx` = r − cx; an error
+/// when φ does not change sign there (sample `k`). Shared with the general controller's step.
+pub(crate) fn loop_error_by_bisection(
+    phi: impl Fn(f64) -> f64,
+    r_cx: f64,
+    d: f64,
+    lim: f64,
+    k: usize,
+) -> Result<f64> {
+    let span = r_cx.abs() + d.abs() * lim + 1.0;
+    let (mut lo, mut hi) = (r_cx - span, r_cx + span);
     if phi(lo) > 0.0 || phi(hi) < 0.0 {
         return Err(Error::Numerical(format!(
             "saturated step: algebraic loop through plant feedthrough D = {d} is ill \
@@ -231,14 +250,13 @@ fn algebraic_loop_error(
             lo = mid;
         }
     }
-    let e = 0.5 * (lo + hi);
-    Ok(e)
+    Ok(0.5 * (lo + hi))
 }
 
-/// The summary numbers of a simulated response: rail hits, overshoot, settling and rise time,
-/// final error.
-fn summarise(out: &mut StepResponse, spec: &StepSpec) {
-    let r = spec.amplitude;
+/// The summary numbers of a simulated response (`out.t`, `y`, `samples_at_rail` filled in):
+/// rail hits, overshoot, settling time within `settle_band`·|r|, rise time, final error.
+pub(crate) fn summarise(out: &mut StepResponse, settle_band: f64) {
+    let r = out.amplitude;
     out.hits_rail = out.samples_at_rail > 0;
     let sgn = r.signum();
     let ar = r.abs();
@@ -248,7 +266,7 @@ fn summarise(out: &mut StepResponse, spec: &StepSpec) {
         .map(|y| y * sgn)
         .fold(f64::NEG_INFINITY, f64::max);
     out.overshoot_pct = ((peak - ar) / ar * 100.0).max(0.0);
-    let band = spec.settle_band * ar;
+    let band = settle_band * ar;
     let last_out = out.y.iter().rposition(|y| (y - r).abs() > band);
     out.settling_time_s = match last_out {
         None => Some(0.0),
@@ -261,5 +279,5 @@ fn summarise(out: &mut StepResponse, spec: &StepSpec) {
         (Some(a), Some(b)) => Some(out.t[b] - out.t[a]),
         _ => None,
     };
-    out.final_error = r - out.y[out.y.len() - 1];
+    out.final_error = r - out.y.last().copied().unwrap_or(0.0);
 }
