@@ -130,12 +130,7 @@ fn fig_cycle(e: &EffectCycles, ts: f64) -> Result<Figure> {
 #[template(path = "report/compensation.html")]
 struct Section<'a>(View<'a>);
 
-impl<'a> std::ops::Deref for Section<'a> {
-    type Target = View<'a>;
-    fn deref(&self) -> &View<'a> {
-        &self.0
-    }
-}
+view_deref!(Section);
 
 impl Section<'_> {
     /// The choice as receipts.json spells it.

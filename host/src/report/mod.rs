@@ -29,6 +29,19 @@
 //! the view its template reads (the run and the figures, with a few helpers) and appends the
 //! rendered section. Every `{{ … }}` is escaped by [`escape::ReportHtml`]; SVG figures are
 //! inlined with `|safe`.
+/// `Deref` to [`View`] for a section template's wrapper `struct Name<'a>(View<'a>)`, so that
+/// its template reads `run`, `figs` and `self.fig(…)` directly.
+macro_rules! view_deref {
+    ($t:ident) => {
+        impl<'a> std::ops::Deref for $t<'a> {
+            type Target = super::View<'a>;
+            fn deref(&self) -> &super::View<'a> {
+                &self.0
+            }
+        }
+    };
+}
+
 mod captions;
 mod charts;
 mod compensation_section;

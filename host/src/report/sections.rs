@@ -74,12 +74,7 @@ pub(super) fn receipts(h: &mut String, run: &PipelineRun) -> Result<()> {
 #[template(path = "report/model.html")]
 struct Model<'a>(View<'a>);
 
-impl<'a> std::ops::Deref for Model<'a> {
-    type Target = View<'a>;
-    fn deref(&self) -> &View<'a> {
-        &self.0
-    }
-}
+view_deref!(Model);
 
 impl Model<'_> {
     /// Frequency resolution of the estimation run's Welch estimate, Hz.
@@ -114,12 +109,7 @@ pub(super) fn model(h: &mut String, v: View<'_>) -> Result<()> {
 #[template(path = "report/design_loop.html")]
 struct DesignLoop<'a>(View<'a>);
 
-impl<'a> std::ops::Deref for DesignLoop<'a> {
-    type Target = View<'a>;
-    fn deref(&self) -> &View<'a> {
-        &self.0
-    }
-}
+view_deref!(DesignLoop);
 
 impl DesignLoop<'_> {
     fn poly(&self, c: &[f64]) -> String {
@@ -151,12 +141,7 @@ pub(super) fn design_loop(h: &mut String, v: View<'_>) -> Result<()> {
 #[template(path = "report/audit.html")]
 struct Audit<'a>(View<'a>);
 
-impl<'a> std::ops::Deref for Audit<'a> {
-    type Target = View<'a>;
-    fn deref(&self) -> &View<'a> {
-        &self.0
-    }
-}
+view_deref!(Audit);
 
 impl Audit<'_> {
     fn verdict(&self, a: &NonlinearityAudit) -> &'static str {
@@ -174,12 +159,7 @@ pub(super) fn audit(h: &mut String, v: View<'_>) -> Result<()> {
 #[template(path = "report/validation.html")]
 struct Validation<'a>(View<'a>);
 
-impl<'a> std::ops::Deref for Validation<'a> {
-    type Target = View<'a>;
-    fn deref(&self) -> &View<'a> {
-        &self.0
-    }
-}
+view_deref!(Validation);
 
 impl Validation<'_> {
     fn residual_kind(&self, r: &ResidualTest) -> &'static str {
