@@ -374,8 +374,8 @@ impl SubstepPlant {
         o_before: f64,
     ) {
         let n = self.n;
-        for i in 0..n {
-            xn[i] = dot(&self.ad[i * n..(i + 1) * n], x) + self.bd[i] * w;
+        for (i, xi) in xn.iter_mut().enumerate() {
+            *xi = dot(&self.ad[i * n..(i + 1) * n], x) + self.bd[i] * w;
         }
         match (fr, self.body) {
             (Some(f), Some((ph, k))) => {
@@ -386,8 +386,8 @@ impl SubstepPlant {
             (Some(f), None) => {
                 let v_trial = self.velocity_of(xn, o_before, w);
                 let force = f.force(v_trial, self.g);
-                for i in 0..n {
-                    xn[i] -= self.bfd[i] * force;
+                for (xi, b) in xn.iter_mut().zip(&self.bfd) {
+                    *xi -= b * force;
                 }
             }
             (None, _) => {}
