@@ -168,11 +168,27 @@ impl GapReport {
             .map_err(|e| crate::error::Error::Numerical(format!("serialising the gap report: {e}")))
     }
 
-    /// Human-readable report.
+    /// Human-readable report: the verdict, then WHERE, EVIDENCE, HOW FAR and WHICH, then the
+    /// notes.
     pub fn to_text(&self) -> String {
         let mut s = String::new();
-        let w = &self.where_;
-        let pct = |v: f64| format!("{:+.0}%", -100.0 * v);
+        self.verdict_text(&mut s);
+        let _ = writeln!(s);
+        self.where_text(&mut s);
+        let _ = writeln!(s);
+        self.evidence_text(&mut s);
+        let _ = writeln!(s);
+        self.how_far_text(&mut s);
+        let _ = writeln!(s);
+        self.which_text(&mut s);
+        for n in &self.notes {
+            let _ = writeln!(s, "note: {n}");
+        }
+        s
+    }
+
+    /// The verdict line and its effects with their shares.
+    fn verdict_text(&self, s: &mut String) {
         let _ = writeln!(s, "Sim-to-real gap diagnosis — verdict: {}", self.verdict);
         for e in &self.verdict_effects {
             let p: Vec<String> = e
@@ -189,7 +205,11 @@ impl GapReport {
                 100.0 * e.share
             );
         }
-        let _ = writeln!(s);
+    }
+
+    /// WHERE: residual bands and time windows, error and coherence bands.
+    fn where_text(&self, s: &mut String) {
+        let w = &self.where_;
         let _ = writeln!(s, "WHERE (training logs vs nominal sim)");
         if w.bands.is_empty() {
             let _ = writeln!(
@@ -252,7 +272,10 @@ impl GapReport {
             self.settings.coherence_min,
             bands(&w.coherence_drops_hz)
         );
-        let _ = writeln!(s);
+    }
+
+    /// EVIDENCE: amplitude dependence, distortion, lattice, dwells, residual regions.
+    fn evidence_text(&self, s: &mut String) {
         let ev = &self.evidence;
         let a = &ev.amplitude;
         let _ = writeln!(s, "EVIDENCE of a nonlinearity");
@@ -362,7 +385,10 @@ impl GapReport {
                 }
             );
         }
-        let _ = writeln!(s);
+    }
+
+    /// HOW FAR: the free-run NRMSE ladder from the noise floor to the verdict's model.
+    fn how_far_text(&self, s: &mut String) {
         let _ = writeln!(s, "HOW FAR (free-run NRMSE on the validation log)");
         let nf = &self.noise_floor;
         if nf.available() {
@@ -392,7 +418,7 @@ impl GapReport {
                 "(nominal)"
             },
             self.gap_linear,
-            pct((self.gap_before - self.gap_linear) / self.gap_before),
+            pct_change((self.gap_before - self.gap_linear) / self.gap_before),
             if self.linear.source == "refit" {
                 String::new()
             } else {
@@ -405,7 +431,7 @@ impl GapReport {
                 "  + {:<14} {:.4}  ({} vs linear)",
                 self.verdict,
                 self.gap_after,
-                pct((self.gap_linear - self.gap_after) / self.gap_linear)
+                pct_change((self.gap_linear - self.gap_after) / self.gap_linear)
             );
         }
         let b = &self.band_error;
@@ -417,7 +443,10 @@ impl GapReport {
             b.linear,
             b.after
         );
-        let _ = writeln!(s);
+    }
+
+    /// WHICH: every candidate effect, ranked on the validation log.
+    fn which_text(&self, s: &mut String) {
         let _ = writeln!(
             s,
             "WHICH (ranked on the validation log; an effect needs >= {:.0}% over the linear \
@@ -449,16 +478,17 @@ impl GapReport {
                 e.effect,
                 e.place,
                 e.gap_after,
-                pct(e.improvement),
+                pct_change(e.improvement),
                 e.train_nrmse,
                 p.join(", ")
             );
         }
-        for n in &self.notes {
-            let _ = writeln!(s, "note: {n}");
-        }
-        s
     }
+}
+
+/// A relative shrink as a signed change in percent ("-12%": the NRMSE went down 12 %).
+fn pct_change(v: f64) -> String {
+    format!("{:+.0}%", -100.0 * v)
 }
 
 #[cfg(test)]

@@ -251,6 +251,53 @@ pub fn normal_quantile_two_sided(confidence: f64) -> f64 {
 pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
     let known = opts.known_vector()?;
     let structure = opts.structure;
+    let n = check_siso(data, structure)?;
+    let u = crate::validate::demeaned(data.u[0]);
+    let y = crate::validate::demeaned(data.y[0]);
+    let (ur, yr) = ([u.as_slice()], [y.as_slice()]);
+    let centred = ChannelSet {
+        u: &ur,
+        y: &yr,
+        ..*data
+    };
+    let bb = black_box_start(&centred, structure)?;
+    let ts = data.ts;
+    let f_lo = (5.0 / (n as f64 * ts)).min(0.01 / ts);
+    let f_hi = 0.4 / ts;
+    let grid: Vec<f64> = (0..200)
+        .map(|k| f_lo * (f_hi / f_lo).powf(k as f64 / 199.0))
+        .collect();
+    let start = start::start_values(structure, &bb.model, &known, &grid)?;
+    let (sol, undetermined) = fit_determined(data, opts, &known, &start)?;
+    let parameters = parameter_table(structure, &sol, &known, &undetermined, opts.confidence);
+    let energy: f64 = y.iter().map(|v| v * v).sum::<f64>().max(f64::MIN_POSITIVE);
+    let bb_sim = bb.model.simulate_siso(&u, Some(&bb.x0))?;
+    let bb_rss: f64 = bb_sim.iter().zip(&y).map(|(a, b)| (a - b) * (a - b)).sum();
+    Ok(GreyBoxFit {
+        structure,
+        parameters,
+        confidence: opts.confidence,
+        start,
+        nrmse: (sol.rss / energy).sqrt(),
+        black_box_nrmse: (bb_rss / energy).sqrt(),
+        iterations: sol.iterations,
+        converged: sol.converged,
+        condition: sol.condition,
+        interval_method: format!(
+            "output-error covariance in log-parameters ({}); assumes the structure is right and \
+             the input noise-free",
+            if sol.white_residual {
+                "residual white (Ljung-Box, 1 %): classical sigma^2 (J'J)^-1"
+            } else {
+                "residual coloured (Ljung-Box, 1 %): Newey-West sandwich"
+            }
+        ),
+    })
+}
+
+/// The log's length after checking it is SISO, of equal-length channels and long enough for
+/// `structure`.
+fn check_siso(data: &ChannelSet<'_>, structure: Structure) -> Result<usize> {
     if data.u.len() != 1 || data.y.len() != 1 {
         return Err(Error::InvalidArgument(format!(
             "{}: grey-box fit needs one input and one output, got {} and {}",
@@ -269,16 +316,14 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             ),
         });
     }
-    let u = crate::validate::demeaned(data.u[0]);
-    let y = crate::validate::demeaned(data.y[0]);
-    let (ur, yr) = ([u.as_slice()], [y.as_slice()]);
-    let centred = ChannelSet {
-        u: &ur,
-        y: &yr,
-        ..*data
-    };
-    let bb = n4sid::identify(
-        &centred,
+    Ok(n)
+}
+
+/// The black-box N4SID model of the structure's order on the mean-removed log: where the
+/// start values come from.
+fn black_box_start(centred: &ChannelSet<'_>, structure: Structure) -> Result<n4sid::N4sidResult> {
+    n4sid::identify(
+        centred,
         &N4sidOptions {
             order: OrderSelection::Fixed(structure.order()),
             estimate_d: false,
@@ -288,22 +333,26 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             ..N4sidOptions::default()
         },
     )
-    .map_err(|e| Error::Numerical(format!("grey-box start: black-box N4SID failed: {e}")))?;
+    .map_err(|e| Error::Numerical(format!("grey-box start: black-box N4SID failed: {e}")))
+}
+
+/// The output-error fit from `start`. A parameter the data leave undetermined on its own (it
+/// alone spans the weakest direction of J'J, e.g. a viscous friction whose pole lies below the
+/// excited band) is held where the fit left it and marked in the returned flags, and the rest
+/// is re-fitted; an error names the weakest combination when no single parameter is to blame.
+fn fit_determined(
+    data: &ChannelSet<'_>,
+    opts: &GreyBoxOptions,
+    known: &[Option<f64>],
+    start: &[f64],
+) -> Result<(output_error::Solution, Vec<bool>)> {
+    let structure = opts.structure;
     let ts = data.ts;
-    let f_lo = (5.0 / (n as f64 * ts)).min(0.01 / ts);
-    let f_hi = 0.4 / ts;
-    let grid: Vec<f64> = (0..200)
-        .map(|k| f_lo * (f_hi / f_lo).powf(k as f64 / 199.0))
-        .collect();
-    let start = start::start_values(structure, &bb.model, &known, &grid)?;
-    // Fit; a parameter the data leave undetermined on its own (it alone spans the weakest
-    // direction of J'J, e.g. a viscous friction whose pole lies below the excited band) is
-    // held where the fit left it and reported `undetermined`, and the rest is re-fitted.
     let specs = structure.parameters();
-    let mut fixed = known.clone();
+    let mut fixed = known.to_vec();
     let mut undetermined = vec![false; specs.len()];
-    let mut current = start.clone();
-    let sol = loop {
+    let mut current = start.to_vec();
+    loop {
         let problem = output_error::Problem {
             structure,
             u: data.u[0],
@@ -315,7 +364,7 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
         let free: Vec<usize> = (0..fixed.len()).filter(|&i| fixed[i].is_none()).collect();
         let cov_defined = (0..free.len()).all(|i| sol.cov_log[(i, i)].is_finite());
         if sol.condition <= MAX_CONDITION && cov_defined {
-            break sol;
+            return Ok((sol, undetermined));
         }
         let dominant = sol
             .weakest
@@ -346,8 +395,20 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             MAX_CONDITION,
             combo.join(" ")
         )));
-    };
-    let z = normal_quantile_two_sided(opts.confidence);
+    }
+}
+
+/// Each parameter with its status and, when estimated, its standard deviation and interval at
+/// `confidence` (log-normal: the covariance is in log-parameters).
+fn parameter_table(
+    structure: Structure,
+    sol: &output_error::Solution,
+    known: &[Option<f64>],
+    undetermined: &[bool],
+    confidence: f64,
+) -> Vec<PhysicalParameter> {
+    let specs = structure.parameters();
+    let z = normal_quantile_two_sided(confidence);
     let mut parameters = Vec::with_capacity(specs.len());
     let mut fi = 0;
     for (i, s) in specs.iter().enumerate() {
@@ -379,29 +440,7 @@ pub fn fit(data: &ChannelSet<'_>, opts: &GreyBoxOptions) -> Result<GreyBoxFit> {
             status,
         });
     }
-    let energy: f64 = y.iter().map(|v| v * v).sum::<f64>().max(f64::MIN_POSITIVE);
-    let bb_sim = bb.model.simulate_siso(&u, Some(&bb.x0))?;
-    let bb_rss: f64 = bb_sim.iter().zip(&y).map(|(a, b)| (a - b) * (a - b)).sum();
-    Ok(GreyBoxFit {
-        structure,
-        parameters,
-        confidence: opts.confidence,
-        start,
-        nrmse: (sol.rss / energy).sqrt(),
-        black_box_nrmse: (bb_rss / energy).sqrt(),
-        iterations: sol.iterations,
-        converged: sol.converged,
-        condition: sol.condition,
-        interval_method: format!(
-            "output-error covariance in log-parameters ({}); assumes the structure is right and \
-             the input noise-free",
-            if sol.white_residual {
-                "residual white (Ljung-Box, 1 %): classical sigma^2 (J'J)^-1"
-            } else {
-                "residual coloured (Ljung-Box, 1 %): Newey-West sandwich"
-            }
-        ),
-    })
+    parameters
 }
 
 /// [`fit`] on a SISO [`crate::data::Log`] (the pipeline's physical stage, the fleet, `identify

@@ -175,105 +175,13 @@ pub fn simulate(
 ) -> Result<SimulatedRun> {
     nl.df.validate()?;
     let ts = lp.ts;
-    let n_samples = spec.duration_s / ts;
-    let valid = (1.0..=1e7).contains(&n_samples)
-        && spec.substeps != 0
-        && spec.reference.is_finite()
-        && spec.kick.is_finite();
-    if !valid {
-        return Err(Error::InvalidArgument(format!(
-            "limit-cycle simulation: need 0 < duration (at most 1e7 samples), substeps >= 1 and \
-             a finite reference and kick (got {spec:?})"
-        )));
-    }
-    let n_samples = n_samples.round() as usize;
+    let n_samples = sample_count(spec, ts)?;
     let mut ctl = Law::new(lp, comp)?;
     let friction = matches!(nl.site, Site::Velocity);
-    // Linear dynamics: sub-stepped continuous plant for friction when available.
-    let (sys, m) = match (&lp.plant_continuous, friction) {
-        (Some(c), true) => (c.c2d_zoh(ts / spec.substeps as f64)?, spec.substeps),
-        _ => (lp.plant.clone(), 1),
-    };
-    let n = sys.n_states();
-    let ad: Vec<f64> = (0..n * n).map(|k| sys.a[(k / n, k % n)]).collect();
-    let bd: Vec<f64> = (0..n).map(|i| sys.b[(i, 0)]).collect();
-    // The column through which the friction force enters over a sub-step: the plant input's,
-    // or, with friction at the body (lp.friction_input), the ZOH of that column.
-    let bfd: Vec<f64> = match (&lp.friction_input, &lp.plant_continuous, friction) {
-        (Some(bf), Some(pc), true) => {
-            let fsys = crate::lti::StateSpace::new(
-                pc.a.clone(),
-                faer::Mat::from_fn(n, 1, |i, _| bf[i]),
-                pc.c.clone(),
-                faer::Mat::zeros(1, 1),
-                0.0,
-            )?
-            .c2d_zoh(ts / m as f64)?;
-            (0..n).map(|i| fsys.b[(i, 0)]).collect()
-        }
-        _ => bd.clone(),
-    };
-    let c: Vec<f64> = (0..n).map(|j| sys.c[(0, j)]).collect();
-    let d = sys.d[(0, 0)];
-    // Velocity proxy: v = C·x (output) or v = C·(A_c x + B_c w) (derivative of the output).
-    let rate = lp.velocity == VelocitySource::OutputDerivative;
-    let (ca, cb_c) = match (&lp.plant_continuous, rate) {
-        (Some(pc), true) => (
-            (0..n)
-                .map(|j| (0..n).map(|k| pc.c[(0, k)] * pc.a[(k, j)]).sum())
-                .collect::<Vec<f64>>(),
-            (0..n).map(|k| pc.c[(0, k)] * pc.b[(k, 0)]).sum::<f64>(),
-        ),
-        _ => (Vec::new(), 0.0),
-    };
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let velocity_of = |x: &[f64], x_prev_out: f64, w: f64| -> f64 {
-        if !rate {
-            dot(&c, x)
-        } else if !ca.is_empty() {
-            dot(&ca, x) + cb_c * w
-        } else {
-            (dot(&c, x) - x_prev_out) / (ts / m as f64)
-        }
-    };
-    // Change of the velocity at the end of a sub-step per unit friction force.
-    let g = if !rate {
-        dot(&c, &bfd)
-    } else if !ca.is_empty() {
-        dot(&ca, &bfd)
-            + if lp.friction_input.is_some() {
-                0.0
-            } else {
-                cb_c
-            }
-    } else {
-        dot(&c, &bfd) / (ts / m as f64)
-    };
-    // Friction on the slowest mode (lp.body): a separate first-order body state x_f per
-    // sub-step h, x_f ← p_h·x_f + K·(1 − p_h)·F, y = C·x + D·w − x_f (the gap fit's
-    // friction port); the velocity is the output.
-    let body = match lp.body {
-        Some(b) if friction => {
-            let ph = (b.pole_rad_s * ts / m as f64).exp();
-            Some((ph, b.dc_gain * (1.0 - ph)))
-        }
-        _ => None,
-    };
-    let g = body.map_or(g, |(_, k)| k);
+    let plant = SubstepPlant::new(lp, friction, spec.substeps)?;
+    let mut fr = friction_law(friction, nl)?;
+    let (n, m, c, d) = (plant.n, plant.m, &plant.c, plant.d);
     let mut xf = 0.0;
-    let mut fr = match (friction, nl.df) {
-        (true, DescribingFunction::Relay { level }) => Some(StickSlip::new(level, level)),
-        (true, DescribingFunction::Stiction { level, breakaway }) => {
-            Some(StickSlip::new(level, breakaway))
-        }
-        _ => None,
-    };
-    if friction && fr.is_none() {
-        return Err(Error::InvalidArgument(format!(
-            "limit-cycle simulation: {} is not a friction law for the velocity site",
-            nl.df.name()
-        )));
-    }
     let mut map = NlState::new(nl.df);
     let mut x = vec![0.0; n];
     let mut xn = vec![0.0; n];
@@ -287,7 +195,7 @@ pub fn simulate(
     };
     let mut out_prev = 0.0;
     for k in 0..n_samples {
-        let y = dot(&c, &x) + d * w_prev - xf;
+        let y = dot(c, &x) + d * w_prev - xf;
         let y_m = if nl.site == Site::Sensor {
             map.apply(y)
         } else {
@@ -302,10 +210,10 @@ pub fn simulate(
         if k < spec.kick_samples {
             w += spec.kick;
         }
-        let v_now = if body.is_some() {
-            dot(&c, &x) - xf
+        let v_now = if plant.body.is_some() {
+            dot(c, &x) - xf
         } else if friction {
-            velocity_of(&x, out_prev, w)
+            plant.velocity_of(&x, out_prev, w)
         } else {
             0.0
         };
@@ -317,21 +225,8 @@ pub fn simulate(
         run.y.push(y);
         run.u.push(u);
         for _ in 0..m {
-            let o_before = dot(&c, &x);
-            for i in 0..n {
-                xn[i] = dot(&ad[i * n..(i + 1) * n], &x) + bd[i] * w;
-            }
-            if let (Some(f), Some((ph, k))) = (fr.as_mut(), body) {
-                let v_trial = dot(&c, &xn) - ph * xf;
-                let force = f.force(v_trial, g);
-                xf = ph * xf + k * force;
-            } else if let Some(f) = fr.as_mut() {
-                let v_trial = velocity_of(&xn, o_before, w);
-                let force = f.force(v_trial, g);
-                for i in 0..n {
-                    xn[i] -= bfd[i] * force;
-                }
-            }
+            let o_before = dot(c, &x);
+            plant.substep(&x, w, &mut xn, &mut xf, fr.as_mut(), o_before);
             out_prev = o_before;
             std::mem::swap(&mut x, &mut xn);
         }
@@ -343,4 +238,198 @@ pub fn simulate(
         }
     }
     Ok(run)
+}
+
+/// The number of controller samples of `spec` at sample time `ts`, after checking the spec.
+fn sample_count(spec: &SimSpec, ts: f64) -> Result<usize> {
+    let n_samples = spec.duration_s / ts;
+    let valid = (1.0..=1e7).contains(&n_samples)
+        && spec.substeps != 0
+        && spec.reference.is_finite()
+        && spec.kick.is_finite();
+    if !valid {
+        return Err(Error::InvalidArgument(format!(
+            "limit-cycle simulation: need 0 < duration (at most 1e7 samples), substeps >= 1 and \
+             a finite reference and kick (got {spec:?})"
+        )));
+    }
+    Ok(n_samples.round() as usize)
+}
+
+/// The Karnopp stick-slip law of a friction nonlinearity at the velocity site (`None`
+/// elsewhere); an error for a non-friction law at the velocity site.
+fn friction_law(friction: bool, nl: &Nonlinearity) -> Result<Option<StickSlip>> {
+    let fr = match (friction, nl.df) {
+        (true, DescribingFunction::Relay { level }) => Some(StickSlip::new(level, level)),
+        (true, DescribingFunction::Stiction { level, breakaway }) => {
+            Some(StickSlip::new(level, breakaway))
+        }
+        _ => None,
+    };
+    if friction && fr.is_none() {
+        return Err(Error::InvalidArgument(format!(
+            "limit-cycle simulation: {} is not a friction law for the velocity site",
+            nl.df.name()
+        )));
+    }
+    Ok(fr)
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>()
+}
+
+/// The plant's linear dynamics over one sub-step (the whole sample without friction), with the
+/// column the friction force enters through and the velocity proxy.
+struct SubstepPlant {
+    /// States.
+    n: usize,
+    /// Sub-steps per sample.
+    m: usize,
+    /// Sub-step length, s.
+    h: f64,
+    /// A of the sub-step, row-major.
+    ad: Vec<f64>,
+    /// B of the sub-step.
+    bd: Vec<f64>,
+    /// The column through which the friction force enters over a sub-step: the plant input's,
+    /// or, with friction at the body (`LureLoop::friction_input`), the ZOH of that column.
+    bfd: Vec<f64>,
+    /// C.
+    c: Vec<f64>,
+    /// D.
+    d: f64,
+    /// Whether the velocity is the output's derivative.
+    rate: bool,
+    /// C·A_c and C·B_c of the continuous plant (empty / 0 without one or without `rate`).
+    ca: Vec<f64>,
+    cb_c: f64,
+    /// Friction on the slowest mode: (p_h, K·(1 − p_h)) of the body state per sub-step.
+    body: Option<(f64, f64)>,
+    /// Change of the velocity at the end of a sub-step per unit friction force.
+    g: f64,
+}
+
+impl SubstepPlant {
+    /// Linear dynamics: sub-stepped continuous plant for friction when available.
+    fn new(lp: &LureLoop, friction: bool, substeps: usize) -> Result<Self> {
+        let ts = lp.ts;
+        let (sys, m) = match (&lp.plant_continuous, friction) {
+            (Some(c), true) => (c.c2d_zoh(ts / substeps as f64)?, substeps),
+            _ => (lp.plant.clone(), 1),
+        };
+        let n = sys.n_states();
+        let h = ts / m as f64;
+        let ad: Vec<f64> = (0..n * n).map(|k| sys.a[(k / n, k % n)]).collect();
+        let bd: Vec<f64> = (0..n).map(|i| sys.b[(i, 0)]).collect();
+        let bfd: Vec<f64> = match (&lp.friction_input, &lp.plant_continuous, friction) {
+            (Some(bf), Some(pc), true) => {
+                let fsys = crate::lti::StateSpace::new(
+                    pc.a.clone(),
+                    faer::Mat::from_fn(n, 1, |i, _| bf[i]),
+                    pc.c.clone(),
+                    faer::Mat::zeros(1, 1),
+                    0.0,
+                )?
+                .c2d_zoh(h)?;
+                (0..n).map(|i| fsys.b[(i, 0)]).collect()
+            }
+            _ => bd.clone(),
+        };
+        let c: Vec<f64> = (0..n).map(|j| sys.c[(0, j)]).collect();
+        let d = sys.d[(0, 0)];
+        // Velocity proxy: v = C·x (output) or v = C·(A_c x + B_c w) (derivative of the output).
+        let rate = lp.velocity == VelocitySource::OutputDerivative;
+        let (ca, cb_c) = match (&lp.plant_continuous, rate) {
+            (Some(pc), true) => (
+                (0..n)
+                    .map(|j| (0..n).map(|k| pc.c[(0, k)] * pc.a[(k, j)]).sum())
+                    .collect::<Vec<f64>>(),
+                (0..n).map(|k| pc.c[(0, k)] * pc.b[(k, 0)]).sum::<f64>(),
+            ),
+            _ => (Vec::new(), 0.0),
+        };
+        let g = if !rate {
+            dot(&c, &bfd)
+        } else if !ca.is_empty() {
+            dot(&ca, &bfd)
+                + if lp.friction_input.is_some() {
+                    0.0
+                } else {
+                    cb_c
+                }
+        } else {
+            dot(&c, &bfd) / h
+        };
+        // Friction on the slowest mode (lp.body): a separate first-order body state x_f per
+        // sub-step h, x_f ← p_h·x_f + K·(1 − p_h)·F, y = C·x + D·w − x_f (the gap fit's
+        // friction port); the velocity is the output.
+        let body = match lp.body {
+            Some(b) if friction => {
+                let ph = (b.pole_rad_s * ts / m as f64).exp();
+                Some((ph, b.dc_gain * (1.0 - ph)))
+            }
+            _ => None,
+        };
+        let g = body.map_or(g, |(_, k)| k);
+        Ok(Self {
+            n,
+            m,
+            h,
+            ad,
+            bd,
+            bfd,
+            c,
+            d,
+            rate,
+            ca,
+            cb_c,
+            body,
+            g,
+        })
+    }
+
+    /// The velocity proxy at state `x` (`x_prev_out`: the output a sub-step earlier, for a
+    /// finite difference without a continuous plant; `w`: the plant input).
+    fn velocity_of(&self, x: &[f64], x_prev_out: f64, w: f64) -> f64 {
+        if !self.rate {
+            dot(&self.c, x)
+        } else if !self.ca.is_empty() {
+            dot(&self.ca, x) + self.cb_c * w
+        } else {
+            (dot(&self.c, x) - x_prev_out) / self.h
+        }
+    }
+
+    /// One sub-step from `x` with input `w` into `xn`, the friction law `fr` (if any) deciding
+    /// the force from the trial velocity; `xf` is the body state; `o_before` the output at `x`.
+    fn substep(
+        &self,
+        x: &[f64],
+        w: f64,
+        xn: &mut [f64],
+        xf: &mut f64,
+        fr: Option<&mut StickSlip>,
+        o_before: f64,
+    ) {
+        let n = self.n;
+        for (i, xi) in xn.iter_mut().enumerate() {
+            *xi = dot(&self.ad[i * n..(i + 1) * n], x) + self.bd[i] * w;
+        }
+        match (fr, self.body) {
+            (Some(f), Some((ph, k))) => {
+                let v_trial = dot(&self.c, xn) - ph * *xf;
+                let force = f.force(v_trial, self.g);
+                *xf = ph * *xf + k * force;
+            }
+            (Some(f), None) => {
+                let v_trial = self.velocity_of(xn, o_before, w);
+                let force = f.force(v_trial, self.g);
+                for (xi, b) in xn.iter_mut().zip(&self.bfd) {
+                    *xi -= b * force;
+                }
+            }
+            (None, _) => {}
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! The report's figures ([`figures`]): one function per figure, each `None` when the run
 //! lacks its data.
+use super::captions::Caption;
 use super::{receipt_value, Figure, FIG_WIDTH};
 use crate::error::Result;
 use crate::pipeline::{fmt_num, log_grid, PipelineRun};
@@ -219,13 +220,12 @@ pub(super) fn fig_bode(run: &PipelineRun) -> Result<Figure> {
     let svg = plot::render("bode", FIG_WIDTH, &[(mag, 380), (ph, 330)])?;
     Ok(Figure {
         name: "bode",
-        caption: format!(
-            "Bode plot of the estimation run `{}`: Welch H1 estimate (filled dots pass the \
-             coherence gate {gate_thr}, hollow grey dots are rejected, shaded bands are \
-             excluded from fitting and validation), the other logs' estimates (thin lines) and \
-             the identified model of order {} (red). ETFE phase is drawn on the model's branch.",
-            nom.name, run.ident.order
-        ),
+        caption: Caption::Bode {
+            run: &nom.name,
+            gate: gate_thr,
+            order: run.ident.order,
+        }
+        .text()?,
         svg,
     })
 }
@@ -272,10 +272,7 @@ pub(super) fn fig_coherence(run: &PipelineRun) -> Result<Figure> {
     p.legend = LegendAt::LowerLeft;
     Ok(Figure {
         name: "coherence",
-        caption: format!(
-            "Magnitude-squared coherence of every log; bins below {gate} (dashed) are not used \
-             for fitting or validation."
-        ),
+        caption: Caption::Coherence { gate }.text()?,
         svg: plot::render("coherence", FIG_WIDTH, &[(p, 360)])?,
     })
 }
@@ -311,10 +308,11 @@ pub(super) fn fig_order(run: &PipelineRun) -> Result<Figure> {
     });
     Ok(Figure {
         name: "singular_values",
-        caption: format!(
-            "N4SID singular values (RMS-normalised data) and the chosen order n = {n}: {}",
-            run.ident.order_reason
-        ),
+        caption: Caption::SingularValues {
+            order: n,
+            reason: &run.ident.order_reason,
+        }
+        .text()?,
         svg: plot::render("singular_values", FIG_WIDTH, &[(p, 330)])?,
     })
 }
@@ -370,10 +368,7 @@ pub(super) fn fig_robustness(run: &PipelineRun) -> Result<Option<Figure>> {
     let value = receipt_value(run, ReceiptKind::RobustStability);
     Ok(Some(Figure {
         name: "robustness",
-        caption: format!(
-            "Robust stability against the measured multiplicative uncertainty holds when |T| stays \
-             below 1/|W_m| at every frequency: ‖W_m T‖∞ = {value}."
-        ),
+        caption: Caption::Robustness { value }.text()?,
         svg: plot::render("robustness", FIG_WIDTH, &[(p, 380)])?,
     }))
 }
@@ -417,13 +412,12 @@ pub(super) fn fig_uncertainty(run: &PipelineRun) -> Result<Option<Figure>> {
     p.legend = LegendAt::UpperLeft;
     Ok(Some(Figure {
         name: "uncertainty",
-        caption: format!(
-            "Envelope l_m = max_k |(G_k − G0)/G0| over the family ({}) and the fitted weight \
-             |W_m| (overbound at every bin; loosest ratio {}, mean overbound {} dB).",
-            e.family.join(", "),
-            fmt_num(w.worst_overbound_ratio),
-            fmt_num(w.mean_overbound_db)
-        ),
+        caption: Caption::Uncertainty {
+            family: &e.family,
+            worst_ratio: w.worst_overbound_ratio,
+            mean_db: w.mean_overbound_db,
+        }
+        .text()?,
         svg: plot::render("uncertainty", FIG_WIDTH, &[(p, 360)])?,
     }))
 }
@@ -470,9 +464,7 @@ pub(super) fn fig_sensitivity(run: &PipelineRun) -> Result<Option<Figure>> {
     let value = receipt_value(run, ReceiptKind::SensitivityPeak);
     Ok(Some(Figure {
         name: "sensitivity",
-        caption: format!(
-            "Sensitivity |S| of the implemented (sampled) loop; peak M_s = {value}, limit {ms}."
-        ),
+        caption: Caption::Sensitivity { value, ms }.text()?,
         svg: plot::render("sensitivity", FIG_WIDTH, &[(p, 340)])?,
     }))
 }
@@ -576,23 +568,12 @@ pub(super) fn fig_step(run: &PipelineRun) -> Result<Option<Figure>> {
     }
     Ok(Some(Figure {
         name: "step",
-        caption: format!(
-            "Closed-loop step of {} {} through a hard actuator saturation at ±{} {}; {} (peak \
-             demand {} of the rail), overshoot {} %, settling {}.",
-            fmt_num(s.amplitude),
-            sig.output_unit,
-            fmt_num(lim),
-            sig.input_unit,
-            if s.hits_rail {
-                "the command hits the rail"
-            } else {
-                "the command stays inside the rails"
-            },
-            fmt_num(s.peak_demand_ratio),
-            fmt_num(s.overshoot_pct),
-            s.settling_time_s
-                .map_or("not reached".to_string(), |t| format!("{} s", fmt_num(t)))
-        ),
+        caption: Caption::Step {
+            s,
+            output_unit: &sig.output_unit,
+            input_unit: &sig.input_unit,
+        }
+        .text()?,
         svg: plot::render("step", FIG_WIDTH, &[(py, 300), (pu, 300)])?,
     }))
 }
@@ -666,18 +647,11 @@ pub(super) fn fig_audit(run: &PipelineRun) -> Result<Option<Figure>> {
     pp.legend = LegendAt::None;
     Ok(Some(Figure {
         name: "audit",
-        caption: format!(
-            "Nonlinearity audit: the largest gain and phase shift between the runs ({}) at each \
-             bin of the audit band {}–{} Hz; verdict: {}.",
-            a.runs
-                .iter()
-                .map(|(l, amp)| format!("`{l}` at {}", fmt_num(*amp)))
-                .collect::<Vec<_>>()
-                .join(", "),
-            fmt_num(a.band_hz.0),
-            fmt_num(a.band_hz.1),
-            verdict_text(a.verdict)
-        ),
+        caption: Caption::Audit {
+            a,
+            verdict: verdict_text(a.verdict),
+        }
+        .text()?,
         svg: plot::render("audit", FIG_WIDTH, &[(pg, 300), (pp, 300)])?,
     }))
 }
@@ -733,16 +707,14 @@ pub(super) fn fig_validation(run: &PipelineRun) -> Result<Option<Figure>> {
     p.x_range = Some((t[0], *t.last().unwrap_or(&1.0)));
     Ok(Some(Figure {
         name: "validation",
-        caption: format!(
-            "Free-run simulation of the model on the validation log `{}` (after preprocessing), \
-             initial state estimated, shown for {} of its {} samples: fit {} % over the whole log \
-             (NRMSE {}).",
-            v.name,
-            w,
-            n,
-            fmt_num(fit.fit_percent[0]),
-            fmt_num(fit.nrmse[0])
-        ),
+        caption: Caption::Validation {
+            log: &v.name,
+            shown: w,
+            samples: n,
+            fit_percent: fit.fit_percent[0],
+            nrmse: fit.nrmse[0],
+        }
+        .text()?,
         svg: plot::render("validation", FIG_WIDTH, &[(p, 320)])?,
     }))
 }

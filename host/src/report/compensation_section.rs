@@ -3,15 +3,16 @@
 //! describing-function picture (the loop's linear part L(e^{jωT}) against −1/N(A), figure
 //! `describing_function`), the simulated loop without and with the compensation (figure
 //! `limit_cycle`) and the receipts before and after the choice. Both figures show the first
-//! analysed effect; the tables list every effect.
-use super::{esc, figure_html, Figure, FIG_WIDTH};
+//! analysed effect; the tables list every effect. The section's HTML is `compensation.html`.
+use super::captions::{Caption, SimOutcome};
+use super::{append, filters, Figure, View, FIG_WIDTH};
 use crate::error::Result;
 use crate::pipeline::compensation_stage::EffectCycles;
 use crate::pipeline::remedy::{CompensationOutcome, Decision};
-use crate::pipeline::{fmt_num, PipelineRun};
+use crate::pipeline::PipelineRun;
 use crate::plot::{self, colors, Kind, LegendAt, Panel, Series};
 use crate::robust::receipts::Receipt;
-use std::fmt::Write as _;
+use askama::Template;
 
 /// The section's figures (none unless an effect was analysed).
 pub(crate) fn figures(run: &PipelineRun) -> Result<Vec<Figure>> {
@@ -70,21 +71,11 @@ fn fig_describing(e: &EffectCycles) -> Result<Figure> {
     p.x_range = Some((-r, r));
     p.y_range = Some((-r, r));
     p.legend = LegendAt::LowerLeft;
-    let caption = match e.before.predicted.first() {
-        Some(c) => format!(
-            "Describing function of {}: the loop's linear part meets −1/N(A) at {} Hz, amplitude \
-             {} ({}) — a harmonic-balance solution, confirmed or refuted by the simulation.",
-            e.label,
-            fmt_num(c.freq_hz),
-            fmt_num(c.amplitude),
-            if c.stable { "stable" } else { "unstable" }
-        ),
-        None => format!(
-            "Describing function of {}: −1/N(A) does not meet the loop's linear part; no limit \
-             cycle is predicted.",
-            e.label
-        ),
-    };
+    let caption = Caption::DescribingFunction {
+        label: &e.label,
+        cycle: e.before.predicted.first(),
+    }
+    .text()?;
     Ok(Figure {
         name: "describing_function",
         caption,
@@ -122,26 +113,12 @@ fn fig_cycle(e: &EffectCycles, ts: f64) -> Result<Figure> {
         ));
     }
     p.legend = LegendAt::LowerLeft;
-    let sim = |a: &crate::limit_cycle::LimitCycleAnalysis| match &a.simulated_output {
-        Some(s) if a.simulated_counts() => format!(
-            "a cycle at {} Hz, output half peak-to-peak {}",
-            fmt_num(s.freq_hz),
-            fmt_num(a.output_tail_half_ptp)
-        ),
-        _ => format!(
-            "no counted cycle (output half peak-to-peak {})",
-            fmt_num(a.output_tail_half_ptp)
-        ),
-    };
-    let mut caption = format!(
-        "Simulated closed loop with {} after a start-up kick: without compensation {}",
-        e.label,
-        sim(&e.before)
-    );
-    if let Some(a) = &e.after {
-        let _ = write!(caption, "; with compensation {}", sim(a));
+    let caption = Caption::LimitCycle {
+        label: &e.label,
+        before: SimOutcome::of(&e.before),
+        after: e.after.as_ref().map(SimOutcome::of),
     }
-    caption.push('.');
+    .text()?;
     Ok(Figure {
         name: "limit_cycle",
         caption,
@@ -149,94 +126,37 @@ fn fig_cycle(e: &EffectCycles, ts: f64) -> Result<Figure> {
     })
 }
 
-fn receipts_table(h: &mut String, title: &str, rs: &[Receipt]) {
-    let _ = writeln!(
-        h,
-        "<h3>{}</h3>\n<table>\n<tr><th>receipt</th><th>value</th><th>limit</th><th>result</th></tr>",
-        esc(title)
-    );
-    for r in rs {
-        let _ = writeln!(
-            h,
-            "<tr><td>{}</td><td>{}</td><td>{} {} {}</td><td>{}</td></tr>",
-            esc(&r.name),
-            esc(&r.value_text),
-            esc(r.comparison.symbol()),
-            fmt_num(r.limit),
-            esc(&r.unit),
-            if r.pass { "pass" } else { "<b>FAIL</b>" }
-        );
-    }
-    h.push_str("</table>\n");
-}
+#[derive(Template)]
+#[template(path = "report/compensation.html")]
+struct Section<'a>(View<'a>);
 
-fn render_decision(h: &mut String, d: &Decision, figs: &[Figure]) {
-    let choice = serde_json::to_value(d.choice)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_default();
-    let _ = writeln!(
-        h,
-        "<p><b>Choice: {}</b> — {}</p>",
-        esc(&choice),
-        esc(&d.reason)
-    );
-    let _ = writeln!(
-        h,
-        "<p>Sensor noise σ {} (output units, from the diagnosis' noise floor); friction \
-         smoothing band {}; cycles with an output amplitude up to {} are not counted.</p>",
-        fmt_num(d.sensor_noise),
-        fmt_num(d.velocity_resolution),
-        fmt_num(d.amplitude_tol)
-    );
-    let comp = serde_json::to_string_pretty(&d.stage.compensation).unwrap_or_default();
-    let _ = writeln!(
-        h,
-        "<details><summary>Compensation block ({})</summary>\n<pre>{}</pre>\n</details>",
-        if d.stage.compensation.enabled {
-            "enabled"
-        } else {
-            "disabled"
-        },
-        esc(&comp)
-    );
-    for n in &d.stage.not_analysed {
-        let _ = writeln!(h, "<p class=\"note\">Not analysed: {}</p>", esc(n));
+view_deref!(Section);
+
+impl Section<'_> {
+    /// The choice as receipts.json spells it.
+    fn choice(&self, d: &Decision) -> String {
+        serde_json::to_value(d.choice)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default()
     }
-    figure_html(h, figs, "describing_function");
-    figure_html(h, figs, "limit_cycle");
-    if let Some(r) = &d.retuned {
-        let _ = writeln!(
-            h,
-            "<p>W_m widened to an envelope floor of {}; crossover {} Hz before, {} after \
-             re-tuning{}.</p>",
-            fmt_num(r.envelope_floor),
-            fmt_num(r.crossover_before_hz),
-            r.crossover_after_hz.map_or("none".into(), fmt_num),
-            r.tuning_error
-                .as_deref()
-                .map_or(String::new(), |e| format!(" ({e})"))
-        );
+    /// The compensation block as compensation.json holds it.
+    fn block_json(&self, d: &Decision) -> String {
+        serde_json::to_string_pretty(&d.stage.compensation).unwrap_or_default()
     }
-    receipts_table(
-        h,
-        "Receipts before (first design, no compensation)",
-        &d.receipts_before,
-    );
-    receipts_table(h, "Receipts after the choice", &d.receipts_after);
+    /// The receipt tables: before (first design) and after the choice.
+    fn receipt_tables<'d>(&self, d: &'d Decision) -> [(&'static str, &'d [Receipt]); 2] {
+        [
+            (
+                "Receipts before (first design, no compensation)",
+                &d.receipts_before,
+            ),
+            ("Receipts after the choice", &d.receipts_after),
+        ]
+    }
 }
 
 /// Appends the section to `h`.
-pub(crate) fn render(h: &mut String, run: &PipelineRun, figs: &[Figure]) {
-    h.push_str("<section id=\"compensation\">\n<h2>Compensation</h2>\n");
-    match &run.compensation {
-        CompensationOutcome::Skipped { reason } => {
-            let _ = writeln!(h, "<p class=\"note\">Not run: {}.</p>", esc(reason));
-        }
-        CompensationOutcome::Failed { error } => {
-            let _ = writeln!(h, "<p>The compensation stage failed: {}</p>", esc(error));
-        }
-        CompensationOutcome::Decided(d) => render_decision(h, d, figs),
-    }
-    h.push_str("</section>\n");
+pub(crate) fn render(h: &mut String, v: View<'_>) -> Result<()> {
+    append(h, &Section(v))
 }

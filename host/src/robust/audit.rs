@@ -288,16 +288,52 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
     check_runs(runs)?;
     let fc = opts.crossover_hz;
     let (lo, hi) = (fc / opts.band_factor, fc * opts.band_factor);
-    let (clo, chi) = (
-        fc / opts.coherence_band_factor,
-        fc * opts.coherence_band_factor,
-    );
+    let (idx, bins_skipped) = usable_bins(runs, lo, hi)?;
+    let (bins, worst_pairs) = worst_shift_per_bin(runs, &idx, opts);
+    let shift_bands = merge_flagged_bins(&bins, &worst_pairs);
+    let coherence_drops = coherence_drops(runs, opts);
+    let worst = |pick: fn(&(WorstShift, WorstShift)) -> &WorstShift| {
+        worst_pairs
+            .iter()
+            .map(pick)
+            .max_by(|a, b| a.value.abs().total_cmp(&b.value.abs()))
+            .cloned()
+            .ok_or_else(|| Error::Numerical("nonlinearity audit: no bins".into()))
+    };
+    let wg = worst(|p| &p.0)?;
+    let wp = worst(|p| &p.1)?;
+    let reasons = reasons(&shift_bands, &coherence_drops, opts);
+    Ok(NonlinearityAudit {
+        verdict: if reasons.is_empty() {
+            Verdict::LinearEnough
+        } else {
+            Verdict::NotLinear
+        },
+        reasons,
+        options: *opts,
+        band_hz: (lo, hi),
+        runs: runs
+            .iter()
+            .map(|r| (r.label.clone(), r.amplitude))
+            .collect(),
+        bins_examined: idx.len(),
+        bins_skipped,
+        shift_bands,
+        coherence_drops,
+        worst_gain_shift_db: wg,
+        worst_phase_shift_deg: wp,
+        bins,
+    })
+}
+
+/// The bins inside the audit band [`lo`, `hi`] Hz where every run has a finite response, and
+/// how many in-band bins were skipped for lack of one (e.g. NaN where the input had no power).
+/// Errors when none is left or a run's response is exactly zero at one of them.
+fn usable_bins(runs: &[FrfRun], lo: f64, hi: f64) -> Result<(Vec<usize>, usize)> {
     let freq = &runs[0].freq_hz;
     let in_band: Vec<usize> = (0..freq.len())
         .filter(|&i| freq[i] >= lo && freq[i] <= hi)
         .collect();
-    // Bins where some run has no finite response (e.g. NaN where the input had no power) are
-    // skipped and counted.
     let finite = |i: usize| {
         runs.iter()
             .all(|r| r.h[i].re.is_finite() && r.h[i].im.is_finite())
@@ -322,10 +358,20 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
             }
         }
     }
-    // Worst pair per bin.
+    Ok((idx, bins_skipped))
+}
+
+/// At each bin of `idx`, the pair of runs with the largest gain shift and the pair with the
+/// largest phase shift; the bin is flagged when either exceeds its threshold.
+fn worst_shift_per_bin(
+    runs: &[FrfRun],
+    idx: &[usize],
+    opts: &AuditOptions,
+) -> (Vec<AuditBin>, Vec<(WorstShift, WorstShift)>) {
+    let freq = &runs[0].freq_hz;
     let mut bins = Vec::with_capacity(idx.len());
     let mut worst_pairs: Vec<(WorstShift, WorstShift)> = Vec::with_capacity(idx.len());
-    for &i in &idx {
+    for &i in idx {
         let mut wg = WorstShift {
             value: 0.0,
             f_hz: freq[i],
@@ -365,7 +411,14 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
         });
         worst_pairs.push((wg, wp));
     }
-    // Merge consecutive flagged bins into bands.
+    (bins, worst_pairs)
+}
+
+/// Consecutive flagged bins merged into bands, each with its worst shifts and least coherence.
+fn merge_flagged_bins(
+    bins: &[AuditBin],
+    worst_pairs: &[(WorstShift, WorstShift)],
+) -> Vec<ShiftBand> {
     let mut shift_bands: Vec<ShiftBand> = Vec::new();
     let mut k = 0;
     while k < bins.len() {
@@ -398,7 +451,18 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
                 .fold(f64::INFINITY, f64::min),
         });
     }
-    // Coherence drops inside the coherence window.
+    shift_bands
+}
+
+/// Runs of consecutive bins inside the coherence window where some run's coherence is below
+/// `min_coherence`, each with its lowest value, where and in which run.
+fn coherence_drops(runs: &[FrfRun], opts: &AuditOptions) -> Vec<CoherenceDrop> {
+    let fc = opts.crossover_hz;
+    let (clo, chi) = (
+        fc / opts.coherence_band_factor,
+        fc * opts.coherence_band_factor,
+    );
+    let freq = &runs[0].freq_hz;
     let mut coherence_drops: Vec<CoherenceDrop> = Vec::new();
     let low: Vec<bool> = (0..freq.len())
         .map(|i| {
@@ -434,20 +498,17 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
             run: runs[best.2].label.clone(),
         });
     }
-    let wg = worst_pairs
-        .iter()
-        .map(|p| &p.0)
-        .max_by(|a, b| a.value.abs().total_cmp(&b.value.abs()))
-        .cloned()
-        .ok_or_else(|| Error::Numerical("nonlinearity audit: no bins".into()))?;
-    let wp = worst_pairs
-        .iter()
-        .map(|p| &p.1)
-        .max_by(|a, b| a.value.abs().total_cmp(&b.value.abs()))
-        .cloned()
-        .ok_or_else(|| Error::Numerical("nonlinearity audit: no bins".into()))?;
+    coherence_drops
+}
+
+/// One sentence per flagged band and per coherence drop (empty: linear enough).
+fn reasons(
+    shift_bands: &[ShiftBand],
+    coherence_drops: &[CoherenceDrop],
+    opts: &AuditOptions,
+) -> Vec<String> {
     let mut reasons = Vec::new();
-    for b in &shift_bands {
+    for b in shift_bands {
         reasons.push(format!(
             "{:.4}–{:.4} Hz ({} bins): gain shift {:+.2} dB at {:.4} Hz ({} vs {}), phase shift \
              {:+.1}° at {:.4} Hz ({} vs {}); limits {} dB / {}°",
@@ -466,31 +527,11 @@ pub fn audit_nonlinearity(runs: &[FrfRun], opts: &AuditOptions) -> Result<Nonlin
             opts.max_phase_shift_deg
         ));
     }
-    for d in &coherence_drops {
+    for d in coherence_drops {
         reasons.push(format!(
             "coherence {:.3} < {} at {:.4} Hz (run {}) in {:.4}–{:.4} Hz near crossover",
             d.min_coherence, opts.min_coherence, d.at_hz, d.run, d.f_lo_hz, d.f_hi_hz
         ));
     }
-    Ok(NonlinearityAudit {
-        verdict: if reasons.is_empty() {
-            Verdict::LinearEnough
-        } else {
-            Verdict::NotLinear
-        },
-        reasons,
-        options: *opts,
-        band_hz: (lo, hi),
-        runs: runs
-            .iter()
-            .map(|r| (r.label.clone(), r.amplitude))
-            .collect(),
-        bins_examined: idx.len(),
-        bins_skipped,
-        shift_bands,
-        coherence_drops,
-        worst_gain_shift_db: wg,
-        worst_phase_shift_deg: wp,
-        bins,
-    })
+    reasons
 }

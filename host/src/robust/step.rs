@@ -86,45 +86,7 @@ pub fn saturated_step(
     ctrl: &DiscretePid,
     spec: &StepSpec,
 ) -> Result<StepResponse> {
-    plant.validate()?;
-    if !plant.is_discrete() || !plant.is_siso() {
-        return Err(Error::InvalidArgument(
-            "saturated step: the plant must be a discrete SISO model (discretise with c2d_zoh)"
-                .into(),
-        ));
-    }
-    if (plant.ts - ctrl.ts).abs() > 1e-12 * plant.ts {
-        return Err(Error::InvalidArgument(format!(
-            "saturated step: plant ts = {} s but controller ts = {} s",
-            plant.ts, ctrl.ts
-        )));
-    }
-    if !(spec.amplitude.is_finite() && spec.amplitude != 0.0) {
-        return Err(Error::InvalidArgument(format!(
-            "saturated step: amplitude {} must be finite and non-zero",
-            spec.amplitude
-        )));
-    }
-    if !(spec.actuator_limit.is_finite() && spec.actuator_limit > 0.0) {
-        return Err(Error::InvalidArgument(format!(
-            "saturated step: actuator limit {} must be finite and > 0",
-            spec.actuator_limit
-        )));
-    }
-    if !(spec.settle_band.is_finite() && spec.settle_band > 0.0 && spec.settle_band < 1.0) {
-        return Err(Error::InvalidArgument(format!(
-            "saturated step: settling band {} must lie in (0, 1)",
-            spec.settle_band
-        )));
-    }
-    let n_samples = (spec.duration_s / plant.ts).floor();
-    if !(n_samples.is_finite() && (2.0..=5e7).contains(&n_samples)) {
-        return Err(Error::InvalidArgument(format!(
-            "saturated step: duration {} s at ts = {} s gives {n_samples} samples (need 2..5e7)",
-            spec.duration_s, plant.ts
-        )));
-    }
-    let n_samples = n_samples as usize;
+    let n_samples = check_step(plant, ctrl, spec)?;
     let n = plant.n_states();
     let a: Vec<f64> = (0..n * n).map(|k| plant.a[(k / n, k % n)]).collect();
     let b: Vec<f64> = (0..n).map(|i| plant.b[(i, 0)]).collect();
@@ -159,29 +121,7 @@ pub fn saturated_step(
             st = s2;
             (cx, u, v)
         } else {
-            // Solve φ(e) = e − (r − cx − d·u(e)) = 0 by bisection.
-            let phi = |e: f64| -> f64 {
-                let mut s2 = st;
-                let (u, _) = ctrl.update_detailed(&mut s2, e, Some(lim), spec.anti_windup);
-                e - (r - cx - d * u)
-            };
-            let span = (r - cx).abs() + d.abs() * lim + 1.0;
-            let (mut lo, mut hi) = (r - cx - span, r - cx + span);
-            if phi(lo) > 0.0 || phi(hi) < 0.0 {
-                return Err(Error::Numerical(format!(
-                    "saturated step: algebraic loop through plant feedthrough D = {d} is ill \
-                     posed at sample {k}"
-                )));
-            }
-            for _ in 0..200 {
-                let mid = 0.5 * (lo + hi);
-                if phi(mid) > 0.0 {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
-            let e = 0.5 * (lo + hi);
+            let e = algebraic_loop_error(ctrl, &st, spec, cx, d, k)?;
             let (u, v) = ctrl.update_detailed(&mut st, e, Some(lim), spec.anti_windup);
             (cx + d * u, u, v)
         };
@@ -208,6 +148,115 @@ pub fn saturated_step(
         out.u.push(u);
         out.u_demand.push(v);
     }
+    summarise(&mut out, spec.settle_band);
+    Ok(out)
+}
+
+/// The number of samples to simulate, after checking the plant, the controller's sample time
+/// and the spec.
+fn check_step(plant: &StateSpace, ctrl: &DiscretePid, spec: &StepSpec) -> Result<usize> {
+    plant.validate()?;
+    if !plant.is_discrete() || !plant.is_siso() {
+        return Err(Error::InvalidArgument(
+            "saturated step: the plant must be a discrete SISO model (discretise with c2d_zoh)"
+                .into(),
+        ));
+    }
+    if (plant.ts - ctrl.ts).abs() > 1e-12 * plant.ts {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: plant ts = {} s but controller ts = {} s",
+            plant.ts, ctrl.ts
+        )));
+    }
+    if !(spec.amplitude.is_finite() && spec.amplitude != 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: amplitude {} must be finite and non-zero",
+            spec.amplitude
+        )));
+    }
+    if !(spec.actuator_limit.is_finite() && spec.actuator_limit > 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: actuator limit {} must be finite and > 0",
+            spec.actuator_limit
+        )));
+    }
+    step_samples(spec, plant.ts)
+}
+
+/// The number of samples of a step of `spec` at sample time `ts`, after checking the settling
+/// band and the duration (the last checks of [`saturated_step`] and of the general
+/// controller's step, `synth::sim::saturated_step_general`).
+pub(crate) fn step_samples(spec: &StepSpec, ts: f64) -> Result<usize> {
+    if !(spec.settle_band.is_finite() && spec.settle_band > 0.0 && spec.settle_band < 1.0) {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: settling band {} must lie in (0, 1)",
+            spec.settle_band
+        )));
+    }
+    let n_samples = (spec.duration_s / ts).floor();
+    if !(n_samples.is_finite() && (2.0..=5e7).contains(&n_samples)) {
+        return Err(Error::InvalidArgument(format!(
+            "saturated step: duration {} s at ts = {ts} s gives {n_samples} samples (need 2..5e7)",
+            spec.duration_s
+        )));
+    }
+    Ok(n_samples as usize)
+}
+
+/// The tracking error e of sample `k` when the plant feedthrough `d` ≠ 0 closes an algebraic
+/// loop: the root of φ(e) = e − (r − cx − d·u(e)) by bisection (`cx` = C·x, `st` the
+/// controller state before the sample, left unchanged).
+fn algebraic_loop_error(
+    ctrl: &DiscretePid,
+    st: &DiscretePidState,
+    spec: &StepSpec,
+    cx: f64,
+    d: f64,
+    k: usize,
+) -> Result<f64> {
+    let (r, lim) = (spec.amplitude, spec.actuator_limit);
+    let st = *st;
+    let phi = |e: f64| -> f64 {
+        let mut s2 = st;
+        let (u, _) = ctrl.update_detailed(&mut s2, e, Some(lim), spec.anti_windup);
+        e - (r - cx - d * u)
+    };
+    loop_error_by_bisection(phi, r - cx, d, lim, k)
+}
+
+/// The root of `phi` (φ(e) = e − (r − cx − d·u(e)), increasing when the loop is well posed)
+/// by 200 bisection steps on r − cx ± (|r − cx| + |d|·lim + 1), `r_cx` = r − cx; an error
+/// when φ does not change sign there (sample `k`). Shared with the general controller's step.
+pub(crate) fn loop_error_by_bisection(
+    phi: impl Fn(f64) -> f64,
+    r_cx: f64,
+    d: f64,
+    lim: f64,
+    k: usize,
+) -> Result<f64> {
+    let span = r_cx.abs() + d.abs() * lim + 1.0;
+    let (mut lo, mut hi) = (r_cx - span, r_cx + span);
+    if phi(lo) > 0.0 || phi(hi) < 0.0 {
+        return Err(Error::Numerical(format!(
+            "saturated step: algebraic loop through plant feedthrough D = {d} is ill \
+             posed at sample {k}"
+        )));
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if phi(mid) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Ok(0.5 * (lo + hi))
+}
+
+/// The summary numbers of a simulated response (`out.t`, `y`, `samples_at_rail` filled in):
+/// rail hits, overshoot, settling time within `settle_band`·|r|, rise time, final error.
+pub(crate) fn summarise(out: &mut StepResponse, settle_band: f64) {
+    let r = out.amplitude;
     out.hits_rail = out.samples_at_rail > 0;
     let sgn = r.signum();
     let ar = r.abs();
@@ -217,7 +266,7 @@ pub fn saturated_step(
         .map(|y| y * sgn)
         .fold(f64::NEG_INFINITY, f64::max);
     out.overshoot_pct = ((peak - ar) / ar * 100.0).max(0.0);
-    let band = spec.settle_band * ar;
+    let band = settle_band * ar;
     let last_out = out.y.iter().rposition(|y| (y - r).abs() > band);
     out.settling_time_s = match last_out {
         None => Some(0.0),
@@ -230,6 +279,5 @@ pub fn saturated_step(
         (Some(a), Some(b)) => Some(out.t[b] - out.t[a]),
         _ => None,
     };
-    out.final_error = r - out.y[out.y.len() - 1];
-    Ok(out)
+    out.final_error = r - out.y.last().copied().unwrap_or(0.0);
 }

@@ -445,8 +445,8 @@ pub struct MpcStep {
     pub plant_input: Vec<f64>,
 }
 
-/// The summary numbers of a step, defined as in [`crate::robust::step::StepResponse`] (the
-/// same definitions as `synth::sim`'s trace).
+/// The summary numbers of a step, defined and computed as for
+/// [`crate::robust::step::StepResponse`] ([`crate::robust::step::summarise`]).
 #[allow(clippy::too_many_arguments)]
 fn summarise(
     ts: f64,
@@ -458,38 +458,25 @@ fn summarise(
     u: Vec<f64>,
     v: Vec<f64>,
 ) -> StepResponse {
-    let (sgn, ar) = (r.signum(), r.abs());
-    let peak = y.iter().map(|y| y * sgn).fold(f64::NEG_INFINITY, f64::max);
-    let band = band_rel * ar;
-    let last_out = y.iter().rposition(|yk| (yk - r).abs() > band);
-    let settling_time_s = match last_out {
-        None => Some(0.0),
-        Some(k) if k + 1 < y.len() => Some(t[k + 1]),
-        Some(_) => None,
-    };
-    let t10 = y.iter().position(|yk| yk * sgn >= 0.1 * ar);
-    let t90 = y.iter().position(|yk| yk * sgn >= 0.9 * ar);
-    let rise_time_s = match (t10, t90) {
-        (Some(a), Some(b)) => Some(t[b] - t[a]),
-        _ => None,
-    };
     let at_rail = v.iter().filter(|x| x.abs() >= lim).count();
-    StepResponse {
+    let mut out = StepResponse {
         ts,
         amplitude: r,
         actuator_limit: lim,
-        hits_rail: at_rail > 0,
+        hits_rail: false,
         samples_at_rail: at_rail,
         peak_demand_ratio: v.iter().map(|x| x.abs() / lim).fold(0.0, f64::max),
-        overshoot_pct: ((peak - ar) / ar * 100.0).max(0.0),
-        settling_time_s,
-        rise_time_s,
-        final_error: r - y.last().copied().unwrap_or(0.0),
+        overshoot_pct: 0.0,
+        settling_time_s: None,
+        rise_time_s: None,
+        final_error: 0.0,
         t,
         y,
         u,
         u_demand: v,
-    }
+    };
+    crate::robust::step::summarise(&mut out, band_rel);
+    out
 }
 
 /// Shifts a solution one sample ahead (the warm start for the next control step), the last

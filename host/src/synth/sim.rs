@@ -17,7 +17,9 @@
 use crate::error::{Error, Result};
 use crate::lti::StateSpace;
 use crate::robust::pid::{DiscretePid, DiscretePidState};
-use crate::robust::step::{StepResponse, StepSpec};
+use crate::robust::step::{
+    loop_error_by_bisection, step_samples, summarise, StepResponse, StepSpec,
+};
 use faer::Mat;
 
 /// A discrete SISO state-space filter with its state, in flat row-major storage.
@@ -217,22 +219,10 @@ pub fn saturated_step_general(
             "saturated step: amplitude {r} must be finite and non-zero, limit {lim} finite and > 0"
         )));
     }
-    if !(spec.settle_band > 0.0 && spec.settle_band < 1.0) {
-        return Err(Error::InvalidArgument(format!(
-            "saturated step: settling band {} must lie in (0, 1)",
-            spec.settle_band
-        )));
-    }
-    let n_samples = (spec.duration_s / plant.ts).floor();
-    if !(n_samples.is_finite() && (2.0..=5e7).contains(&n_samples)) {
-        return Err(Error::InvalidArgument(format!(
-            "saturated step: duration {} s at ts = {} s gives {n_samples} samples (need 2..5e7)",
-            spec.duration_s, plant.ts
-        )));
-    }
+    let n_samples = step_samples(spec, plant.ts)?;
     let mut g = SsFilter::new(plant)?;
     let mut out = Trace::default();
-    for k in 0..n_samples as usize {
+    for k in 0..n_samples {
         let cx = g.output(0.0);
         let e = if g.d == 0.0 {
             r - cx
@@ -267,23 +257,7 @@ fn solve_algebraic_loop(
         let mut l2 = law.clone();
         e - (r - cx - d * l2.step(e, lim).clamp(-lim, lim))
     };
-    let span = (r - cx).abs() + d.abs() * lim + 1.0;
-    let (mut lo, mut hi) = (r - cx - span, r - cx + span);
-    if phi(lo) > 0.0 || phi(hi) < 0.0 {
-        return Err(Error::Numerical(format!(
-            "saturated step: algebraic loop through plant feedthrough D = {d} is ill posed at \
-             sample {k}"
-        )));
-    }
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if phi(mid) > 0.0 {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    Ok(0.5 * (lo + hi))
+    loop_error_by_bisection(phi, r - cx, d, lim, k)
 }
 
 #[derive(Default)]
@@ -308,43 +282,25 @@ impl Trace {
         self.v.push(v);
     }
 
-    /// The summary numbers, defined as in [`crate::robust::step::StepResponse`].
+    /// The summary numbers, defined and computed as for [`crate::robust::step::StepResponse`].
     fn summarise(self, ts: f64, r: f64, lim: f64, band_rel: f64) -> StepResponse {
-        let (sgn, ar) = (r.signum(), r.abs());
-        let peak = self
-            .y
-            .iter()
-            .map(|y| y * sgn)
-            .fold(f64::NEG_INFINITY, f64::max);
-        let band = band_rel * ar;
-        let last_out = self.y.iter().rposition(|y| (y - r).abs() > band);
-        let settling_time_s = match last_out {
-            None => Some(0.0),
-            Some(k) if k + 1 < self.y.len() => Some(self.t[k + 1]),
-            Some(_) => None,
-        };
-        let t10 = self.y.iter().position(|y| y * sgn >= 0.1 * ar);
-        let t90 = self.y.iter().position(|y| y * sgn >= 0.9 * ar);
-        let rise_time_s = match (t10, t90) {
-            (Some(a), Some(b)) => Some(self.t[b] - self.t[a]),
-            _ => None,
-        };
-        let final_error = r - self.y.last().copied().unwrap_or(0.0);
-        StepResponse {
+        let mut out = StepResponse {
             ts,
             amplitude: r,
             actuator_limit: lim,
-            hits_rail: self.at_rail > 0,
+            hits_rail: false,
             samples_at_rail: self.at_rail,
             peak_demand_ratio: self.peak_ratio,
-            overshoot_pct: ((peak - ar) / ar * 100.0).max(0.0),
-            settling_time_s,
-            rise_time_s,
-            final_error,
+            overshoot_pct: 0.0,
+            settling_time_s: None,
+            rise_time_s: None,
+            final_error: 0.0,
             t: self.t,
             y: self.y,
             u: self.u,
             u_demand: self.v,
-        }
+        };
+        summarise(&mut out, band_rel);
+        out
     }
 }
