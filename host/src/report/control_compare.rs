@@ -1,11 +1,12 @@
 //! The report's "Controller comparison" section for `[control] methods = [...]` with two or more
 //! methods: one row per method from [`crate::pipeline::control_methods::comparison_rows`] (each
 //! number is that method's receipt: the same value its own `receipts.<method>.json` holds).
-//! Nothing is rendered with one method.
-use super::esc;
+//! Nothing is rendered with one method. Markup in `templates/report/control_compare.html`.
+use super::append;
+use crate::error::Result;
 use crate::pipeline::control_methods::{comparison_rows, ComparisonRow, Structure};
 use crate::pipeline::{fmt_num, PipelineRun};
-use std::fmt::Write as _;
+use askama::Template;
 
 fn num(v: Option<f64>) -> String {
     v.map_or("n/a".into(), |v| {
@@ -41,80 +42,81 @@ fn structure_text(r: &ComparisonRow) -> String {
     }
 }
 
+/// One table row as the template prints it (text; the template escapes it).
+struct Row {
+    all_pass: bool,
+    method: &'static str,
+    design_failed: bool,
+    receipts_file: String,
+    crossover: String,
+    crossover_kind: &'static str,
+    sensitivity_peak: String,
+    wm_t_peak: String,
+    effort: String,
+    limit: String,
+    overshoot: String,
+    step_effect: Option<String>,
+    settling: String,
+    structure: String,
+    cost: String,
+    receipts: usize,
+    failed: Vec<String>,
+}
+
+impl Row {
+    fn of(r: &ComparisonRow) -> Self {
+        Self {
+            all_pass: r.all_pass,
+            method: r.method.name(),
+            design_failed: r.status != "designed",
+            receipts_file: r.receipts_file.clone(),
+            crossover: num(r.crossover_hz),
+            crossover_kind: r.crossover_kind,
+            sensitivity_peak: num(r.sensitivity_peak),
+            wm_t_peak: num(r.wm_t_peak),
+            effort: num(r.peak_control_effort),
+            limit: fmt_num(r.actuator_limit),
+            overshoot: num(r.step_overshoot_pct),
+            step_effect: r.step_effect.clone(),
+            settling: num(r.step_settling_s),
+            structure: structure_text(r),
+            cost: r.target_cost.map_or("not measured".into(), |c| {
+                format!(
+                    "{:.0}{} ({})",
+                    c.mean,
+                    c.max.map_or(String::new(), |m| format!(" / max {m:.0}")),
+                    c.source
+                )
+            }),
+            receipts: r.receipts,
+            failed: r.failed.clone(),
+        }
+    }
+}
+
+#[derive(Template)]
+#[template(path = "report/control_compare.html")]
+struct Compare<'a> {
+    reference: String,
+    output_unit: &'a str,
+    input_unit: &'a str,
+    rows: Vec<Row>,
+}
+
 /// Writes the section (nothing with fewer than two methods).
-pub(crate) fn render(h: &mut String, run: &PipelineRun) {
+pub(crate) fn render(h: &mut String, run: &PipelineRun) -> Result<()> {
     let rows = comparison_rows(run);
     if rows.len() < 2 {
-        return;
+        return Ok(());
     }
     let sig = &run.config.signals;
-    h.push_str("<section id=\"control-comparison\">\n<h2>Controller comparison</h2>\n");
-    let _ = writeln!(
+    append(
         h,
-        "<p class=\"note\">Every method designed on the same G0 and W_m (<code>[control] \
-         methods</code>); the first is the primary (its receipts are the report's and \
-         <code>receipts.json</code>'s). Each number is that method's receipt; n/a: the receipt \
-         does not apply (MPC: no LTI output-feedback K) or the design failed. Effort is \
-         ‖KS‖∞·{} {} against the actuator limit; the step is the saturated {} {} step.</p>",
-        esc(&fmt_num(run.config.control.reference_amplitude)),
-        esc(&sig.output_unit),
-        esc(&fmt_num(run.config.control.reference_amplitude)),
-        esc(&sig.output_unit),
-    );
-    h.push_str(
-        "<table>\n<tr><th>method</th><th>crossover (Hz)</th><th>M_s</th><th>‖W_m T‖∞</th>\
-         <th>peak effort / limit</th><th>overshoot (%)</th><th>settling (s)</th>\
-         <th>controller</th><th>instructions / step on target</th><th>receipts</th></tr>\n",
-    );
-    for r in &rows {
-        let cost = r.target_cost.map_or("not measured".into(), |c| {
-            format!(
-                "{:.0}{} ({})",
-                c.mean,
-                c.max.map_or(String::new(), |m| format!(" / max {m:.0}")),
-                c.source
-            )
-        });
-        let verdict = if r.all_pass {
-            format!("<span class=\"badge pass\">all {} pass</span>", r.receipts)
-        } else {
-            format!(
-                "<span class=\"badge fail\">{} of {} fail</span> {}",
-                r.failed.len(),
-                r.receipts,
-                esc(&r.failed.join(", "))
-            )
-        };
-        let _ = writeln!(
-            h,
-            "<tr{}><td>{}{}<br><span class=\"note\">{}</span></td><td class=\"num\">{}<br>\
-             <span class=\"note\">{}</span></td><td class=\"num\">{}</td><td class=\"num\">{}\
-             </td><td class=\"num\">{} / {} {}</td><td class=\"num\">{}</td><td class=\"num\">{}\
-             </td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            if r.all_pass { "" } else { " class=\"fail\"" },
-            esc(r.method.name()),
-            if r.status == "designed" {
-                ""
-            } else {
-                " (design failed)"
-            },
-            esc(&r.receipts_file),
-            num(r.crossover_hz),
-            esc(r.crossover_kind),
-            num(r.sensitivity_peak),
-            num(r.wm_t_peak),
-            num(r.peak_control_effort),
-            esc(&fmt_num(r.actuator_limit)),
-            esc(&sig.input_unit),
-            num(r.step_overshoot_pct)
-                + &r.step_effect.as_ref().map_or(String::new(), |e| {
-                    format!("<br><span class=\"note\">with {}</span>", esc(e))
-                }),
-            num(r.step_settling_s),
-            esc(&structure_text(r)),
-            esc(&cost),
-            verdict
-        );
-    }
-    h.push_str("</table>\n</section>\n");
+        &Compare {
+            reference: fmt_num(run.config.control.reference_amplitude),
+            output_unit: &sig.output_unit,
+            input_unit: &sig.input_unit,
+            rows: rows.iter().map(Row::of).collect(),
+        },
+    )
 }

@@ -152,7 +152,7 @@ pub fn render_html(run: &PipelineRun, figs: &[Figure]) -> Result<String> {
     sections::validation(&mut h, v)?;
     sections::controller(&mut h, run)?;
     control_section::render(&mut h, v)?;
-    control_compare::render(&mut h, run);
+    control_compare::render(&mut h, run)?;
     sections::provenance(&mut h, run)?;
     Ok(h)
 }
