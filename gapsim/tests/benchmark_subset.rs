@@ -116,7 +116,9 @@ fn benchmark_subset_holds_the_measured_aggregates() {
 // 34/34, median (worst) parameter error 0.1 % (114 %). (Session 5: indep 30/38, cross-family
 // 10/15; session 4, h/gapacc: indep 28/38, cross-family 9/15.) NOT MET (issue 9 targets):
 // >= 95 % overall (here 39/46 = 85 %), >= 90 % cross-family (67 %), worst parameter error
-// <= 25 % (114 %).
+// <= 25 % (114 %). Session 10 (integrating models fitted drift-free, this test in debug on
+// main): same 8/8, indep 31/38, cross-family 11/15, median (worst) parameter error 0.1 %
+// (86 %).
 const SAME_RIGHT: usize = 8;
 const INDEP_RIGHT: usize = 31;
-const CROSS_RIGHT: usize = 10;
+const CROSS_RIGHT: usize = 11;
