@@ -295,71 +295,14 @@ pub fn select_effects(
         opts.candidates.clone()
     };
     // 1. Singles.
-    let mut singles: Vec<Scored> = Vec::new();
-    let mut coulomb: Option<Fitted> = None;
-    let mut order = cands.clone();
-    order.sort();
-    for c in &order {
-        // Inside a two-mass structure: the re-fit mapped to physical coordinates and the
-        // nominal's structure (the nominal in modal form maps to the same plant).
-        let use_bases: Vec<AugmentedModel> = if c.place.needs_two_mass() {
-            bases
-                .iter()
-                .enumerate()
-                .filter(|(i, b)| *i == 0 || b.two_mass.is_some())
-                .map(|(_, b)| b.clone())
-                .collect()
-        } else {
-            bases
-                .iter()
-                .filter(|b| b.two_mass.is_none())
-                .cloned()
-                .collect()
-        };
-        let hint = if c.kind == EffectKind::Stiction && c.place == Place::Motor {
-            coulomb.as_ref()
-        } else {
-            None
-        };
-        let t0 = profile_seconds();
-        let fc = fit_placed(*c, td, &use_bases, hint, sim_poles, &hints);
-        if std::env::var_os("GAP_PROFILE").is_some() {
-            eprintln!("profile: {c} {:.3} s (cpu)", profile_seconds() - t0);
-        }
-        match fc {
-            Some(f) => {
-                if c.kind == EffectKind::CoulombFriction && c.place == Place::Motor {
-                    coulomb = Some(f.clone());
-                }
-                singles.push(score(f, val, gap_linear));
-            }
-            None => notes.push(format!("{c}: no fit")),
-        }
-    }
-    singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
-    // Friction on the load wins: its stiction variant, started from it.
-    if singles
-        .first()
-        .and_then(|s| s.effects.first())
-        .is_some_and(|p| p.place == Place::Load && p.effect.kind() == EffectKind::CoulombFriction)
-    {
-        let c = Fitted {
-            model: singles[0].model.clone(),
-            train_cost: singles[0].train_cost,
-        };
-        let cand = Candidate::new(EffectKind::Stiction, Place::Load);
-        if let Some(f) = fit_placed(
-            cand,
-            td,
-            std::slice::from_ref(&c.model),
-            Some(&c),
-            sim_poles,
-            &hints,
-        ) {
-            singles.push(score(f, val, gap_linear));
-            singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
-        }
-    }
+    let mut singles = fit_singles(
+        td,
+        &bases,
+        &cands,
+        (sim_poles, &hints),
+        (val, gap_linear),
+        &mut notes,
+    );
     // Nested: stiction vs Coulomb friction at the same place.
     resolve_nested(
         &mut singles,
@@ -417,76 +360,24 @@ pub fn select_effects(
             gap_linear,
             opts,
         };
-        let first = ctx.polish(first);
-        selected_models[0] = first.clone();
-        pairs = ctx.pairs_on(&first);
-        pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
-        if let Some(p) = pairs.first().cloned() {
-            let rel = (first.gap - p.gap) / first.gap;
-            let floor = opts.noise_floor.unwrap_or(0.0).clamp(0.0, first.gap);
-            let closed = (first.gap - p.gap) / (first.gap - floor).max(1e-300);
-            if rel >= opts.pair_margin
-                && closed >= opts.min_excess_closed
-                && (!tentative || p.improvement >= opts.margin)
-            {
-                let p = pair_stiction_variant(
-                    p,
-                    td,
-                    &first.model,
-                    sim_poles,
-                    &hints,
-                    (val, gap_linear),
-                    dwell.as_ref(),
-                    opts,
-                    &mut notes,
-                );
-                selected_models.push(p);
-            } else {
-                notes.push(format!(
-                    "best pair improves on the single by {rel:.3} (pair margin {}) and removes \
-                     {:.0} % of its excess over the noise floor (needs {:.0} %): not selected",
-                    opts.pair_margin,
-                    100.0 * closed,
-                    100.0 * opts.min_excess_closed
-                ));
-            }
-        }
+        let (first, tried, chosen) = ctx.select(first, tentative, dwell.as_ref(), &mut notes);
+        selected_models[0] = first;
+        pairs = tried;
+        selected_models.extend(chosen);
     }
     if tentative && selected_models.len() < 2 {
         // The forward step below the margin found no pair that reaches it: nothing selected.
         selected_models.clear();
     }
     // 4. Lattice evidence decides quantization.
-    let mut model = selected_models
-        .last()
-        .map_or(linear.clone(), |s| s.model.clone());
-    if let Some(l) = lattice {
-        let has_q = model
-            .effects()
-            .iter()
-            .any(|p| p.effect.kind() == EffectKind::Quantization);
-        if !has_q {
-            let m = model.with_added(PlacedEffect {
-                effect: Effect::Quantization { step: l.step },
-                place: Place::Sensor,
-            });
-            let f = Fitted {
-                train_cost: m.cost(&td.base, &td.u),
-                model: m,
-            };
-            let s = score(f, val, gap_linear);
-            model = s.model.clone();
-            selected_models.push(s);
-        }
-        notes.push(format!(
-            "outputs sit on a lattice: step {:.6e} ({:.1} % of the output std), {:.1} % of the \
-             samples on it, {} levels",
-            l.step,
-            100.0 * l.step_over_std,
-            100.0 * l.share_on_lattice,
-            l.levels
-        ));
-    }
+    let model = lattice_decides(
+        &mut selected_models,
+        &linear,
+        lattice,
+        td,
+        (val, gap_linear),
+        &mut notes,
+    );
     let selected = shares(&selected_models, gap_linear);
     Ok(Selection {
         gap_linear,
@@ -498,6 +389,129 @@ pub fn select_effects(
         dwell,
         notes,
     })
+}
+
+/// Step 1 of [`select_effects`]: every candidate fitted alone from the `bases` it may extend
+/// (the two-mass places from the structure's bases too) and scored on validation, best first;
+/// stiction at the motor starts from the Coulomb fit, and friction on the load that ranks first
+/// gets its stiction variant.
+fn fit_singles(
+    td: &TrainData,
+    bases: &[AugmentedModel],
+    cands: &[Candidate],
+    (sim_poles, hints): (&[Complex64], &FitHints),
+    (val, gap_linear): (Val, f64),
+    notes: &mut Vec<String>,
+) -> Vec<Scored> {
+    let mut singles: Vec<Scored> = Vec::new();
+    let mut coulomb: Option<Fitted> = None;
+    let mut order = cands.to_vec();
+    order.sort();
+    for c in &order {
+        // Inside a two-mass structure: the re-fit mapped to physical coordinates and the
+        // nominal's structure (the nominal in modal form maps to the same plant).
+        let use_bases: Vec<AugmentedModel> = if c.place.needs_two_mass() {
+            bases
+                .iter()
+                .enumerate()
+                .filter(|(i, b)| *i == 0 || b.two_mass.is_some())
+                .map(|(_, b)| b.clone())
+                .collect()
+        } else {
+            bases
+                .iter()
+                .filter(|b| b.two_mass.is_none())
+                .cloned()
+                .collect()
+        };
+        let hint = if c.kind == EffectKind::Stiction && c.place == Place::Motor {
+            coulomb.as_ref()
+        } else {
+            None
+        };
+        let t0 = profile_seconds();
+        let fc = fit_placed(*c, td, &use_bases, hint, sim_poles, hints);
+        if std::env::var_os("GAP_PROFILE").is_some() {
+            eprintln!("profile: {c} {:.3} s (cpu)", profile_seconds() - t0);
+        }
+        match fc {
+            Some(f) => {
+                if c.kind == EffectKind::CoulombFriction && c.place == Place::Motor {
+                    coulomb = Some(f.clone());
+                }
+                singles.push(score(f, val, gap_linear));
+            }
+            None => notes.push(format!("{c}: no fit")),
+        }
+    }
+    singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+    // Friction on the load wins: its stiction variant, started from it.
+    if singles
+        .first()
+        .and_then(|s| s.effects.first())
+        .is_some_and(|p| p.place == Place::Load && p.effect.kind() == EffectKind::CoulombFriction)
+    {
+        let c = Fitted {
+            model: singles[0].model.clone(),
+            train_cost: singles[0].train_cost,
+        };
+        let cand = Candidate::new(EffectKind::Stiction, Place::Load);
+        if let Some(f) = fit_placed(
+            cand,
+            td,
+            std::slice::from_ref(&c.model),
+            Some(&c),
+            sim_poles,
+            hints,
+        ) {
+            singles.push(score(f, val, gap_linear));
+            singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+        }
+    }
+    singles
+}
+
+/// Step 4 of [`select_effects`]: a lattice in the measured outputs decides quantization by
+/// itself (added at the sensor to the selected model when it lacks it). Returns the final
+/// model (the last selected step, or `linear`).
+fn lattice_decides(
+    selected_models: &mut Vec<Scored>,
+    linear: &AugmentedModel,
+    lattice: Option<LatticeEvidence>,
+    td: &TrainData,
+    (val, gap_linear): (Val, f64),
+    notes: &mut Vec<String>,
+) -> AugmentedModel {
+    let mut model = selected_models
+        .last()
+        .map_or(linear.clone(), |s| s.model.clone());
+    let Some(l) = lattice else { return model };
+    let has_q = model
+        .effects()
+        .iter()
+        .any(|p| p.effect.kind() == EffectKind::Quantization);
+    if !has_q {
+        let m = model.with_added(PlacedEffect {
+            effect: Effect::Quantization { step: l.step },
+            place: Place::Sensor,
+        });
+        let f = Fitted {
+            train_cost: m.cost(&td.base, &td.u),
+            model: m,
+        };
+        let s = score(f, val, gap_linear);
+        model = s.model.clone();
+        selected_models.push(s);
+    }
+    notes.push(format!(
+        "outputs sit on a lattice: step {:.6e} ({:.1} % of the output std), {:.1} % of the \
+         samples on it, {} levels",
+        l.step,
+        100.0 * l.step_over_std,
+        100.0 * l.share_on_lattice,
+        l.levels
+    ));
+    model
 }
 
 /// What the pair stage of [`select_effects`] shares between the singles it grows pairs from.
@@ -566,6 +580,54 @@ impl PairContext<'_> {
             partners.push(Candidate::new(EffectKind::Backlash, Place::Drive));
         }
         partners
+    }
+
+    /// Step 3 of [`select_effects`]: `first` polished, the pairs grown on it (best first), and
+    /// the best pair when it improves on `first` by `pair_margin`, removes `min_excess_closed`
+    /// of its excess over the noise floor and, after a `tentative` first step, reaches the
+    /// margin over the linear model itself (weighed against its stiction variant).
+    fn select(
+        &self,
+        first: Scored,
+        tentative: bool,
+        dwell: Option<&DwellEvidence>,
+        notes: &mut Vec<String>,
+    ) -> (Scored, Vec<Scored>, Option<Scored>) {
+        let opts = self.opts;
+        let first = self.polish(first);
+        let mut pairs = self.pairs_on(&first);
+        pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+        let Some(p) = pairs.first().cloned() else {
+            return (first, pairs, None);
+        };
+        let rel = (first.gap - p.gap) / first.gap;
+        let floor = opts.noise_floor.unwrap_or(0.0).clamp(0.0, first.gap);
+        let closed = (first.gap - p.gap) / (first.gap - floor).max(1e-300);
+        if rel >= opts.pair_margin
+            && closed >= opts.min_excess_closed
+            && (!tentative || p.improvement >= opts.margin)
+        {
+            let p = pair_stiction_variant(
+                p,
+                self.td,
+                &first.model,
+                self.sim_poles,
+                self.hints,
+                (self.val, self.gap_linear),
+                dwell,
+                opts,
+                notes,
+            );
+            return (first, pairs, Some(p));
+        }
+        notes.push(format!(
+            "best pair improves on the single by {rel:.3} (pair margin {}) and removes \
+             {:.0} % of its excess over the noise floor (needs {:.0} %): not selected",
+            opts.pair_margin,
+            100.0 * closed,
+            100.0 * opts.min_excess_closed
+        ));
+        (first, pairs, None)
     }
 
     /// Every partner of `first` ([`Self::partners`]) fitted on top of it and scored.
