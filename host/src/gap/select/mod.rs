@@ -277,18 +277,7 @@ pub fn select_effects(
         lattice_step: lattice.map(|l| l.step),
         breakaway: dwell.as_ref().map(|d| d.breakaway),
     };
-    let mut bases: Vec<AugmentedModel> = starts
-        .iter()
-        .map(|l| AugmentedModel::linear(l.clone()))
-        .collect();
-    if let Some(s) = structure {
-        // The nominal's two-mass plant as a further start for the structure's places.
-        let mut b = AugmentedModel::linear(lin.clone());
-        let mut tm = s.model.clone();
-        tm.offset = lin.offset;
-        b.two_mass = Some(tm);
-        bases.push(b);
-    }
+    let bases = bases_of(starts, structure);
     let cands = if opts.candidates.is_empty() {
         default_candidates(structure.is_some())
     } else {
@@ -389,6 +378,23 @@ pub fn select_effects(
         dwell,
         notes,
     })
+}
+
+/// The linear parts every single extends: each start, and with a two-mass structure the
+/// nominal's two-mass plant (for the structure's places), offset from the first start.
+fn bases_of(starts: &[ModalModel], structure: Option<&TwoMassStructure>) -> Vec<AugmentedModel> {
+    let mut bases: Vec<AugmentedModel> = starts
+        .iter()
+        .map(|l| AugmentedModel::linear(l.clone()))
+        .collect();
+    if let (Some(s), Some(lin)) = (structure, starts.first()) {
+        let mut b = AugmentedModel::linear(lin.clone());
+        let mut tm = s.model.clone();
+        tm.offset = lin.offset;
+        b.two_mass = Some(tm);
+        bases.push(b);
+    }
+    bases
 }
 
 /// Step 1 of [`select_effects`]: every candidate fitted alone from the `bases` it may extend
