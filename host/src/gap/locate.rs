@@ -275,6 +275,62 @@ fn quantile_threshold(v: &[f64], q: f64) -> f64 {
     s[((q * (s.len() - 1) as f64).round() as usize).min(s.len() - 1)]
 }
 
+/// RMS of the linear re-fit's residual (pooled training samples after the warm-up) in four
+/// regions relative to its overall RMS: output near its median, output rate near zero (the
+/// lowest 20 % of each), input at its extremes (top 10 % of |u|) and near zero (lowest 20 %).
+fn residual_regions(
+    u: &[Vec<f64>],
+    y_lin: &[Vec<f64>],
+    resid_lin: &[Vec<f64>],
+    warmup: usize,
+) -> Vec<Region> {
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    // Residual regions on the pooled training samples after the warm-up.
+    let mut r_all = Vec::new();
+    let mut yabs = Vec::new();
+    let mut yrate = Vec::new();
+    let mut uabs = Vec::new();
+    for l in 0..u.len() {
+        let yl = &y_lin[l];
+        let mut s: Vec<f64> = yl[warmup..].to_vec();
+        s.sort_by(f64::total_cmp);
+        let med = s[s.len() / 2];
+        for k in warmup.max(1)..u[l].len() {
+            r_all.push(resid_lin[l][k]);
+            yabs.push((yl[k] - med).abs());
+            yrate.push((yl[k] - yl[k - 1]).abs());
+            uabs.push(u[l][k].abs());
+        }
+    }
+    let total_rms = rms(&r_all);
+    let region = |name: &str, sel: &dyn Fn(usize) -> bool| -> Region {
+        let v: Vec<f64> = (0..r_all.len())
+            .filter(|&i| sel(i))
+            .map(|i| r_all[i])
+            .collect();
+        let ratio = if v.is_empty() || total_rms == 0.0 {
+            f64::NAN
+        } else {
+            rms(&v) / total_rms
+        };
+        Region {
+            region: name.into(),
+            rms_ratio: ratio,
+            concentrates: ratio >= CONCENTRATION_RATIO,
+        }
+    };
+    let t_y = quantile_threshold(&yabs, 0.2);
+    let t_r = quantile_threshold(&yrate, 0.2);
+    let t_ux = quantile_threshold(&uabs, 0.9);
+    let t_u0 = quantile_threshold(&uabs, 0.2);
+    vec![
+        region("near_zero_output", &|i| yabs[i] <= t_y),
+        region("near_zero_output_rate", &|i| yrate[i] <= t_r),
+        region("input_extremes", &|i| uabs[i] >= t_ux),
+        region("near_zero_input", &|i| uabs[i] <= t_u0),
+    ]
+}
+
 /// Computes the "where" analysis (module docs). `y_lin` and `resid_lin` are the linear
 /// re-fit's output and residual on each training log; `paths` name the logs in errors.
 #[allow(clippy::too_many_arguments)]
@@ -367,51 +423,7 @@ pub fn locate(
         }
     }
 
-    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
-    // Residual regions on the pooled training samples after the warm-up.
-    let mut r_all = Vec::new();
-    let mut yabs = Vec::new();
-    let mut yrate = Vec::new();
-    let mut uabs = Vec::new();
-    for l in 0..u.len() {
-        let yl = &y_lin[l];
-        let mut s: Vec<f64> = yl[warmup..].to_vec();
-        s.sort_by(f64::total_cmp);
-        let med = s[s.len() / 2];
-        for k in warmup.max(1)..u[l].len() {
-            r_all.push(resid_lin[l][k]);
-            yabs.push((yl[k] - med).abs());
-            yrate.push((yl[k] - yl[k - 1]).abs());
-            uabs.push(u[l][k].abs());
-        }
-    }
-    let total_rms = rms(&r_all);
-    let region = |name: &str, sel: &dyn Fn(usize) -> bool| -> Region {
-        let v: Vec<f64> = (0..r_all.len())
-            .filter(|&i| sel(i))
-            .map(|i| r_all[i])
-            .collect();
-        let ratio = if v.is_empty() || total_rms == 0.0 {
-            f64::NAN
-        } else {
-            rms(&v) / total_rms
-        };
-        Region {
-            region: name.into(),
-            rms_ratio: ratio,
-            concentrates: ratio >= CONCENTRATION_RATIO,
-        }
-    };
-    let t_y = quantile_threshold(&yabs, 0.2);
-    let t_r = quantile_threshold(&yrate, 0.2);
-    let t_ux = quantile_threshold(&uabs, 0.9);
-    let t_u0 = quantile_threshold(&uabs, 0.2);
-    let residual_regions = vec![
-        region("near_zero_output", &|i| yabs[i] <= t_y),
-        region("near_zero_output_rate", &|i| yrate[i] <= t_r),
-        region("input_extremes", &|i| uabs[i] >= t_ux),
-        region("near_zero_input", &|i| uabs[i] <= t_u0),
-    ];
+    let residual_regions = residual_regions(u, y_lin, resid_lin, warmup);
     // Ranked bands and time regions of the nominal sim's residual.
     let mut acc = Welch::new(nperseg).accumulator(1.0 / ts)?;
     for (ul, rl) in u.iter().zip(resid_nom) {
