@@ -540,6 +540,47 @@ fn linear_report(choice: &LinearChoice, ts: f64, train_nrmse: f64) -> Result<Lin
     })
 }
 
+/// The selected effects as the verdict lists them (name, place, parameters, share).
+fn verdict_effects(selection: &Selection) -> Vec<VerdictEffect> {
+    selection
+        .selected
+        .iter()
+        .map(|e| VerdictEffect {
+            effect: e.effect.kind().name().to_string(),
+            place: e.place.name().to_string(),
+            params: params_of(&e.effect),
+            share: e.share,
+        })
+        .collect()
+}
+
+/// The noise floor of the diagnosis ([`noise::noise_floor`]) from the validation log and the
+/// linear model's residuals on it and on the training logs.
+fn noise_floor_of(
+    logs: &Logs,
+    resid: &Residuals,
+    warmup: usize,
+    ts: f64,
+) -> Result<noise::NoiseFloor> {
+    noise::noise_floor(
+        (logs.vu.as_slice(), logs.vy.as_slice()),
+        &resid.val_lin,
+        &logs
+            .tu
+            .iter()
+            .zip(&logs.ty)
+            .map(|(u, y)| (u.as_slice(), y.as_slice()))
+            .collect::<Vec<_>>(),
+        &resid
+            .train_lin
+            .iter()
+            .map(Vec::as_slice)
+            .collect::<Vec<_>>(),
+        warmup,
+        1.0 / ts,
+    )
+}
+
 /// Runs the gap diagnosis of the discrete nominal model `sim` (SISO, sample time equal to the
 /// logs', see [`crate::gap::simfile::discretise_for_logs`]) against the training logs `train`
 /// (typically low and high amplitude) and the validation log `validate`.
@@ -586,23 +627,7 @@ pub fn diagnose(
     let resid = Residuals::of(sim, &linear, &logs)?;
 
     // NOISE FLOOR.
-    let noise_floor = noise::noise_floor(
-        (vu, vy),
-        &resid.val_lin,
-        &logs
-            .tu
-            .iter()
-            .zip(&logs.ty)
-            .map(|(u, y)| (u.as_slice(), y.as_slice()))
-            .collect::<Vec<_>>(),
-        &resid
-            .train_lin
-            .iter()
-            .map(Vec::as_slice)
-            .collect::<Vec<_>>(),
-        warmup,
-        1.0 / ts,
-    )?;
+    let noise_floor = noise_floor_of(&logs, &resid, warmup, ts)?;
 
     let selection = run_selection(
         sim,
@@ -646,16 +671,7 @@ pub fn diagnose(
         .filter_map(|sc| effect_report(sc, gap_linear, n_logs))
         .collect();
     let verdict_effects: Vec<VerdictEffect> = if has_effect {
-        selection
-            .selected
-            .iter()
-            .map(|e| VerdictEffect {
-                effect: e.effect.kind().name().to_string(),
-                place: e.place.name().to_string(),
-                params: params_of(&e.effect),
-                share: e.share,
-            })
-            .collect()
+        verdict_effects(&selection)
     } else {
         Vec::new()
     };
