@@ -490,22 +490,6 @@ impl Rows {
     }
 }
 
-/// Whitespace that `str::trim` removes, among ASCII bytes (the csv crate's `Trim::All`).
-fn is_trim_byte(b: u8) -> bool {
-    matches!(b, b' ' | b'\t' | b'\n' | 0x0b | 0x0c | b'\r')
-}
-
-/// `bytes[a..b]` without leading and trailing [`is_trim_byte`] bytes.
-fn trim_span(bytes: &[u8], mut a: usize, mut b: usize) -> (usize, usize) {
-    while a < b && is_trim_byte(bytes[a]) {
-        a += 1;
-    }
-    while b > a && is_trim_byte(bytes[b - 1]) {
-        b -= 1;
-    }
-    (a, b)
-}
-
 /// [`fast_rows`] over the whole body (from byte `body`, just after the header record), split
 /// at line boundaries into up to `how.pieces` pieces of at least `how.piece_min_bytes` bytes
 /// that are parsed concurrently, then joined in order with their line numbers. Each piece is
@@ -592,9 +576,15 @@ fn fast_rows(
     // The header record must end at a line boundary (the byte before `start` is `\n`, or
     // `start` sits on the `\n` of a `\r\n` whose `\r` ended the header).
     // Delimiters the line splitting below would confuse with what it refuses or skips.
+    // Delimiters that can be part of a number's text (the parse would run across them) are
+    // left to the csv crate too.
     if start > bytes.len()
         || start == 0
-        || matches!(sel.delimiter, b'"' | b'#' | b'\r' | b'\n')
+        || matches!(
+            sel.delimiter,
+            b'"' | b'#' | b'\r' | b'\n' | b'.' | b'+' | b'-'
+        )
+        || sel.delimiter.is_ascii_alphanumeric()
         || sel.delimiter >= 0x80
     {
         return None;
@@ -612,12 +602,7 @@ fn fast_rows(
             sel.time.is_some(),
         );
     }
-    // Only ASCII reaches here (bytes >= 0x80 are refused below): no UTF-8 check needed.
-    let parse = |(a, b): (usize, usize)| -> Option<f64> {
-        let v = parse_f64(&bytes[a..b])?;
-        v.is_finite().then_some(v)
-    };
-    // Byte classes of the line scan.
+    // Byte classes of the scan of skipped fields.
     const PLAIN: u8 = 0;
     const NEWLINE: u8 = 1;
     const DELIMITER: u8 = 2;
@@ -629,62 +614,103 @@ fn fast_rows(
     class[b'\n' as usize] = NEWLINE;
     class[b'\r' as usize] = CR;
     class[sel.delimiter as usize] = DELIMITER;
-    let mut fields: Vec<(usize, usize)> = Vec::with_capacity(sel.nf);
+    let delim = sel.delimiter;
+    // Whitespace trimmed around a field, other than the delimiter (a `\r` only before `\n`).
+    let space = |b: u8| b != delim && matches!(b, b' ' | b'\t' | 0x0b | 0x0c);
+    let len = bytes.len();
+    // The selected fields' values and spans on the current row.
+    let mut parse_field = vec![false; sel.nf];
+    for &i in sel.inputs.iter().chain(sel.outputs).chain(&sel.time) {
+        parse_field[i] = true;
+    }
+    let mut values = vec![0.0; sel.nf];
+    let mut spans = vec![(0, 0); sel.nf];
     let mut pos = start;
-    while pos < bytes.len() {
+    while pos < len {
         let this_line = line;
-        let (a, mut end) = (pos, pos);
-        if bytes[a] == b'#' {
+        if bytes[pos] == b'#' {
             // A comment line (whatever it holds, up to the next `\n`, as the csv crate skips it).
-            pos = bytes[a..]
+            pos = bytes[pos..]
                 .iter()
                 .position(|&b| b == b'\n')
-                .map_or(bytes.len(), |k| a + k + 1);
+                .map_or(len, |k| pos + k + 1);
             line += 1;
             continue;
         }
-        fields.clear();
-        let mut field_start = a;
-        // One pass over the line: split at the delimiter, refuse what the csv crate treats
+        // A line of whitespace only (one empty field after trimming) is skipped.
+        let mut q = pos;
+        while q < len && space(bytes[q]) {
+            q += 1;
+        }
+        if q < len && bytes[q] == b'\r' && bytes.get(q + 1) == Some(&b'\n') {
+            q += 1;
+        }
+        if q == len || bytes[q] == b'\n' {
+            pos = q + 1;
+            line += 1;
+            continue;
+        }
+        // The fields: a selected one is parsed where it starts (after leading whitespace) and
+        // must be followed by whitespace only, then the delimiter or the end of the line; a
+        // skipped one is scanned to the delimiter, refusing what the csv crate treats
         // specially (quotes, lone carriage returns) and non-ASCII bytes.
-        while end < bytes.len() {
-            let b = bytes[end];
-            match class[b as usize] {
-                PLAIN => {}
-                NEWLINE => break,
-                DELIMITER => {
-                    fields.push((field_start, end));
-                    field_start = end + 1;
+        let mut f = 0;
+        loop {
+            if parse_field[f] {
+                let mut a = pos;
+                while a < len && space(bytes[a]) {
+                    a += 1;
                 }
-                CR if bytes.get(end + 1) == Some(&b'\n') => {}
-                _ => return None,
+                let (v, used) = parse_f64_prefix(&bytes[a..])?;
+                if !v.is_finite() {
+                    return None;
+                }
+                values[f] = v;
+                spans[f] = (a, a + used);
+                pos = a + used;
+                while pos < len && space(bytes[pos]) {
+                    pos += 1;
+                }
+                if pos < len && bytes[pos] == b'\r' && bytes.get(pos + 1) == Some(&b'\n') {
+                    pos += 1;
+                }
+            } else {
+                while pos < len {
+                    match class[bytes[pos] as usize] {
+                        PLAIN => {}
+                        NEWLINE | DELIMITER => break,
+                        CR if bytes.get(pos + 1) == Some(&b'\n') => {}
+                        _ => return None,
+                    }
+                    pos += 1;
+                }
             }
-            end += 1;
-        }
-        fields.push((field_start, end));
-        pos = end + 1;
-        line += 1;
-        if fields.len() == 1 {
-            let (fa, fb) = trim_span(bytes, fields[0].0, fields[0].1);
-            if fa == fb {
-                continue; // blank line
+            if pos < len && bytes[pos] == delim {
+                f += 1;
+                if f == sel.nf {
+                    return None; // more fields than the header
+                }
+                pos += 1;
+            } else if pos == len || bytes[pos] == b'\n' {
+                break;
+            } else {
+                return None; // text after a number, a quote, a lone `\r`, ...
             }
         }
-        if fields.len() != sel.nf {
+        if f + 1 != sel.nf {
             return None;
         }
+        pos += 1;
+        line += 1;
         for (col, &i) in rows.ins.iter_mut().zip(sel.inputs) {
-            let (fa, fb) = fields[i];
-            col.push(parse(trim_span(bytes, fa, fb))?);
+            col.push(values[i]);
         }
         for (col, &i) in rows.outs.iter_mut().zip(sel.outputs) {
-            let (fa, fb) = fields[i];
-            col.push(parse(trim_span(bytes, fa, fb))?);
+            col.push(values[i]);
         }
         if let Some(i) = sel.time {
-            let (fa, fb) = trim_span(bytes, fields[i].0, fields[i].1);
-            rows.t.push(parse((fa, fb))? * sel.time_scale);
-            rows.t_text.push(TimeText::Span(fa, fb));
+            rows.t.push(values[i] * sel.time_scale);
+            rows.t_text.push(TimeText::Span(spans[i].0, spans[i].1));
         }
         rows.lines.push(this_line);
     }
@@ -698,6 +724,13 @@ fn fast_rows(
 /// cases, random strings and every number of the peer log).
 fn parse_f64(s: &[u8]) -> Option<f64> {
     fast_float2::parse::<f64, _>(s).ok()
+}
+
+/// The number at the start of `s` and the length of its text: the longest prefix that
+/// fast-float2 reads. Where that prefix is a whole field, it is the field's value as
+/// [`parse_f64`] (and `str::parse`) reads it.
+fn parse_f64_prefix(s: &[u8]) -> Option<(f64, usize)> {
+    fast_float2::parse_partial::<f64, _>(s).ok()
 }
 
 /// Delimiter of the first non-comment, non-blank line: `,` if present, else `;`, else tab,
@@ -948,6 +981,66 @@ mod tests {
                 d.clone(),
             ),
         ];
+        for (name, row) in [
+            ("number then text", "0.3,1.5x,2\n"),
+            ("space inside a number", "0.3,1 5,2\n"),
+            ("lone CR after a number", "0.3,1\r,2\n"),
+            (
+                "vertical tab and form feed around a number",
+                "0.3,\x0b1\x0c,2\n",
+            ),
+            ("empty selected field", "0.3,,2\n"),
+            ("too many fields", "0.3,1,2,4\n"),
+            ("too few fields", "0.3,1\n"),
+            ("exponents and signs", "0.3,+1e-0,-2.5E+1\n"),
+            ("nan", "0.3,nan,2\n"),
+            ("infinity", "0.3,1,-infinity\n"),
+            ("hex", "0.3,0x1,2\n"),
+        ] {
+            cases.push((
+                name,
+                format!("t,u,y\n{}{row}{}", rows(150, "\n"), rows(3, "\n")).into_bytes(),
+                d.clone(),
+            ));
+        }
+        cases.push((
+            "unselected text column",
+            format!(
+                "t,note,u,y\n{}",
+                rows(200, "\n")
+                    .lines()
+                    .map(|l| l.replacen(',', ",a b; c d,", 1) + "\n")
+                    .collect::<String>()
+            )
+            .into_bytes(),
+            d.clone(),
+        ));
+        cases.push((
+            "blank line of delimiters (tab)",
+            format!(
+                "t\tu\ty\n{}\t\t\n{}",
+                rows(100, "\n").replace(',', "\t"),
+                rows(3, "\n").replace(',', "\t")
+            )
+            .into_bytes(),
+            d.clone(),
+        ));
+        cases.push((
+            "space delimiter",
+            format!("t u y\n{}", rows(100, "\n").replace(',', " ")).into_bytes(),
+            CsvOptions {
+                delimiter: Some(b' '),
+                ..d.clone()
+            },
+        ));
+        cases.push((
+            "delimiter that is part of numbers",
+            format!("tEuEy\n{}", rows(100, "\n").replace(',', "E")).into_bytes(),
+            CsvOptions {
+                delimiter: Some(b'E'),
+                ..d.clone()
+            },
+        ));
         cases.push((
             "several selected columns, fs, no time",
             format!("a,b,c,d\n{}", "1,2,3,4\n2,4,1,0\n3,1,5,2\n").into_bytes(),
@@ -996,6 +1089,60 @@ mod tests {
             assert_eq!(r.lines, (4..24).collect::<Vec<_>>());
             assert_eq!(r.t[19], 19.0 * 1e-3);
             assert_eq!(r.t_text[19].text(text.as_bytes()), "0.019");
+        }
+        // Whitespace around fields, other delimiters, a skipped text column: still fast.
+        let plain = rows(20, "\n");
+        for (text, delimiter, nf, inputs, outputs) in [
+            (
+                format!("t,u,y\n{}", plain.replace(',', " ,\t ")),
+                b',',
+                3,
+                &[1usize][..],
+                &[2usize][..],
+            ),
+            (
+                format!("t;u;y\n{}", plain.replace(',', ";")),
+                b';',
+                3,
+                &[1],
+                &[2],
+            ),
+            (
+                format!("t\tu\ty\n{}", plain.replace(',', "\t")),
+                b'\t',
+                3,
+                &[1],
+                &[2],
+            ),
+            (
+                format!(
+                    "t,n,u,y\n{}",
+                    plain
+                        .lines()
+                        .map(|l| l.replacen(',', ",x y? z ,", 1) + "\n")
+                        .collect::<String>()
+                ),
+                b',',
+                4,
+                &[2],
+                &[3],
+            ),
+        ] {
+            let sel = Select {
+                delimiter,
+                nf,
+                inputs,
+                outputs,
+                time: Some(0),
+                time_scale: 1.0,
+            };
+            let start = text.find('\n').expect("header") + 1;
+            for how in [one, three] {
+                let r = fast_rows_split(text.as_bytes(), start, &sel, how);
+                let r = r.unwrap_or_else(|| panic!("fast path refused {text:?}"));
+                assert_eq!(r.lines.len(), 20);
+                assert_eq!(r.t_text[19].text(text.as_bytes()), "0.019");
+            }
         }
         // A quote anywhere in a row leaves the fast path, in any piece.
         for at in [0, 10, 19] {
@@ -1160,6 +1307,14 @@ mod tests {
             cases.push(r);
             cases.push(format!("{}", (next() % 2_000_001) as f64 / 1000.0 - 1000.0));
         }
+        // The peer log's format (`%.17g`, 17 significant digits): 100k values of every
+        // magnitude of a noisy output, and times k·1e-3.
+        for k in 0..100_000u64 {
+            let x = (f64::from_bits(next() >> 12 | 0x3ff0_0000_0000_0000) - 1.5)
+                * 10f64.powi((k % 9) as i32 - 6);
+            cases.push(format!("{:.16e}", x));
+            cases.push(format!("{}", k as f64 * 1e-3));
+        }
         for c in &cases {
             let std: Option<f64> = c.parse().ok();
             let ff = parse_f64(c.as_bytes());
@@ -1167,6 +1322,19 @@ mod tests {
                 std.map(f64::to_bits),
                 ff.map(f64::to_bits),
                 "`{}`: std {std:?}, fast-float2 {ff:?}",
+                c.escape_debug()
+            );
+            // As a field followed by the delimiter: the prefix read is the whole text exactly
+            // when the text is a finite number, with the same bits.
+            let finite = std.filter(|v| v.is_finite());
+            let field = format!("{c},9");
+            let prefix = parse_f64_prefix(field.as_bytes())
+                .filter(|&(v, used)| used == c.len() && v.is_finite())
+                .map(|(v, _)| v);
+            assert_eq!(
+                finite.map(f64::to_bits),
+                prefix.map(f64::to_bits),
+                "field `{}`: std {finite:?}, prefix {prefix:?}",
                 c.escape_debug()
             );
         }
