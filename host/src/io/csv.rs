@@ -717,18 +717,12 @@ fn fast_rows(
     Some((rows, line - first_line))
 }
 
-/// The number in the ASCII text `s` as `str::parse::<f64>` reads it, or `None` where that
-/// fails. fast-float2 implements the same correctly rounded algorithm (Eisel–Lemire with a
-/// big-decimal fallback) as the standard library, without the `&str` round trip; the
-/// syntax is the same for the finite numbers the fast path keeps (tests compare both on edge
-/// cases, random strings and every number of the peer log).
-fn parse_f64(s: &[u8]) -> Option<f64> {
-    fast_float2::parse::<f64, _>(s).ok()
-}
-
 /// The number at the start of `s` and the length of its text: the longest prefix that
-/// fast-float2 reads. Where that prefix is a whole field, it is the field's value as
-/// [`parse_f64`] (and `str::parse`) reads it.
+/// fast-float2 reads, without the `&str` round trip (only ASCII reaches it). fast-float2
+/// implements the same correctly rounded algorithm (Eisel–Lemire with a big-decimal fallback)
+/// as the standard library; where the prefix is a whole field, it is the field's value as
+/// `str::parse::<f64>` reads it (tests compare both on edge cases, random strings and 100k
+/// numbers in the peer log's format).
 fn parse_f64_prefix(s: &[u8]) -> Option<(f64, usize)> {
     fast_float2::parse_partial::<f64, _>(s).ok()
 }
@@ -782,6 +776,11 @@ fn true_line(bytes: &[u8], mut byte: usize, mut line: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The whole text `s` as fast-float2 reads it.
+    fn parse_f64(s: &[u8]) -> Option<f64> {
+        fast_float2::parse::<f64, _>(s).ok()
+    }
 
     /// The ways the tests read a file: the csv crate only, the fast row parser on one thread,
     /// and the fast row parser split into up to 3 or 7 concurrent pieces of any size.
