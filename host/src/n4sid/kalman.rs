@@ -88,26 +88,31 @@ fn kalman_gain(
     // Hankel view (k × count, element (j, s) = w[a][s + j]) — one GEMM per channel.
     let count = len - k + 1;
     // The rows are padded with zero rows to a multiple of 8: the GEMM kernel works on whole
-    // 8-row panels of the destination and computes on the padding below row n as well, and
-    // the padding of a `Mat` is not initialised; freed integers left there (line numbers,
-    // indices) read as subnormal numbers, each of which costs a microcode assist: measured
-    // 170 ms instead of 10 ms for this product on the peer log. The first n rows are computed
-    // exactly as before (same view, same kernel).
+    // 8-row panels of the destination and of the left factor and computes on the padding
+    // below row n as well, and the padding of a `Mat` is not initialised; freed integers left
+    // there (line numbers, indices) read as subnormal numbers, each of which costs a microcode
+    // assist: measured 170 ms instead of 10 ms for this product on the peer log. The first n
+    // rows are computed exactly as before (same views, same kernel).
     let mut states = Mat::<f64>::zeros(n.next_multiple_of(8), count);
     for (a_, wa) in w.iter().enumerate() {
-        let fa = Mat::from_fn(n, k, |i, j| {
+        // Padded to 8 rows with zeros as `states` (the kernel loads whole 8-row panels of it).
+        let fa = Mat::from_fn(n.next_multiple_of(8), k, |i, j| {
             let col = if a_ < m {
                 j * m + a_
             } else {
                 k * m + j * p + (a_ - m)
             };
-            f[(i, col)]
+            if i < n {
+                f[(i, col)]
+            } else {
+                0.0
+            }
         });
         let hankel = MatRef::from_column_major_slice_with_stride(&wa[..count + k - 1], k, count, 1);
         faer::linalg::matmul::matmul(
             states.as_mut().subrows_mut(0, n),
             faer::Accum::Add,
-            fa.as_ref(),
+            fa.as_ref().subrows(0, n),
             hankel,
             1.0,
             faer::Par::Seq,
