@@ -602,29 +602,8 @@ fn fast_rows(
             sel.time.is_some(),
         );
     }
-    // Byte classes of the scan of skipped fields.
-    const PLAIN: u8 = 0;
-    const NEWLINE: u8 = 1;
-    const DELIMITER: u8 = 2;
-    const CR: u8 = 3;
-    const REFUSED: u8 = 4;
-    let mut class = [PLAIN; 256];
-    class[0x80..].fill(REFUSED);
-    class[b'"' as usize] = REFUSED;
-    class[b'\n' as usize] = NEWLINE;
-    class[b'\r' as usize] = CR;
-    class[sel.delimiter as usize] = DELIMITER;
-    let delim = sel.delimiter;
-    // Whitespace trimmed around a field, other than the delimiter (a `\r` only before `\n`).
-    let space = |b: u8| b != delim && matches!(b, b' ' | b'\t' | 0x0b | 0x0c);
+    let mut scan = RowScan::new(sel);
     let len = bytes.len();
-    // The selected fields' values and spans on the current row.
-    let mut parse_field = vec![false; sel.nf];
-    for &i in sel.inputs.iter().chain(sel.outputs).chain(&sel.time) {
-        parse_field[i] = true;
-    }
-    let mut values = vec![0.0; sel.nf];
-    let mut spans = vec![(0, 0); sel.nf];
     let mut pos = start;
     while pos < len {
         let this_line = line;
@@ -639,7 +618,7 @@ fn fast_rows(
         }
         // A line of whitespace only (one empty field after trimming) is skipped.
         let mut q = pos;
-        while q < len && space(bytes[q]) {
+        while q < len && scan.space(bytes[q]) {
             q += 1;
         }
         if q < len && bytes[q] == b'\r' && bytes.get(q + 1) == Some(&b'\n') {
@@ -650,25 +629,94 @@ fn fast_rows(
             line += 1;
             continue;
         }
-        // The fields: a selected one is parsed where it starts (after leading whitespace) and
-        // must be followed by whitespace only, then the delimiter or the end of the line; a
-        // skipped one is scanned to the delimiter, refusing what the csv crate treats
-        // specially (quotes, lone carriage returns) and non-ASCII bytes.
+        pos = scan.fields(bytes, pos)? + 1;
+        line += 1;
+        for (col, &i) in rows.ins.iter_mut().zip(sel.inputs) {
+            col.push(scan.values[i]);
+        }
+        for (col, &i) in rows.outs.iter_mut().zip(sel.outputs) {
+            col.push(scan.values[i]);
+        }
+        if let Some(i) = sel.time {
+            rows.t.push(scan.values[i] * sel.time_scale);
+            rows.t_text
+                .push(TimeText::Span(scan.spans[i].0, scan.spans[i].1));
+        }
+        rows.lines.push(this_line);
+    }
+    Some((rows, line - first_line))
+}
+
+/// The field scan of one row for [`fast_rows`]: which fields are parsed, the byte classes for
+/// the skipped ones, and the parsed values and spans of the current row.
+struct RowScan {
+    delim: u8,
+    /// Byte classes of the scan of skipped fields.
+    class: [u8; 256],
+    /// Field i is selected (parsed as a number).
+    parse_field: Vec<bool>,
+    values: Vec<f64>,
+    spans: Vec<(usize, usize)>,
+}
+
+const PLAIN: u8 = 0;
+const NEWLINE: u8 = 1;
+const DELIMITER: u8 = 2;
+const CR: u8 = 3;
+const REFUSED: u8 = 4;
+
+impl RowScan {
+    fn new(sel: &Select<'_>) -> Self {
+        let mut class = [PLAIN; 256];
+        class[0x80..].fill(REFUSED);
+        class[b'"' as usize] = REFUSED;
+        class[b'\n' as usize] = NEWLINE;
+        class[b'\r' as usize] = CR;
+        class[sel.delimiter as usize] = DELIMITER;
+        let mut parse_field = vec![false; sel.nf];
+        for &i in sel.inputs.iter().chain(sel.outputs).chain(&sel.time) {
+            parse_field[i] = true;
+        }
+        RowScan {
+            delim: sel.delimiter,
+            class,
+            parse_field,
+            values: vec![0.0; sel.nf],
+            spans: vec![(0, 0); sel.nf],
+        }
+    }
+
+    /// Whitespace trimmed around a field, other than the delimiter (a `\r` only before `\n`).
+    #[inline]
+    fn space(&self, b: u8) -> bool {
+        b != self.delim && matches!(b, b' ' | b'\t' | 0x0b | 0x0c)
+    }
+
+    /// Reads the fields of the row at `pos` (not blank, not a comment) into `values`/`spans`
+    /// and returns the position of its `\n` (or the end): a selected field is parsed where it
+    /// starts (after leading whitespace) and must be followed by whitespace only, then the
+    /// delimiter or the end of the line; a skipped one is scanned to the delimiter, refusing
+    /// what the csv crate treats specially (quotes, lone carriage returns) and non-ASCII
+    /// bytes. `None` for anything else, or a field count other than the header's.
+    #[inline]
+    fn fields(&mut self, bytes: &[u8], mut pos: usize) -> Option<usize> {
+        let len = bytes.len();
+        let nf = self.parse_field.len();
         let mut f = 0;
         loop {
-            if parse_field[f] {
+            if self.parse_field[f] {
                 let mut a = pos;
-                while a < len && space(bytes[a]) {
+                while a < len && self.space(bytes[a]) {
                     a += 1;
                 }
                 let (v, used) = parse_f64_prefix(&bytes[a..])?;
                 if !v.is_finite() {
                     return None;
                 }
-                values[f] = v;
-                spans[f] = (a, a + used);
+                self.values[f] = v;
+                self.spans[f] = (a, a + used);
                 pos = a + used;
-                while pos < len && space(bytes[pos]) {
+                while pos < len && self.space(bytes[pos]) {
                     pos += 1;
                 }
                 if pos < len && bytes[pos] == b'\r' && bytes.get(pos + 1) == Some(&b'\n') {
@@ -676,7 +724,7 @@ fn fast_rows(
                 }
             } else {
                 while pos < len {
-                    match class[bytes[pos] as usize] {
+                    match self.class[bytes[pos] as usize] {
                         PLAIN => {}
                         NEWLINE | DELIMITER => break,
                         CR if bytes.get(pos + 1) == Some(&b'\n') => {}
@@ -685,9 +733,9 @@ fn fast_rows(
                     pos += 1;
                 }
             }
-            if pos < len && bytes[pos] == delim {
+            if pos < len && bytes[pos] == self.delim {
                 f += 1;
-                if f == sel.nf {
+                if f == nf {
                     return None; // more fields than the header
                 }
                 pos += 1;
@@ -697,24 +745,8 @@ fn fast_rows(
                 return None; // text after a number, a quote, a lone `\r`, ...
             }
         }
-        if f + 1 != sel.nf {
-            return None;
-        }
-        pos += 1;
-        line += 1;
-        for (col, &i) in rows.ins.iter_mut().zip(sel.inputs) {
-            col.push(values[i]);
-        }
-        for (col, &i) in rows.outs.iter_mut().zip(sel.outputs) {
-            col.push(values[i]);
-        }
-        if let Some(i) = sel.time {
-            rows.t.push(values[i] * sel.time_scale);
-            rows.t_text.push(TimeText::Span(spans[i].0, spans[i].1));
-        }
-        rows.lines.push(this_line);
+        (f + 1 == nf).then_some(pos)
     }
-    Some((rows, line - first_line))
 }
 
 /// The number at the start of `s` and the length of its text: the longest prefix that
@@ -883,6 +915,13 @@ mod tests {
     /// reads it; variants outside the fast path's subset fall back and agree as well.
     #[test]
     fn fast_rows_agree_with_the_csv_crate() {
+        for (name, content, opts) in &agreement_cases() {
+            assert_same(name, content, opts);
+        }
+    }
+
+    /// The files of [`fast_rows_agree_with_the_csv_crate`]: name, content, options.
+    fn agreement_cases() -> Vec<(&'static str, Vec<u8>, CsvOptions)> {
         let d = CsvOptions::default();
         let body = rows(300, "\n");
         let mut cases: Vec<(&str, Vec<u8>, CsvOptions)> = vec![
@@ -980,6 +1019,15 @@ mod tests {
                 d.clone(),
             ),
         ];
+        cases.extend(row_error_cases());
+        cases.extend(delimiter_cases());
+        cases
+    }
+
+    /// One odd row among plain ones: errors, and rows the fast path must refuse.
+    fn row_error_cases() -> Vec<(&'static str, Vec<u8>, CsvOptions)> {
+        let d = CsvOptions::default();
+        let mut cases = Vec::new();
         for (name, row) in [
             ("number then text", "0.3,1.5x,2\n"),
             ("space inside a number", "0.3,1 5,2\n"),
@@ -1002,6 +1050,13 @@ mod tests {
                 d.clone(),
             ));
         }
+        cases
+    }
+
+    /// Other columns, delimiters and selections.
+    fn delimiter_cases() -> Vec<(&'static str, Vec<u8>, CsvOptions)> {
+        let d = CsvOptions::default();
+        let mut cases = Vec::new();
         cases.push((
             "unselected text column",
             format!(
@@ -1062,9 +1117,7 @@ mod tests {
                 ..CsvOptions::default()
             },
         ));
-        for (name, content, opts) in &cases {
-            assert_same(name, content, opts);
-        }
+        cases
     }
 
     /// The plain format is read by the fast path (not only by the fallback), split into
