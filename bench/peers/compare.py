@@ -186,7 +186,9 @@ def main():
     lines.append("")
     lines.append(
         "Machine: %s, %d logical CPUs (shared with other jobs while measuring); ferrosid "
-        "single-threaded (faer without rayon), Octave/numpy with their default BLAS threads."
+        "N4SID with a second thread for half of the Hankel correlation products (faer without "
+        "rayon), the whole-process row with up to two threads (CSV halves, data-only work beside "
+        "N4SID); Octave/numpy with their default BLAS threads."
         % (cpu_name(), os.cpu_count() or 0)
     )
     text = "\n".join(lines) + "\n"

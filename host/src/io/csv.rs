@@ -54,38 +54,41 @@ impl Default for CsvOptions {
 /// or non-uniform time; [`Error::Data`] for an empty file, a header without rows, a constant
 /// input or too few samples.
 pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Log> {
-    read_csv_impl(path, opts, true)
+    read_csv_impl(path, opts, RowReader::default())
 }
 
-/// [`read_csv`], with the fast row parser ([`fast_rows`]) allowed or not (tests compare both).
-fn read_csv_impl(path: &Path, opts: &CsvOptions, allow_fast: bool) -> Result<Log> {
-    opts.checks.validate()?;
+/// Files with fewer data bytes than this are parsed on one thread (a thread costs more than
+/// it saves below it).
+const PARALLEL_MIN_BYTES: usize = 256 * 1024;
+
+/// How the data rows are read: the fast row parser ([`fast_rows`]) allowed or not, and into
+/// how many pieces it splits the rows (tests compare every way).
+#[derive(Debug, Clone, Copy)]
+struct RowReader {
+    fast: bool,
+    /// Most pieces parsed concurrently (1: one thread).
+    pieces: usize,
+    /// Fewest data bytes per piece.
+    piece_min_bytes: usize,
+}
+
+impl Default for RowReader {
+    fn default() -> Self {
+        RowReader {
+            fast: true,
+            pieces: std::thread::available_parallelism().map_or(1, |n| n.get().min(8)),
+            piece_min_bytes: PARALLEL_MIN_BYTES,
+        }
+    }
+}
+
+/// [`read_csv`], with the rows read as `how` says (the same log or the same error every way).
+fn read_csv_impl(path: &Path, opts: &CsvOptions, how: RowReader) -> Result<Log> {
+    check_options(opts)?;
     let bytes = std::fs::read(path).map_err(|source| Error::Io {
         file: path.to_path_buf(),
         source,
     })?;
-    let file = path.to_path_buf();
-    let parse_err = |line: usize, msg: String| Error::Parse {
-        file: file.clone(),
-        line,
-        msg,
-    };
-    let data_err = |msg: String| Error::Data {
-        file: file.clone(),
-        msg,
-    };
-    if opts.inputs.is_empty() || opts.outputs.is_empty() {
-        return Err(Error::InvalidArgument(
-            "select at least one input and one output column".into(),
-        ));
-    }
-    if !(opts.time_scale.is_finite() && opts.time_scale > 0.0) {
-        return Err(Error::InvalidArgument(format!(
-            "time scale must be finite and > 0 s per unit, got {}",
-            opts.time_scale
-        )));
-    }
-
     let delimiter = match opts.delimiter {
         Some(d) => d,
         None => detect_delimiter(&bytes),
@@ -97,38 +100,127 @@ fn read_csv_impl(path: &Path, opts: &CsvOptions, allow_fast: bool) -> Result<Log
         .trim(::csv::Trim::All)
         .delimiter(delimiter)
         .from_reader(&bytes[..]);
-
     let mut rec = ::csv::StringRecord::new();
-    let read = |rdr: &mut ::csv::Reader<&[u8]>, rec: &mut ::csv::StringRecord| -> Result<bool> {
-        rdr.read_record(rec).map_err(|e| {
-            let line = e.position().map_or(0, |p| p.line() as usize);
-            match e.kind() {
-                ::csv::ErrorKind::Utf8 { .. } => parse_err(line, "invalid UTF-8".into()),
-                _ => parse_err(line, format!("malformed CSV: {e}")),
-            }
-        })
+    let header = read_header(&mut rdr, &mut rec, &bytes, path)?;
+    let cols = select_columns(&header, opts, path)?;
+    // Rows: the fast path for plain ASCII rows without quotes; anything else, and every error,
+    // goes through the csv crate (which then produces the error).
+    let sel = Select {
+        delimiter,
+        nf: header.names.len(),
+        inputs: &cols.inputs,
+        outputs: &cols.outputs,
+        time: cols.time,
+        time_scale: opts.time_scale,
     };
-    // The csv crate reports a record's position as the start of any blank/comment lines skipped
-    // before it; walk past those to name the line the record is really on.
-    let line_of = |rec: &::csv::StringRecord| {
-        rec.position().map_or(0, |p| {
-            true_line(&bytes, p.byte() as usize, p.line() as usize)
-        })
+    let body = rdr.position().byte() as usize;
+    let fast = if how.fast {
+        fast_rows_split(&bytes, body, &sel, how)
+    } else {
+        None
     };
+    let rows = match fast {
+        Some(rows) => rows,
+        None => csv_rows(&mut rdr, &mut rec, &bytes, &header, &sel, path)?,
+    };
+    finish_csv(path, opts, &bytes, &header, &cols, rows)
+}
 
-    // Header.
+fn parse_err(file: &Path, line: usize, msg: String) -> Error {
+    Error::Parse {
+        file: file.to_path_buf(),
+        line,
+        msg,
+    }
+}
+
+fn data_err(file: &Path, msg: String) -> Error {
+    Error::Data {
+        file: file.to_path_buf(),
+        msg,
+    }
+}
+
+/// The options that do not depend on the file.
+fn check_options(opts: &CsvOptions) -> Result<()> {
+    opts.checks.validate()?;
+    if opts.inputs.is_empty() || opts.outputs.is_empty() {
+        return Err(Error::InvalidArgument(
+            "select at least one input and one output column".into(),
+        ));
+    }
+    if !(opts.time_scale.is_finite() && opts.time_scale > 0.0) {
+        return Err(Error::InvalidArgument(format!(
+            "time scale must be finite and > 0 s per unit, got {}",
+            opts.time_scale
+        )));
+    }
+    Ok(())
+}
+
+/// The next record from the csv crate (`false` at the end), errors naming the line.
+fn next_record(
+    rdr: &mut ::csv::Reader<&[u8]>,
+    rec: &mut ::csv::StringRecord,
+    file: &Path,
+) -> Result<bool> {
+    rdr.read_record(rec).map_err(|e| {
+        let line = e.position().map_or(0, |p| p.line() as usize);
+        match e.kind() {
+            ::csv::ErrorKind::Utf8 { .. } => parse_err(file, line, "invalid UTF-8".into()),
+            _ => parse_err(file, line, format!("malformed CSV: {e}")),
+        }
+    })
+}
+
+/// The line a record is on. The csv crate reports a record's position as the start of any
+/// blank/comment lines skipped before it; walk past those to name the line the record is
+/// really on.
+fn record_line(bytes: &[u8], rec: &::csv::StringRecord) -> usize {
+    rec.position().map_or(0, |p| {
+        true_line(bytes, p.byte() as usize, p.line() as usize)
+    })
+}
+
+/// The header: column names and the line they are on.
+struct Header {
+    names: Vec<String>,
+    line: usize,
+}
+
+/// Reads the first record that is not blank: the header.
+fn read_header(
+    rdr: &mut ::csv::Reader<&[u8]>,
+    rec: &mut ::csv::StringRecord,
+    bytes: &[u8],
+    file: &Path,
+) -> Result<Header> {
     loop {
-        if !read(&mut rdr, &mut rec)? {
-            return Err(data_err("empty file: no header line".into()));
+        if !next_record(rdr, rec, file)? {
+            return Err(data_err(file, "empty file: no header line".into()));
         }
         if !(rec.len() == 1 && rec[0].is_empty()) {
             break;
         }
     }
-    let header_line = line_of(&rec);
-    let header: Vec<String> = rec.iter().map(|s| s.to_string()).collect();
+    Ok(Header {
+        names: rec.iter().map(|s| s.to_string()).collect(),
+        line: record_line(bytes, rec),
+    })
+}
+
+/// Field indices of the selected columns.
+struct Columns {
+    inputs: Vec<usize>,
+    outputs: Vec<usize>,
+    time: Option<usize>,
+}
+
+/// Finds the selected columns in the header (each exactly once).
+fn select_columns(header: &Header, opts: &CsvOptions, file: &Path) -> Result<Columns> {
+    let names = &header.names;
     let find = |name: &str| -> Result<usize> {
-        let hits: Vec<usize> = header
+        let hits: Vec<usize> = names
             .iter()
             .enumerate()
             .filter(|(_, h)| h.as_str() == name)
@@ -137,15 +229,17 @@ fn read_csv_impl(path: &Path, opts: &CsvOptions, allow_fast: bool) -> Result<Log
         match hits.as_slice() {
             [i] => Ok(*i),
             [] => Err(parse_err(
-                header_line,
+                file,
+                header.line,
                 format!(
                     "column `{}` not found in the header; columns are: {}",
                     crate::error::excerpt(name),
-                    crate::error::excerpt_n(&header.join(", "), 400)
+                    crate::error::excerpt_n(&names.join(", "), 400)
                 ),
             )),
             _ => Err(parse_err(
-                header_line,
+                file,
+                header.line,
                 format!(
                     "column `{}` appears {} times in the header",
                     crate::error::excerpt(name),
@@ -154,101 +248,107 @@ fn read_csv_impl(path: &Path, opts: &CsvOptions, allow_fast: bool) -> Result<Log
             )),
         }
     };
-    let in_idx: Vec<usize> = opts.inputs.iter().map(|n| find(n)).collect::<Result<_>>()?;
-    let out_idx: Vec<usize> = opts
+    let inputs: Vec<usize> = opts.inputs.iter().map(|n| find(n)).collect::<Result<_>>()?;
+    let outputs: Vec<usize> = opts
         .outputs
         .iter()
         .map(|n| find(n))
         .collect::<Result<_>>()?;
-    let time_idx: Option<usize> = match &opts.time {
+    let time: Option<usize> = match &opts.time {
         Some(name) => Some(find(name)?),
-        None => header.iter().position(|h| h == "t"),
+        None => names.iter().position(|h| h == "t"),
     };
-    if time_idx.is_none() && opts.fs.is_none() {
+    if time.is_none() && opts.fs.is_none() {
         return Err(parse_err(
-            header_line,
+            file,
+            header.line,
             "no time column (`t` by default) and no sample rate given: add a time column or \
              give fs"
                 .into(),
         ));
     }
-    let time_name = time_idx.map(|i| header[i].clone());
+    Ok(Columns {
+        inputs,
+        outputs,
+        time,
+    })
+}
 
-    // Rows: the fast path for plain ASCII rows without quotes; anything else, and every error,
-    // goes through the csv crate (which then produces the error).
-    let nf = header.len();
-    let body = rdr.position().byte() as usize;
-    let fast = if allow_fast {
-        fast_rows(
-            &bytes,
-            body,
-            &Select {
-                delimiter,
-                nf,
-                inputs: &in_idx,
-                outputs: &out_idx,
-                time: time_idx,
-                time_scale: opts.time_scale,
-            },
-        )
-    } else {
-        None
-    };
-    let rows = match fast {
-        Some(rows) => rows,
-        None => {
-            let mut r = Rows::new(in_idx.len(), out_idx.len());
-            let field = |rec: &::csv::StringRecord, i: usize, line: usize| -> Result<f64> {
-                let s = rec.get(i).unwrap_or("");
-                let v: f64 = s.parse().map_err(|_| {
-                    parse_err(
-                        line,
-                        format!(
-                            "column `{}`: `{}` is not a number",
-                            crate::error::excerpt(&header[i]),
-                            crate::error::excerpt(s)
-                        ),
-                    )
-                })?;
-                if !v.is_finite() {
-                    return Err(parse_err(
-                        line,
-                        format!(
-                            "column `{}`: value `{}` is not finite",
-                            crate::error::excerpt(&header[i]),
-                            crate::error::excerpt(s)
-                        ),
-                    ));
-                }
-                Ok(v)
-            };
-            while read(&mut rdr, &mut rec)? {
-                let line = line_of(&rec);
-                if rec.len() == 1 && rec[0].is_empty() {
-                    continue; // a line of whitespace only
-                }
-                if rec.len() != nf {
-                    return Err(parse_err(
-                        line,
-                        format!("expected {nf} fields as in the header, found {}", rec.len()),
-                    ));
-                }
-                for (col, &i) in r.ins.iter_mut().zip(&in_idx) {
-                    col.push(field(&rec, i, line)?);
-                }
-                for (col, &i) in r.outs.iter_mut().zip(&out_idx) {
-                    col.push(field(&rec, i, line)?);
-                }
-                if let Some(i) = time_idx {
-                    r.t.push(field(&rec, i, line)? * opts.time_scale);
-                    r.t_text
-                        .push(TimeText::Owned(rec.get(i).unwrap_or("").to_string()));
-                }
-                r.lines.push(line);
-            }
-            r
+/// The data rows read by the csv crate (any CSV; every error with its line and column).
+fn csv_rows(
+    rdr: &mut ::csv::Reader<&[u8]>,
+    rec: &mut ::csv::StringRecord,
+    bytes: &[u8],
+    header: &Header,
+    sel: &Select<'_>,
+    file: &Path,
+) -> Result<Rows> {
+    let nf = sel.nf;
+    let mut r = Rows::new(sel.inputs.len(), sel.outputs.len());
+    let field = |rec: &::csv::StringRecord, i: usize, line: usize| -> Result<f64> {
+        let s = rec.get(i).unwrap_or("");
+        let v: f64 = s.parse().map_err(|_| {
+            parse_err(
+                file,
+                line,
+                format!(
+                    "column `{}`: `{}` is not a number",
+                    crate::error::excerpt(&header.names[i]),
+                    crate::error::excerpt(s)
+                ),
+            )
+        })?;
+        if !v.is_finite() {
+            return Err(parse_err(
+                file,
+                line,
+                format!(
+                    "column `{}`: value `{}` is not finite",
+                    crate::error::excerpt(&header.names[i]),
+                    crate::error::excerpt(s)
+                ),
+            ));
         }
+        Ok(v)
     };
+    while next_record(rdr, rec, file)? {
+        let line = record_line(bytes, rec);
+        if rec.len() == 1 && rec[0].is_empty() {
+            continue; // a line of whitespace only
+        }
+        if rec.len() != nf {
+            return Err(parse_err(
+                file,
+                line,
+                format!("expected {nf} fields as in the header, found {}", rec.len()),
+            ));
+        }
+        for (col, &i) in r.ins.iter_mut().zip(sel.inputs) {
+            col.push(field(rec, i, line)?);
+        }
+        for (col, &i) in r.outs.iter_mut().zip(sel.outputs) {
+            col.push(field(rec, i, line)?);
+        }
+        if let Some(i) = sel.time {
+            r.t.push(field(rec, i, line)? * sel.time_scale);
+            r.t_text
+                .push(TimeText::Owned(rec.get(i).unwrap_or("").to_string()));
+        }
+        r.lines.push(line);
+    }
+    Ok(r)
+}
+
+/// From the rows to the log: at least one row, the sample time (from the stamps or the rate),
+/// the shared checks of [`finish_log`].
+fn finish_csv(
+    path: &Path,
+    opts: &CsvOptions,
+    bytes: &[u8],
+    header: &Header,
+    cols: &Columns,
+    rows: Rows,
+) -> Result<Log> {
     let Rows {
         ins,
         outs,
@@ -257,20 +357,22 @@ fn read_csv_impl(path: &Path, opts: &CsvOptions, allow_fast: bool) -> Result<Log
         lines,
     } = rows;
     if lines.is_empty() {
-        return Err(data_err(format!(
-            "no data rows after the header (line {header_line})"
-        )));
+        return Err(data_err(
+            path,
+            format!("no data rows after the header (line {})", header.line),
+        ));
     }
-
-    let (ts, time_warning) = match &time_name {
-        Some(name) => {
-            let what = format!("time column `{name}`");
+    let row_err = |k: usize, msg: String| parse_err(path, lines[k], msg);
+    let file_err = |msg: String| data_err(path, msg);
+    let (ts, time_warning) = match cols.time {
+        Some(i) => {
+            let what = format!("time column `{}`", header.names[i]);
             // How each time stamp was printed (for its rounding, see `super::printed`): only
             // looked at when the stamps are not uniform to the tolerance.
             let t_rounding = || {
                 let printed: Vec<Option<super::printed::Printed>> = t_text
                     .iter()
-                    .map(|s| super::printed::Printed::parse(s.text(&bytes)))
+                    .map(|s| super::printed::Printed::parse(s.text(bytes)))
                     .collect();
                 super::printed::column_rounding(&printed, opts.time_scale)
             };
@@ -282,18 +384,17 @@ fn read_csv_impl(path: &Path, opts: &CsvOptions, allow_fast: bool) -> Result<Log
                     what: &what,
                 },
                 &opts.checks,
-                &|k, msg| parse_err(lines[k], msg),
-                &|msg| data_err(msg),
+                &row_err,
+                &file_err,
             )?
         }
         None => sample_time(
             TimeSource::Rate(opts.fs.unwrap_or(f64::NAN)),
             &opts.checks,
-            &|k, msg| parse_err(lines[k], msg),
-            &|msg| data_err(msg),
+            &row_err,
+            &file_err,
         )?,
     };
-
     let mk = |names: &[String], cols: Vec<Vec<f64>>| -> Vec<Channel> {
         names
             .iter()
@@ -361,37 +462,129 @@ impl Rows {
             lines: Vec::new(),
         }
     }
-}
 
-/// Whitespace that `str::trim` removes, among ASCII bytes (the csv crate's `Trim::All`).
-fn is_trim_byte(b: u8) -> bool {
-    matches!(b, b' ' | b'\t' | b'\n' | 0x0b | 0x0c | b'\r')
-}
-
-/// `bytes[a..b]` without leading and trailing [`is_trim_byte`] bytes.
-fn trim_span(bytes: &[u8], mut a: usize, mut b: usize) -> (usize, usize) {
-    while a < b && is_trim_byte(bytes[a]) {
-        a += 1;
+    /// Room for `n` more rows (with time stamps or not).
+    fn reserve(&mut self, n: usize, time: bool) {
+        for c in self.ins.iter_mut().chain(self.outs.iter_mut()) {
+            c.reserve(n);
+        }
+        self.lines.reserve(n);
+        if time {
+            self.t.reserve(n);
+            self.t_text.reserve(n);
+        }
     }
-    while b > a && is_trim_byte(bytes[b - 1]) {
-        b -= 1;
+
+    /// Appends the rows `more`, whose line numbers count from 0, with `line_offset` added.
+    fn append(&mut self, more: Rows, line_offset: usize) {
+        for (c, m) in self.ins.iter_mut().zip(more.ins) {
+            c.extend_from_slice(&m);
+        }
+        for (c, m) in self.outs.iter_mut().zip(more.outs) {
+            c.extend_from_slice(&m);
+        }
+        self.t.extend_from_slice(&more.t);
+        self.t_text.extend(more.t_text);
+        self.lines
+            .extend(more.lines.iter().map(|&l| l + line_offset));
     }
-    (a, b)
 }
 
-/// Parses the data rows from byte `start` (just after the header record) without the csv
-/// crate's record machinery, for the common case: every line plain ASCII without a quote
-/// character, ended by `\n` or `\r\n`; `#` comment lines and blank lines skipped as the csv
-/// crate skips them. Returns `None` as soon as the text leaves that subset or a row would be an
-/// error (field count, a value that is not a finite number): the caller then reads the rows
-/// with the csv crate, which yields the same values and reports the error with its line.
-fn fast_rows(bytes: &[u8], start: usize, sel: &Select<'_>) -> Option<Rows> {
+/// [`fast_rows`] over the whole body (from byte `body`, just after the header record), split
+/// at line boundaries into up to `how.pieces` pieces of at least `how.piece_min_bytes` bytes
+/// that are parsed concurrently, then joined in order with their line numbers. Each piece is
+/// parsed exactly as one pass would parse it (rows are independent), so the rows are the same
+/// to the bit; `None` when any piece leaves the fast path's subset.
+fn fast_rows_split(bytes: &[u8], body: usize, sel: &Select<'_>, how: RowReader) -> Option<Rows> {
+    if body == 0 || body > bytes.len() {
+        return None;
+    }
+    let first_line = 1 + bytes[..body].iter().filter(|&&b| b == b'\n').count();
+    let cuts = piece_cuts(bytes, body, how);
+    if cuts.len() == 2 {
+        return fast_rows(bytes, body, bytes.len(), first_line, sel).map(|(rows, _)| rows);
+    }
+    // Pieces after the first count their lines from 0; shifted once the earlier ones are known.
+    let parsed: Vec<Option<(Rows, usize)>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = cuts[1..]
+            .windows(2)
+            .map(|w| scope.spawn(move || fast_rows(bytes, w[0], w[1], 0, sel)))
+            .collect();
+        let first = fast_rows(bytes, cuts[0], cuts[1], first_line, sel);
+        std::iter::once(first)
+            .chain(handles.into_iter().map(|h| {
+                h.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            }))
+            .collect()
+    });
+    let mut parsed = parsed.into_iter();
+    let (mut rows, first_lines) = parsed.next()??;
+    let mut next_line = first_line + first_lines;
+    for piece in parsed {
+        let (more, lines) = piece?;
+        rows.append(more, next_line);
+        next_line += lines;
+    }
+    Some(rows)
+}
+
+/// Where the body `bytes[body..]` is cut into pieces for [`fast_rows_split`]: byte offsets
+/// from `body` to `bytes.len()`, each inner cut just after a `\n`, increasing.
+fn piece_cuts(bytes: &[u8], body: usize, how: RowReader) -> Vec<usize> {
+    let len = bytes.len() - body;
+    let pieces = how
+        .pieces
+        .min(len / how.piece_min_bytes.max(1))
+        .clamp(1, len.max(1));
+    let mut cuts = vec![body];
+    for k in 1..pieces {
+        let guess = body + len * k / pieces;
+        let last = cuts[cuts.len() - 1];
+        if guess < last {
+            continue;
+        }
+        match bytes[guess..].iter().position(|&b| b == b'\n') {
+            Some(i) if guess + i + 1 < bytes.len() && guess + i + 1 > last => {
+                cuts.push(guess + i + 1)
+            }
+            Some(_) => {}
+            None => break,
+        }
+    }
+    cuts.push(bytes.len());
+    cuts
+}
+
+/// Parses the data rows in `bytes[start..end]` (`start` just after the header record or
+/// after a `\n`, `end` after a `\n` or the end of the file) without the csv crate's record
+/// machinery, for the common case: every line plain ASCII without a quote character, ended by
+/// `\n` or `\r\n`; `#` comment lines and blank lines skipped as the csv crate skips them.
+/// `line` is the line number of the first line. Returns the rows and the number of lines
+/// read, or `None` as soon as the text leaves that subset or a row would be an error (field
+/// count, a value that is not a finite number): the caller then reads the rows with the csv
+/// crate, which yields the same values and reports the error with its line.
+fn fast_rows(
+    bytes: &[u8],
+    start: usize,
+    end: usize,
+    mut line: usize,
+    sel: &Select<'_>,
+) -> Option<(Rows, usize)> {
+    let first_line = line;
+    let bytes = &bytes[..end];
     // The header record must end at a line boundary (the byte before `start` is `\n`, or
     // `start` sits on the `\n` of a `\r\n` whose `\r` ended the header).
     // Delimiters the line splitting below would confuse with what it refuses or skips.
+    // Delimiters that can be part of a number's text (the parse would run across them) are
+    // left to the csv crate too.
     if start > bytes.len()
         || start == 0
-        || matches!(sel.delimiter, b'"' | b'#' | b'\r' | b'\n')
+        || matches!(
+            sel.delimiter,
+            b'"' | b'#' | b'\r' | b'\n' | b'.' | b'+' | b'-'
+        )
+        || sel.delimiter.is_ascii_alphanumeric()
         || sel.delimiter >= 0x80
     {
         return None;
@@ -401,96 +594,169 @@ fn fast_rows(bytes: &[u8], start: usize, sel: &Select<'_>) -> Option<Rows> {
     if !boundary {
         return None;
     }
-    let mut line = 1 + bytes[..start].iter().filter(|&&b| b == b'\n').count();
     let mut rows = Rows::new(sel.inputs.len(), sel.outputs.len());
     // A guess of the row count from the first line's length (capacity only).
     if let Some(first) = bytes[start..].iter().take(4096).position(|&b| b == b'\n') {
-        let guess = (bytes.len() - start) / (first + 1).max(8);
-        for c in rows.ins.iter_mut().chain(rows.outs.iter_mut()) {
-            c.reserve(guess);
-        }
-        rows.lines.reserve(guess);
-        if sel.time.is_some() {
-            rows.t.reserve(guess);
-            rows.t_text.reserve(guess);
-        }
+        rows.reserve(
+            (bytes.len() - start) / (first + 1).max(8),
+            sel.time.is_some(),
+        );
     }
-    let parse = |(a, b): (usize, usize)| -> Option<f64> {
-        let v: f64 = std::str::from_utf8(&bytes[a..b]).ok()?.parse().ok()?;
-        v.is_finite().then_some(v)
-    };
-    // Byte classes of the line scan.
-    const PLAIN: u8 = 0;
-    const NEWLINE: u8 = 1;
-    const DELIMITER: u8 = 2;
-    const CR: u8 = 3;
-    const REFUSED: u8 = 4;
-    let mut class = [PLAIN; 256];
-    class[0x80..].fill(REFUSED);
-    class[b'"' as usize] = REFUSED;
-    class[b'\n' as usize] = NEWLINE;
-    class[b'\r' as usize] = CR;
-    class[sel.delimiter as usize] = DELIMITER;
-    let mut fields: Vec<(usize, usize)> = Vec::with_capacity(sel.nf);
+    let mut scan = RowScan::new(sel);
+    let len = bytes.len();
     let mut pos = start;
-    while pos < bytes.len() {
+    while pos < len {
         let this_line = line;
-        let (a, mut end) = (pos, pos);
-        if bytes[a] == b'#' {
+        if bytes[pos] == b'#' {
             // A comment line (whatever it holds, up to the next `\n`, as the csv crate skips it).
-            pos = bytes[a..]
+            pos = bytes[pos..]
                 .iter()
                 .position(|&b| b == b'\n')
-                .map_or(bytes.len(), |k| a + k + 1);
+                .map_or(len, |k| pos + k + 1);
             line += 1;
             continue;
         }
-        fields.clear();
-        let mut field_start = a;
-        // One pass over the line: split at the delimiter, refuse what the csv crate treats
-        // specially (quotes, lone carriage returns) and non-ASCII bytes.
-        while end < bytes.len() {
-            let b = bytes[end];
-            match class[b as usize] {
-                PLAIN => {}
-                NEWLINE => break,
-                DELIMITER => {
-                    fields.push((field_start, end));
-                    field_start = end + 1;
-                }
-                CR if bytes.get(end + 1) == Some(&b'\n') => {}
-                _ => return None,
-            }
-            end += 1;
+        // A line of whitespace only (one empty field after trimming) is skipped.
+        let mut q = pos;
+        while q < len && scan.space(bytes[q]) {
+            q += 1;
         }
-        fields.push((field_start, end));
-        pos = end + 1;
+        if q < len && bytes[q] == b'\r' && bytes.get(q + 1) == Some(&b'\n') {
+            q += 1;
+        }
+        if q == len || bytes[q] == b'\n' {
+            pos = q + 1;
+            line += 1;
+            continue;
+        }
+        pos = scan.fields(bytes, pos)? + 1;
         line += 1;
-        if fields.len() == 1 {
-            let (fa, fb) = trim_span(bytes, fields[0].0, fields[0].1);
-            if fa == fb {
-                continue; // blank line
-            }
-        }
-        if fields.len() != sel.nf {
-            return None;
-        }
         for (col, &i) in rows.ins.iter_mut().zip(sel.inputs) {
-            let (fa, fb) = fields[i];
-            col.push(parse(trim_span(bytes, fa, fb))?);
+            col.push(scan.values[i]);
         }
         for (col, &i) in rows.outs.iter_mut().zip(sel.outputs) {
-            let (fa, fb) = fields[i];
-            col.push(parse(trim_span(bytes, fa, fb))?);
+            col.push(scan.values[i]);
         }
         if let Some(i) = sel.time {
-            let (fa, fb) = trim_span(bytes, fields[i].0, fields[i].1);
-            rows.t.push(parse((fa, fb))? * sel.time_scale);
-            rows.t_text.push(TimeText::Span(fa, fb));
+            rows.t.push(scan.values[i] * sel.time_scale);
+            rows.t_text
+                .push(TimeText::Span(scan.spans[i].0, scan.spans[i].1));
         }
         rows.lines.push(this_line);
     }
-    Some(rows)
+    Some((rows, line - first_line))
+}
+
+/// The field scan of one row for [`fast_rows`]: which fields are parsed, the byte classes for
+/// the skipped ones, and the parsed values and spans of the current row.
+struct RowScan {
+    delim: u8,
+    /// Byte classes of the scan of skipped fields.
+    class: [u8; 256],
+    /// Field i is selected (parsed as a number).
+    parse_field: Vec<bool>,
+    values: Vec<f64>,
+    spans: Vec<(usize, usize)>,
+}
+
+const PLAIN: u8 = 0;
+const NEWLINE: u8 = 1;
+const DELIMITER: u8 = 2;
+const CR: u8 = 3;
+const REFUSED: u8 = 4;
+
+impl RowScan {
+    fn new(sel: &Select<'_>) -> Self {
+        let mut class = [PLAIN; 256];
+        class[0x80..].fill(REFUSED);
+        class[b'"' as usize] = REFUSED;
+        class[b'\n' as usize] = NEWLINE;
+        class[b'\r' as usize] = CR;
+        class[sel.delimiter as usize] = DELIMITER;
+        let mut parse_field = vec![false; sel.nf];
+        for &i in sel.inputs.iter().chain(sel.outputs).chain(&sel.time) {
+            parse_field[i] = true;
+        }
+        RowScan {
+            delim: sel.delimiter,
+            class,
+            parse_field,
+            values: vec![0.0; sel.nf],
+            spans: vec![(0, 0); sel.nf],
+        }
+    }
+
+    /// Whitespace trimmed around a field, other than the delimiter (a `\r` only before `\n`).
+    #[inline]
+    fn space(&self, b: u8) -> bool {
+        b != self.delim && matches!(b, b' ' | b'\t' | 0x0b | 0x0c)
+    }
+
+    /// Reads the fields of the row at `pos` (not blank, not a comment) into `values`/`spans`
+    /// and returns the position of its `\n` (or the end): a selected field is parsed where it
+    /// starts (after leading whitespace) and must be followed by whitespace only, then the
+    /// delimiter or the end of the line; a skipped one is scanned to the delimiter, refusing
+    /// what the csv crate treats specially (quotes, lone carriage returns) and non-ASCII
+    /// bytes. `None` for anything else, or a field count other than the header's.
+    #[inline]
+    fn fields(&mut self, bytes: &[u8], mut pos: usize) -> Option<usize> {
+        let len = bytes.len();
+        let nf = self.parse_field.len();
+        let mut f = 0;
+        loop {
+            if self.parse_field[f] {
+                let mut a = pos;
+                while a < len && self.space(bytes[a]) {
+                    a += 1;
+                }
+                let (v, used) = parse_f64_prefix(&bytes[a..])?;
+                if !v.is_finite() {
+                    return None;
+                }
+                self.values[f] = v;
+                self.spans[f] = (a, a + used);
+                pos = a + used;
+                while pos < len && self.space(bytes[pos]) {
+                    pos += 1;
+                }
+                if pos < len && bytes[pos] == b'\r' && bytes.get(pos + 1) == Some(&b'\n') {
+                    pos += 1;
+                }
+            } else {
+                while pos < len {
+                    match self.class[bytes[pos] as usize] {
+                        PLAIN => {}
+                        NEWLINE | DELIMITER => break,
+                        CR if bytes.get(pos + 1) == Some(&b'\n') => {}
+                        _ => return None,
+                    }
+                    pos += 1;
+                }
+            }
+            if pos < len && bytes[pos] == self.delim {
+                f += 1;
+                if f == nf {
+                    return None; // more fields than the header
+                }
+                pos += 1;
+            } else if pos == len || bytes[pos] == b'\n' {
+                break;
+            } else {
+                return None; // text after a number, a quote, a lone `\r`, ...
+            }
+        }
+        (f + 1 == nf).then_some(pos)
+    }
+}
+
+/// The number at the start of `s` and the length of its text: the longest prefix that
+/// fast-float2 reads, without the `&str` round trip (only ASCII reaches it). fast-float2
+/// implements the same correctly rounded algorithm (Eisel–Lemire with a big-decimal fallback)
+/// as the standard library; where the prefix is a whole field, it is the field's value as
+/// `str::parse::<f64>` reads it (tests compare both on edge cases, random strings and 100k
+/// numbers in the peer log's format).
+fn parse_f64_prefix(s: &[u8]) -> Option<(f64, usize)> {
+    fast_float2::parse_partial::<f64, _>(s).ok()
 }
 
 /// Delimiter of the first non-comment, non-blank line: `,` if present, else `;`, else tab,
@@ -543,40 +809,88 @@ fn true_line(bytes: &[u8], mut byte: usize, mut line: usize) -> usize {
 mod tests {
     use super::*;
 
-    /// Reads `content` both ways: with the fast row parser allowed and with the csv crate only.
-    fn both(name: &str, content: &[u8], opts: &CsvOptions) -> (Result<Log>, Result<Log>) {
+    /// The whole text `s` as fast-float2 reads it.
+    fn parse_f64(s: &[u8]) -> Option<f64> {
+        fast_float2::parse::<f64, _>(s).ok()
+    }
+
+    /// The ways the tests read a file: the csv crate only, the fast row parser on one thread,
+    /// and the fast row parser split into up to 3 or 7 concurrent pieces of any size.
+    const WAYS: [(&str, RowReader); 4] = [
+        (
+            "csv crate",
+            RowReader {
+                fast: false,
+                pieces: 1,
+                piece_min_bytes: 1,
+            },
+        ),
+        (
+            "fast, one piece",
+            RowReader {
+                fast: true,
+                pieces: 1,
+                piece_min_bytes: 1,
+            },
+        ),
+        (
+            "fast, 3 pieces",
+            RowReader {
+                fast: true,
+                pieces: 3,
+                piece_min_bytes: 1,
+            },
+        ),
+        (
+            "fast, 7 pieces",
+            RowReader {
+                fast: true,
+                pieces: 7,
+                piece_min_bytes: 1,
+            },
+        ),
+    ];
+
+    /// Reads `content` every way of [`WAYS`].
+    fn every_way(name: &str, content: &[u8], opts: &CsvOptions) -> Vec<Result<Log>> {
         let dir = std::env::temp_dir().join(format!("ferrosid-csv-fast-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
         let p = dir.join(name);
         std::fs::write(&p, content).expect("write");
-        let out = (
-            read_csv_impl(&p, opts, true),
-            read_csv_impl(&p, opts, false),
-        );
+        let out = WAYS
+            .iter()
+            .map(|(_, how)| read_csv_impl(&p, opts, *how))
+            .collect();
         let _ = std::fs::remove_file(&p);
         out
     }
 
-    /// The same log (every sample bit for bit, ts, warnings) or the same error message.
+    /// The same log (every sample bit for bit, ts, warnings) or the same error message, every
+    /// way of reading.
     fn assert_same(name: &str, content: &[u8], opts: &CsvOptions) {
-        match both(name, content, opts) {
-            (Ok(a), Ok(b)) => {
-                assert_eq!(a.ts.to_bits(), b.ts.to_bits(), "{name}: ts");
-                assert_eq!(a.warnings, b.warnings, "{name}: warnings");
-                for (ca, cb) in a
-                    .inputs
-                    .iter()
-                    .chain(&a.outputs)
-                    .zip(b.inputs.iter().chain(&b.outputs))
-                {
-                    assert_eq!(ca.name, cb.name, "{name}");
-                    let bits = |c: &Channel| c.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-                    assert_eq!(bits(ca), bits(cb), "{name}: channel {}", ca.name);
+        let all = every_way(name, content, opts);
+        let reference = &all[0];
+        for ((way, _), got) in WAYS.iter().zip(&all).skip(1) {
+            match (got, reference) {
+                (Ok(a), Ok(b)) => {
+                    assert_eq!(a.ts.to_bits(), b.ts.to_bits(), "{name}, {way}: ts");
+                    assert_eq!(a.warnings, b.warnings, "{name}, {way}: warnings");
+                    for (ca, cb) in a
+                        .inputs
+                        .iter()
+                        .chain(&a.outputs)
+                        .zip(b.inputs.iter().chain(&b.outputs))
+                    {
+                        assert_eq!(ca.name, cb.name, "{name}, {way}");
+                        let bits =
+                            |c: &Channel| c.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(bits(ca), bits(cb), "{name}, {way}: channel {}", ca.name);
+                    }
+                    assert_eq!(a, b, "{name}, {way}");
                 }
-                assert_eq!(a, b, "{name}");
+                (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "{name}, {way}"),
+                (a, b) => panic!("{name}: {way} {a:?}, csv crate {b:?}"),
             }
-            (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "{name}"),
-            (a, b) => panic!("{name}: fast path {a:?}, csv crate {b:?}"),
         }
     }
 
@@ -601,6 +915,13 @@ mod tests {
     /// reads it; variants outside the fast path's subset fall back and agree as well.
     #[test]
     fn fast_rows_agree_with_the_csv_crate() {
+        for (name, content, opts) in &agreement_cases() {
+            assert_same(name, content, opts);
+        }
+    }
+
+    /// The files of [`fast_rows_agree_with_the_csv_crate`]: name, content, options.
+    fn agreement_cases() -> Vec<(&'static str, Vec<u8>, CsvOptions)> {
         let d = CsvOptions::default();
         let body = rows(300, "\n");
         let mut cases: Vec<(&str, Vec<u8>, CsvOptions)> = vec![
@@ -698,6 +1019,82 @@ mod tests {
                 d.clone(),
             ),
         ];
+        cases.extend(row_error_cases());
+        cases.extend(delimiter_cases());
+        cases
+    }
+
+    /// One odd row among plain ones: errors, and rows the fast path must refuse.
+    fn row_error_cases() -> Vec<(&'static str, Vec<u8>, CsvOptions)> {
+        let d = CsvOptions::default();
+        let mut cases = Vec::new();
+        for (name, row) in [
+            ("number then text", "0.3,1.5x,2\n"),
+            ("space inside a number", "0.3,1 5,2\n"),
+            ("lone CR after a number", "0.3,1\r,2\n"),
+            (
+                "vertical tab and form feed around a number",
+                "0.3,\x0b1\x0c,2\n",
+            ),
+            ("empty selected field", "0.3,,2\n"),
+            ("too many fields", "0.3,1,2,4\n"),
+            ("too few fields", "0.3,1\n"),
+            ("exponents and signs", "0.3,+1e-0,-2.5E+1\n"),
+            ("nan", "0.3,nan,2\n"),
+            ("infinity", "0.3,1,-infinity\n"),
+            ("hex", "0.3,0x1,2\n"),
+        ] {
+            cases.push((
+                name,
+                format!("t,u,y\n{}{row}{}", rows(150, "\n"), rows(3, "\n")).into_bytes(),
+                d.clone(),
+            ));
+        }
+        cases
+    }
+
+    /// Other columns, delimiters and selections.
+    fn delimiter_cases() -> Vec<(&'static str, Vec<u8>, CsvOptions)> {
+        let d = CsvOptions::default();
+        let mut cases = Vec::new();
+        cases.push((
+            "unselected text column",
+            format!(
+                "t,note,u,y\n{}",
+                rows(200, "\n")
+                    .lines()
+                    .map(|l| l.replacen(',', ",a b; c d,", 1) + "\n")
+                    .collect::<String>()
+            )
+            .into_bytes(),
+            d.clone(),
+        ));
+        cases.push((
+            "blank line of delimiters (tab)",
+            format!(
+                "t\tu\ty\n{}\t\t\n{}",
+                rows(100, "\n").replace(',', "\t"),
+                rows(3, "\n").replace(',', "\t")
+            )
+            .into_bytes(),
+            d.clone(),
+        ));
+        cases.push((
+            "space delimiter",
+            format!("t u y\n{}", rows(100, "\n").replace(',', " ")).into_bytes(),
+            CsvOptions {
+                delimiter: Some(b' '),
+                ..d.clone()
+            },
+        ));
+        cases.push((
+            "delimiter that is part of numbers",
+            format!("tEuEy\n{}", rows(100, "\n").replace(',', "E")).into_bytes(),
+            CsvOptions {
+                delimiter: Some(b'E'),
+                ..d.clone()
+            },
+        ));
         cases.push((
             "several selected columns, fs, no time",
             format!("a,b,c,d\n{}", "1,2,3,4\n2,4,1,0\n3,1,5,2\n").into_bytes(),
@@ -720,46 +1117,278 @@ mod tests {
                 ..CsvOptions::default()
             },
         ));
-        for (name, content, opts) in &cases {
-            assert_same(name, content, opts);
-        }
+        cases
     }
 
-    /// The plain format is read by the fast path (not only by the fallback).
+    /// The plain format is read by the fast path (not only by the fallback), split into
+    /// pieces with the right line numbers.
     #[test]
     fn plain_rows_take_the_fast_path() {
         let text = format!("t,u,y\n# c\n\n{}", rows(20, "\r\n"));
-        let r = fast_rows(
-            text.as_bytes(),
-            6,
-            &Select {
-                delimiter: b',',
-                nf: 3,
-                inputs: &[1],
-                outputs: &[2],
+        let sel = Select {
+            delimiter: b',',
+            nf: 3,
+            inputs: &[1],
+            outputs: &[2],
+            time: Some(0),
+            time_scale: 1.0,
+        };
+        let (_, one) = WAYS[1];
+        let (_, three) = WAYS[2];
+        assert_eq!(piece_cuts(text.as_bytes(), 6, three).len(), 4, "3 pieces");
+        for how in [one, three] {
+            let r = fast_rows_split(text.as_bytes(), 6, &sel, how).expect("fast path");
+            assert_eq!(r.lines, (4..24).collect::<Vec<_>>());
+            assert_eq!(r.t[19], 19.0 * 1e-3);
+            assert_eq!(r.t_text[19].text(text.as_bytes()), "0.019");
+        }
+        // Whitespace around fields, other delimiters, a skipped text column: still fast.
+        let plain = rows(20, "\n");
+        for (text, delimiter, nf, inputs, outputs) in [
+            (
+                format!("t,u,y\n{}", plain.replace(',', " ,\t ")),
+                b',',
+                3,
+                &[1usize][..],
+                &[2usize][..],
+            ),
+            (
+                format!("t;u;y\n{}", plain.replace(',', ";")),
+                b';',
+                3,
+                &[1],
+                &[2],
+            ),
+            (
+                format!("t\tu\ty\n{}", plain.replace(',', "\t")),
+                b'\t',
+                3,
+                &[1],
+                &[2],
+            ),
+            (
+                format!(
+                    "t,n,u,y\n{}",
+                    plain
+                        .lines()
+                        .map(|l| l.replacen(',', ",x y? z ,", 1) + "\n")
+                        .collect::<String>()
+                ),
+                b',',
+                4,
+                &[2],
+                &[3],
+            ),
+        ] {
+            let sel = Select {
+                delimiter,
+                nf,
+                inputs,
+                outputs,
                 time: Some(0),
                 time_scale: 1.0,
-            },
-        )
-        .expect("fast path");
-        assert_eq!(r.lines.first(), Some(&4));
-        assert_eq!(r.lines.len(), 20);
-        assert_eq!(r.t[19], 19.0 * 1e-3);
-        assert_eq!(r.t_text[19].text(text.as_bytes()), "0.019");
-        // A quote anywhere in a row leaves the fast path.
-        let quoted = format!("t,u,y\n0,\"1\",2\n{}", rows(3, "\n"));
-        assert!(fast_rows(
-            quoted.as_bytes(),
-            6,
-            &Select {
-                delimiter: b',',
-                nf: 3,
-                inputs: &[1],
-                outputs: &[2],
-                time: Some(0),
-                time_scale: 1.0,
-            },
-        )
-        .is_none());
+            };
+            let start = text.find('\n').expect("header") + 1;
+            for how in [one, three] {
+                let r = fast_rows_split(text.as_bytes(), start, &sel, how);
+                let r = r.unwrap_or_else(|| panic!("fast path refused {text:?}"));
+                assert_eq!(r.lines.len(), 20);
+                assert_eq!(r.t_text[19].text(text.as_bytes()), "0.019");
+            }
+        }
+        // A quote anywhere in a row leaves the fast path, in any piece.
+        for at in [0, 10, 19] {
+            let mut quoted: Vec<String> = rows(20, "\n").lines().map(String::from).collect();
+            quoted[at] = "0,\"1\",2".into();
+            let quoted = format!("t,u,y\n{}\n", quoted.join("\n"));
+            for how in [one, three] {
+                assert!(fast_rows_split(quoted.as_bytes(), 6, &sel, how).is_none());
+            }
+        }
+    }
+
+    /// Cuts fall just after a `\n`, increase, and cover the body; a body without a newline
+    /// is one piece.
+    #[test]
+    fn piece_cuts_are_line_starts() {
+        let text = format!("t,u,y\n{}", rows(1000, "\n"));
+        let bytes = text.as_bytes();
+        for pieces in 1..10 {
+            let how = RowReader {
+                fast: true,
+                pieces,
+                piece_min_bytes: 100,
+            };
+            let cuts = piece_cuts(bytes, 6, how);
+            assert_eq!((cuts[0], cuts[cuts.len() - 1]), (6, bytes.len()));
+            assert_eq!(cuts.len(), pieces + 1, "{pieces} pieces");
+            for w in cuts.windows(2) {
+                assert!(w[0] < w[1]);
+            }
+            for &c in &cuts[1..cuts.len() - 1] {
+                assert_eq!(bytes[c - 1], b'\n');
+            }
+        }
+        let how = RowReader {
+            fast: true,
+            pieces: 4,
+            piece_min_bytes: 1,
+        };
+        assert_eq!(piece_cuts(b"t,u\n1,2,3,4,5,6,7,8", 4, how), vec![4, 19]);
+        // Pieces of at least `piece_min_bytes`: a small body is not split.
+        let big = RowReader {
+            fast: true,
+            pieces: 4,
+            piece_min_bytes: 1 << 20,
+        };
+        assert_eq!(piece_cuts(bytes, 6, big).len(), 2);
+    }
+
+    /// fast-float2 reads every string as `str::parse::<f64>` does (the same bits, or both
+    /// refuse it): edge cases of the syntax, rounding boundaries, and random strings.
+    #[test]
+    fn fast_float_parses_as_std() {
+        let mut cases: Vec<String> = [
+            "0",
+            "-0",
+            "+0",
+            "1",
+            "-1",
+            "+1",
+            ".5",
+            "5.",
+            "-.5",
+            "+.5",
+            ".",
+            "-",
+            "+",
+            "",
+            "e5",
+            "1e",
+            "1e+",
+            "1e-",
+            "1E5",
+            "1e+5",
+            "1e-5",
+            "1.e5",
+            ".1e5",
+            "1e5.",
+            "1.5e",
+            "--1",
+            "+-1",
+            "1..2",
+            "1.2.3",
+            "0x10",
+            "1_000",
+            " 1",
+            "1 ",
+            "1,5",
+            "inf",
+            "-inf",
+            "+inf",
+            "INF",
+            "infinity",
+            "Infinity",
+            "-infinity",
+            "infinit",
+            "infinityx",
+            "nan",
+            "NaN",
+            "-nan",
+            "+nan",
+            "nan(1)",
+            "1e308",
+            "1.7976931348623157e308",
+            "1.7976931348623158e308",
+            "1.7976931348623159e308",
+            "2e308",
+            "4.9e-324",
+            "5e-324",
+            "2.4703282292062327e-324",
+            "2.4703282292062328e-324",
+            "2.2250738585072011e-308",
+            "2.2250738585072014e-308",
+            "1e-400",
+            "1e400",
+            "0e999999999999",
+            "1e-99999999999999999999",
+            "9007199254740993",
+            "9007199254740992.5",
+            "9007199254740993.0000000000000000001",
+            "0.1000000000000000055511151231257827021181583404541015625",
+            "0.1000000000000000055511151231257827021181583404541015624",
+            "0.1000000000000000055511151231257827021181583404541015626",
+            "123456789012345678901234567890",
+            "0.000000000000000000000000000001234567890123456789012",
+            "00000000000000000000000000000000001",
+            "1.00000000000000000000000000000000000000001",
+            "7.038531e-26",
+            "1.7e-7",
+            "4.35679e-10",
+            "1d5",
+            "1f",
+            "0.5\n",
+            "1\0",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        // Halfway points between neighbouring doubles, printed with 40 digits, and just off.
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        for _ in 0..2000 {
+            let x = f64::from_bits(next() >> 2);
+            if x.is_finite() && x > 0.0 {
+                let up = f64::from_bits(x.to_bits() + 1);
+                cases.push(format!("{:.40e}", (x + up) / 2.0));
+                cases.push(format!("{x:e}"));
+                cases.push(format!("{x:.17e}"));
+                cases.push(format!("{x}"));
+            }
+            // Random strings over the float alphabet.
+            let alphabet = b"0123456789.eE+-";
+            let n = (next() % 12) as usize;
+            let r: String = (0..n)
+                .map(|_| alphabet[(next() % alphabet.len() as u64) as usize] as char)
+                .collect();
+            cases.push(r);
+            cases.push(format!("{}", (next() % 2_000_001) as f64 / 1000.0 - 1000.0));
+        }
+        // The peer log's format (`%.17g`, 17 significant digits): 100k values of every
+        // magnitude of a noisy output, and times k·1e-3.
+        for k in 0..100_000u64 {
+            let x = (f64::from_bits(next() >> 12 | 0x3ff0_0000_0000_0000) - 1.5)
+                * 10f64.powi((k % 9) as i32 - 6);
+            cases.push(format!("{:.16e}", x));
+            cases.push(format!("{}", k as f64 * 1e-3));
+        }
+        for c in &cases {
+            let std: Option<f64> = c.parse().ok();
+            let ff = parse_f64(c.as_bytes());
+            assert_eq!(
+                std.map(f64::to_bits),
+                ff.map(f64::to_bits),
+                "`{}`: std {std:?}, fast-float2 {ff:?}",
+                c.escape_debug()
+            );
+            // As a field followed by the delimiter: the prefix read is the whole text exactly
+            // when the text is a finite number, with the same bits.
+            let finite = std.filter(|v| v.is_finite());
+            let field = format!("{c},9");
+            let prefix = parse_f64_prefix(field.as_bytes())
+                .filter(|&(v, used)| used == c.len() && v.is_finite())
+                .map(|(v, _)| v);
+            assert_eq!(
+                finite.map(f64::to_bits),
+                prefix.map(f64::to_bits),
+                "field `{}`: std {finite:?}, prefix {prefix:?}",
+                c.escape_debug()
+            );
+        }
     }
 }

@@ -74,6 +74,24 @@ impl StateSpace {
                 return Ok(vec![y0]);
             }
         }
+        if m == 2 && p == 1 {
+            // The one-step predictor of a SISO model (inputs u and y): the same, two inputs.
+            let (u2, mut y0) = ([u[0].as_ref(), u[1].as_ref()], vec![0.0; len]);
+            let done = match n {
+                1 => simulate_two_input_fixed::<1>(&a, &b, &c, &d, &x, u2, &mut y0),
+                2 => simulate_two_input_fixed::<2>(&a, &b, &c, &d, &x, u2, &mut y0),
+                3 => simulate_two_input_fixed::<3>(&a, &b, &c, &d, &x, u2, &mut y0),
+                4 => simulate_two_input_fixed::<4>(&a, &b, &c, &d, &x, u2, &mut y0),
+                5 => simulate_two_input_fixed::<5>(&a, &b, &c, &d, &x, u2, &mut y0),
+                6 => simulate_two_input_fixed::<6>(&a, &b, &c, &d, &x, u2, &mut y0),
+                7 => simulate_two_input_fixed::<7>(&a, &b, &c, &d, &x, u2, &mut y0),
+                8 => simulate_two_input_fixed::<8>(&a, &b, &c, &d, &x, u2, &mut y0),
+                _ => false,
+            };
+            if done {
+                return Ok(vec![y0]);
+            }
+        }
         Ok(simulate_general(&a, &b, &c, &d, (n, m, p), x, u))
     }
 
@@ -130,6 +148,55 @@ fn simulate_siso_fixed<const N: usize>(
                 acc += a[i][j] * x[j];
             }
             acc += b[i] * uk;
+            xn[i] = acc;
+        }
+        x = xn;
+    }
+    true
+}
+
+/// [`simulate_siso_fixed`] for one output and two inputs (`b` N×2 and `d` 1×2 row-major):
+/// each sum from 0.0 in the general loop's order (states, then input 0, then input 1), so the
+/// outputs are the same to the bit. Returns `false` (nothing written) if the sizes do not
+/// match `N`.
+fn simulate_two_input_fixed<const N: usize>(
+    a: &[f64],
+    b: &[f64],
+    c: &[f64],
+    d: &[f64],
+    x0: &[f64],
+    u: [&[f64]; 2],
+    y: &mut [f64],
+) -> bool {
+    if a.len() != N * N || b.len() != 2 * N || y.len() != u[0].len() || u[1].len() != u[0].len() {
+        return false;
+    }
+    let (Some((a, _)), Some((b, _)), Ok(c), Ok(d), Ok(x0)) = (
+        a.as_chunks::<N>().0.split_first_chunk::<N>(),
+        b.as_chunks::<2>().0.split_first_chunk::<N>(),
+        <[f64; N]>::try_from(c),
+        <[f64; 2]>::try_from(d),
+        <[f64; N]>::try_from(x0),
+    ) else {
+        return false;
+    };
+    let mut x = x0;
+    for (yk, (&u0, &u1)) in y.iter_mut().zip(u[0].iter().zip(u[1])) {
+        let mut acc = 0.0;
+        for j in 0..N {
+            acc += c[j] * x[j];
+        }
+        acc += d[0] * u0;
+        acc += d[1] * u1;
+        *yk = acc;
+        let mut xn = [0.0; N];
+        for i in 0..N {
+            let mut acc = 0.0;
+            for j in 0..N {
+                acc += a[i][j] * x[j];
+            }
+            acc += b[i][0] * u0;
+            acc += b[i][1] * u1;
             xn[i] = acc;
         }
         x = xn;
@@ -246,6 +313,66 @@ mod tests {
         let mut y = vec![0.0; 3];
         assert!(!simulate_siso_fixed::<3>(
             &[0.0; 4], &[0.0; 3], &[0.0; 3], 0.0, &[0.0; 3], &[0.0; 3], &mut y
+        ));
+    }
+
+    /// The fixed-size two-input path (a SISO model's one-step predictor) equals the general
+    /// loop to the bit, for every supported order; a size mismatch is refused.
+    #[test]
+    fn fixed_two_input_path_equals_general_loop_bit_for_bit() {
+        let len = 5000;
+        let mut s = 99u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let u0: Vec<f64> = (0..len).map(|_| next()).collect();
+        let u1: Vec<f64> = (0..len).map(|_| next()).collect();
+        for n in 1..=8usize {
+            // Stable: diagonal 0.9 − 0.05 i plus small random couplings.
+            let a: Vec<f64> = (0..n * n)
+                .map(|k| {
+                    if k / n == k % n {
+                        0.9 - 0.05 * (k / n) as f64
+                    } else {
+                        0.02 * next()
+                    }
+                })
+                .collect();
+            let b: Vec<f64> = (0..2 * n).map(|_| next()).collect();
+            let c: Vec<f64> = (0..n).map(|_| next()).collect();
+            let d = [next(), next()];
+            let x0: Vec<f64> = (0..n).map(|_| next()).collect();
+            let general = simulate_general(&a, &b, &c, &d, (n, 2, 1), x0.clone(), &[&u0, &u1]);
+            let mut fixed = vec![0.0; len];
+            let uu = [u0.as_slice(), u1.as_slice()];
+            let ok = match n {
+                1 => simulate_two_input_fixed::<1>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+                2 => simulate_two_input_fixed::<2>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+                3 => simulate_two_input_fixed::<3>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+                4 => simulate_two_input_fixed::<4>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+                5 => simulate_two_input_fixed::<5>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+                6 => simulate_two_input_fixed::<6>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+                7 => simulate_two_input_fixed::<7>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+                _ => simulate_two_input_fixed::<8>(&a, &b, &c, &d, &x0, uu, &mut fixed),
+            };
+            assert!(ok, "n = {n}: sizes refused");
+            assert!(general[0].iter().any(|v| *v != 0.0));
+            for (k, (g, f)) in general[0].iter().zip(&fixed).enumerate() {
+                assert_eq!(g.to_bits(), f.to_bits(), "n = {n}, sample {k}: {g} vs {f}");
+            }
+        }
+        let mut y = vec![0.0; 3];
+        assert!(!simulate_two_input_fixed::<3>(
+            &[0.0; 9],
+            &[0.0; 4],
+            &[0.0; 3],
+            &[0.0; 2],
+            &[0.0; 3],
+            [&[0.0; 3], &[0.0; 3]],
+            &mut y
         ));
     }
 }

@@ -46,13 +46,33 @@ pub(super) fn hankel_correlation(w: &[Vec<f64>], k: usize, rows: &[(usize, usize
     // s[(j*q + a), (l*q + b)] for block pairs with j <= l, unnormalised.
     let dim = nb * q;
     let mut s = Mat::<f64>::zeros(dim, dim);
-    // First block row: lags l = 0..2i.
-    for a in 0..q {
-        for b in 0..q {
-            for l in 0..nb {
-                s[(a, l * q + b)] = dot(&w[a][..jcols], &w[b][l..l + jcols]);
-            }
+    // First block row: lags l = 0..2i, the q·q·2i products of J terms (most of the work of
+    // this step), split between two threads; each product is the same wherever it runs.
+    let first_row: Vec<(usize, usize, usize)> = (0..q)
+        .flat_map(|a| (0..q).flat_map(move |b| (0..nb).map(move |l| (a, b, l))))
+        .collect();
+    let product = |&(a, b, l): &(usize, usize, usize)| dot(&w[a][..jcols], &w[b][l..l + jcols]);
+    // Below about a million multiply-adds a thread costs more than it saves.
+    let split = if first_row.len() * jcols < 1 << 20 {
+        first_row.len()
+    } else {
+        first_row.len() / 2
+    };
+    let (head, tail) = first_row.split_at(split);
+    let values: Vec<f64> = std::thread::scope(|scope| {
+        let tail = (!tail.is_empty())
+            .then(|| scope.spawn(|| tail.iter().map(product).collect::<Vec<f64>>()));
+        let mut values: Vec<f64> = head.iter().map(product).collect();
+        if let Some(tail) = tail {
+            values.extend(
+                tail.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+            );
         }
+        values
+    });
+    for (&(a, b, l), v) in first_row.iter().zip(values) {
+        s[(a, l * q + b)] = v;
     }
     for j in 0..nb - 1 {
         for l in j..nb - 1 {

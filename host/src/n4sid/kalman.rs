@@ -87,21 +87,32 @@ fn kalman_gain(
     // x̂(k + s) = F·w_p(s) for s in 0..count: F split per channel times that channel's
     // Hankel view (k × count, element (j, s) = w[a][s + j]) — one GEMM per channel.
     let count = len - k + 1;
-    let mut states = Mat::<f64>::zeros(n, count);
+    // The rows are padded with zero rows to a multiple of 8: the GEMM kernel works on whole
+    // 8-row panels of the destination and of the left factor and computes on the padding
+    // below row n as well, and the padding of a `Mat` is not initialised; freed integers left
+    // there (line numbers, indices) read as subnormal numbers, each of which costs a microcode
+    // assist: measured 170 ms instead of 10 ms for this product on the peer log. The first n
+    // rows are computed exactly as before (same views, same kernel).
+    let mut states = Mat::<f64>::zeros(n.next_multiple_of(8), count);
     for (a_, wa) in w.iter().enumerate() {
-        let fa = Mat::from_fn(n, k, |i, j| {
+        // Padded to 8 rows with zeros as `states` (the kernel loads whole 8-row panels of it).
+        let fa = Mat::from_fn(n.next_multiple_of(8), k, |i, j| {
             let col = if a_ < m {
                 j * m + a_
             } else {
                 k * m + j * p + (a_ - m)
             };
-            f[(i, col)]
+            if i < n {
+                f[(i, col)]
+            } else {
+                0.0
+            }
         });
         let hankel = MatRef::from_column_major_slice_with_stride(&wa[..count + k - 1], k, count, 1);
         faer::linalg::matmul::matmul(
-            states.as_mut(),
+            states.as_mut().subrows_mut(0, n),
             faer::Accum::Add,
-            fa.as_ref(),
+            fa.as_ref().subrows(0, n),
             hankel,
             1.0,
             faer::Par::Seq,
@@ -115,18 +126,80 @@ fn kalman_gain(
             .map(|k| x[(k / x.ncols(), k % x.ncols())])
             .collect()
     };
-    let (ar, br, cr, dr) = (rm(a), rm(b), rm(c), rm(d));
+    let model = RowMajor {
+        a: rm(a),
+        b: rm(b),
+        c: rm(c),
+        d: rm(d),
+        n,
+        m,
+        p,
+    };
+    let sums = residual_sums_siso(&states, &model, w, k, nres)
+        .unwrap_or_else(|| residual_sums(&states, &model, w, k, nres));
     let mut qww = Mat::<f64>::zeros(n, n);
     let mut sww = Mat::<f64>::zeros(n, p);
     let mut see = Mat::<f64>::zeros(p, p);
+    for i in 0..n {
+        for j in 0..n {
+            qww[(i, j)] = sums.q[i * n + j];
+        }
+        for j in 0..p {
+            sww[(i, j)] = sums.s[i * p + j];
+        }
+    }
+    for i in 0..p {
+        for j in 0..p {
+            see[(i, j)] = sums.r[i * p + j];
+        }
+    }
+    let inv = 1.0 / nres as f64;
+    let q = Mat::from_fn(n, n, |i, j| qww[(i, j)] * inv);
+    let s = Mat::from_fn(n, p, |i, j| sww[(i, j)] * inv);
+    let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
+    let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
+    Ok((kf.gain, kf.innovation_cov))
+}
+
+/// A, B, C, D in row-major vectors with the sizes n, m, p.
+struct RowMajor {
+    a: Vec<f64>,
+    b: Vec<f64>,
+    c: Vec<f64>,
+    d: Vec<f64>,
+    n: usize,
+    m: usize,
+    p: usize,
+}
+
+/// Σŵŵᵀ (n×n), Σŵeᵀ (n×p) and Σeeᵀ (p×p), row-major.
+struct ResidualSums {
+    q: Vec<f64>,
+    s: Vec<f64>,
+    r: Vec<f64>,
+}
+
+/// The residual sums over the state sequence `states` (its first n rows; n × (nres + 1),
+/// column s = x̂(k + s)) and
+/// the scaled channels `w` = [u; y]: for t = k + s, e = y(t) − C x̂ − D u(t) and
+/// ŵ = x̂(t+1) − A x̂ − B u(t), each row product summed by [`small_dot`].
+fn residual_sums(
+    states: &Mat<f64>,
+    model: &RowMajor,
+    w: &[Vec<f64>],
+    k: usize,
+    nres: usize,
+) -> ResidualSums {
+    let (n, m, p) = (model.n, model.m, model.p);
+    let (ar, br, cr, dr) = (&model.a, &model.b, &model.c, &model.d);
     let (mut qacc, mut sacc, mut racc) = (vec![0.0; n * n], vec![0.0; n * p], vec![0.0; p * p]);
     let mut e = vec![0.0; p];
     let mut wv = vec![0.0; n];
     let mut ut = vec![0.0; m];
     for s_ in 0..nres {
         let t = k + s_;
-        let xs = states.col_as_slice(s_);
-        let xs1 = states.col_as_slice(s_ + 1);
+        let xs = &states.col_as_slice(s_)[..n];
+        let xs1 = &states.col_as_slice(s_ + 1)[..n];
         for (j, v) in ut.iter_mut().enumerate() {
             *v = w[j][t];
         }
@@ -154,25 +227,95 @@ fn kalman_gain(
             }
         }
     }
-    for i in 0..n {
-        for j in 0..n {
-            qww[(i, j)] = qacc[i * n + j];
-        }
-        for j in 0..p {
-            sww[(i, j)] = sacc[i * p + j];
-        }
+    ResidualSums {
+        q: qacc,
+        s: sacc,
+        r: racc,
     }
-    for i in 0..p {
-        for j in 0..p {
-            see[(i, j)] = racc[i * p + j];
-        }
+}
+
+/// [`residual_sums`] for a SISO model of order 1..=7, with the sizes fixed at compile time:
+/// the same operations in the same order (so the same bits), without the loop overhead of
+/// the general sizes. `None` for other sizes.
+fn residual_sums_siso(
+    states: &Mat<f64>,
+    model: &RowMajor,
+    w: &[Vec<f64>],
+    k: usize,
+    nres: usize,
+) -> Option<ResidualSums> {
+    if (model.m, model.p) != (1, 1) || w.len() != 2 {
+        return None;
     }
-    let inv = 1.0 / nres as f64;
-    let q = Mat::from_fn(n, n, |i, j| qww[(i, j)] * inv);
-    let s = Mat::from_fn(n, p, |i, j| sww[(i, j)] * inv);
-    let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
-    let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
-    Ok((kf.gain, kf.innovation_cov))
+    match model.n {
+        1 => residual_sums_fixed::<1>(states, model, w, k, nres),
+        2 => residual_sums_fixed::<2>(states, model, w, k, nres),
+        3 => residual_sums_fixed::<3>(states, model, w, k, nres),
+        4 => residual_sums_fixed::<4>(states, model, w, k, nres),
+        5 => residual_sums_fixed::<5>(states, model, w, k, nres),
+        6 => residual_sums_fixed::<6>(states, model, w, k, nres),
+        7 => residual_sums_fixed::<7>(states, model, w, k, nres),
+        _ => None,
+    }
+}
+
+/// [`residual_sums_siso`] for order `N` (below the 8 lanes of [`dot`], so every row product
+/// is the in-order sum from 0.0 of [`small_dot`]).
+fn residual_sums_fixed<const N: usize>(
+    states: &Mat<f64>,
+    model: &RowMajor,
+    w: &[Vec<f64>],
+    k: usize,
+    nres: usize,
+) -> Option<ResidualSums> {
+    let (Some((a, _)), Ok(b), Ok(c), &[d]) = (
+        model.a.as_chunks::<N>().0.split_first_chunk::<N>(),
+        <[f64; N]>::try_from(model.b.as_slice()),
+        <[f64; N]>::try_from(model.c.as_slice()),
+        model.d.as_slice(),
+    ) else {
+        return None;
+    };
+    if states.nrows() < N || states.ncols() < nres + 1 || w[0].len() < k + nres {
+        return None;
+    }
+    let (u, y) = (&w[0][k..k + nres], &w[1][k..k + nres]);
+    let mut q = [[0.0; N]; N];
+    let mut sv = [0.0; N];
+    let mut r = 0.0;
+    let col = |s_: usize| -> [f64; N] {
+        <[f64; N]>::try_from(&states.col_as_slice(s_)[..N]).expect("N states per column")
+    };
+    let mut x1 = col(0);
+    for (s_, (&ut, &yt)) in u.iter().zip(y).enumerate() {
+        let x = x1;
+        x1 = col(s_ + 1);
+        let mut cx = 0.0;
+        for j in 0..N {
+            cx += c[j] * x[j];
+        }
+        let e = yt - cx - (0.0 + d * ut);
+        let mut wv = [0.0; N];
+        for i in 0..N {
+            let mut ax = 0.0;
+            for j in 0..N {
+                ax += a[i][j] * x[j];
+            }
+            wv[i] = x1[i] - ax - (0.0 + b[i] * ut);
+        }
+        for i in 0..N {
+            for j in 0..N {
+                q[i][j] += wv[i] * wv[j];
+            }
+            sv[i] += wv[i] * e;
+        }
+        r += e * e;
+    }
+    Some(ResidualSums {
+        q: q.iter().flatten().copied().collect(),
+        s: sv.to_vec(),
+        r: vec![r],
+    })
 }
 
 /// [`dot`] for the short vectors of the residual loop, inlined: [`dot`] sums vectors shorter
@@ -303,4 +446,48 @@ pub fn kalman_filter_gain(
         gain,
         innovation_cov: re,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fixed-size SISO residual sums equal the general loop to the bit, for every order it
+    /// takes; other sizes are refused (and left to the general loop).
+    #[test]
+    fn fixed_siso_sums_equal_general_loop_bit_for_bit() {
+        let mut s = 0x5851_f42d_4c95_7f2du64;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (k, len) = (5, 3000);
+        let w: Vec<Vec<f64>> = (0..2).map(|_| (0..len).map(|_| next()).collect()).collect();
+        for n in 1..=8usize {
+            let count = len - k + 1;
+            // Padded to 8 rows as in `kalman_gain`; the rows below n must not be used.
+            let states = Mat::from_fn(n.next_multiple_of(8), count, |_, _| next());
+            let model = RowMajor {
+                a: (0..n * n).map(|_| next()).collect(),
+                b: (0..n).map(|_| next()).collect(),
+                c: (0..n).map(|_| next()).collect(),
+                d: vec![next()],
+                n,
+                m: 1,
+                p: 1,
+            };
+            let general = residual_sums(&states, &model, &w, k, count - 1);
+            match residual_sums_siso(&states, &model, &w, k, count - 1) {
+                Some(fixed) => {
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&fixed.q), bits(&general.q), "Q, order {n}");
+                    assert_eq!(bits(&fixed.s), bits(&general.s), "S, order {n}");
+                    assert_eq!(bits(&fixed.r), bits(&general.r), "R, order {n}");
+                }
+                None => assert_eq!(n, 8, "order {n} refused"),
+            }
+        }
+    }
 }

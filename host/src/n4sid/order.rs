@@ -78,12 +78,38 @@ pub(super) fn fit_order(
     ys: &[Vec<f64>],
     opts: &N4sidOptions,
 ) -> Result<OrderFit> {
-    let (p, yf) = (sub.p, sub.yf);
-    let m = us.len();
-    let len = us[0].len();
     let mut notes = Vec::new();
     let gamma = sub.gamma(n)?;
     // 5. A, C.
+    let (a_s, c_s) = shift_invariance(&gamma, n, sub.p, sub.yf, &mut notes)?;
+    // 6. Stability.
+    let stable = stability_step(a_s, opts.stability_margin, &mut notes)?;
+    // 7. B, D, x0 by output-error least squares.
+    let oe = output_error_fit(&stable, &c_s, us, ys, opts, &mut notes)?;
+    Ok(OrderFit {
+        n,
+        a: stable.a,
+        b: oe.b,
+        c: c_s,
+        d: oe.d,
+        x0: oe.x0,
+        gamma,
+        resid_logdet: oe.resid_logdet,
+        notes,
+        stability_enforced: stable.enforced,
+        d_fixed_by_test: opts.estimate_d && !oe.with_d,
+    })
+}
+
+/// Step 5: C = Γ[0..p] and A by least squares from Γ_up·A = Γ_down, refused when Γ_up is too
+/// ill-conditioned (noted when it is poorly conditioned).
+fn shift_invariance(
+    gamma: &Mat<f64>,
+    n: usize,
+    p: usize,
+    yf: usize,
+    notes: &mut Vec<String>,
+) -> Result<(Mat<f64>, Mat<f64>)> {
     let c_s = gamma.as_ref().submatrix(0, 0, p, n).to_owned();
     let g_up = gamma.as_ref().submatrix(0, 0, yf - p, n);
     let g_dn = gamma.as_ref().submatrix(p, 0, yf - p, n);
@@ -103,20 +129,35 @@ pub(super) fn fit_order(
              is poorly determined at order {n}"
         ));
     }
-    let mut a_s = lstsq(g_up, g_dn, "shift invariance Γ_up·A = Γ_down")?;
+    let a_s = lstsq(g_up, g_dn, "shift invariance Γ_up·A = Γ_down")?;
+    Ok((a_s, c_s))
+}
 
-    // 6. Stability.
-    let mut stability_enforced = false;
+/// A after step 6, with the spectral radius of the A it came from.
+struct Stable {
+    a: Mat<f64>,
+    /// Spectral radius before any enforcement.
+    rho: f64,
+    /// The margin moved poles.
+    enforced: bool,
+}
+
+/// Step 6: with a margin, poles moved inside it (each change noted); without one, unstable
+/// poles noted.
+fn stability_step(a_s: Mat<f64>, margin: Option<f64>, notes: &mut Vec<String>) -> Result<Stable> {
     let poles = eigenvalues(a_s.as_ref())?;
     let rho = poles.iter().map(|z| z.norm()).fold(0.0, f64::max);
-    if let Some(mg) = opts.stability_margin {
+    if let Some(mg) = margin {
         let (a_new, changes) = enforce_stability(&a_s, mg)?;
         if !changes.is_empty() {
-            stability_enforced = true;
             for ch in changes {
                 notes.push(format!("stability enforced (margin {mg}): {ch}"));
             }
-            a_s = a_new;
+            return Ok(Stable {
+                a: a_new,
+                rho,
+                enforced: true,
+            });
         }
     } else if rho >= 1.0 {
         let bad: Vec<String> = poles
@@ -130,14 +171,44 @@ pub(super) fn fit_order(
             bad.join(", ")
         ));
     }
+    Ok(Stable {
+        a: a_s,
+        rho,
+        enforced: false,
+    })
+}
 
-    // 7. B, D, x0 by output-error least squares.
+/// B, D, x0 of step 7 and the residual statistic of the fit.
+struct OutputErrorFit {
+    b: Mat<f64>,
+    d: Mat<f64>,
+    x0: Vec<f64>,
+    /// D was estimated (not fixed to zero, by the options or the test).
+    with_d: bool,
+    /// ln det of the residual covariance.
+    resid_logdet: f64,
+}
+
+/// Step 7: B, D and x0 by output-error least squares for the given A, C; with the
+/// significance test, D fixed to zero (and noted) when every entry is within
+/// `opts.d_significance` standard errors of zero.
+fn output_error_fit(
+    stable: &Stable,
+    c_s: &Mat<f64>,
+    us: &[Vec<f64>],
+    ys: &[Vec<f64>],
+    opts: &N4sidOptions,
+    notes: &mut Vec<String>,
+) -> Result<OutputErrorFit> {
+    let (a_s, rho) = (&stable.a, stable.rho);
+    let (n, p, m) = (a_s.nrows(), c_s.nrows(), us.len());
+    let len = us[0].len();
     let ybig: Vec<f64> = ys.iter().flat_map(|y| y.iter().copied()).collect();
     // θ, the output-error residual y − Φθ and, when D is estimated and tested, its largest
     // |D|/SE; for D estimated or fixed to zero. The least squares runs on the R factor of
     // [Φ y], folded in row blocks (the regressors are tall: len·p rows, a few columns).
     let solve = |with_d: bool| -> Result<(Mat<f64>, Vec<f64>, Option<f64>)> {
-        let (buf, rows, cols) = oe_regressors(&a_s, &c_s, us, len, opts.estimate_x0, with_d);
+        let (buf, rows, cols) = oe_regressors(a_s, c_s, us, len, opts.estimate_x0, with_d);
         let columns: Vec<&[f64]> = if rows == 0 {
             Vec::new()
         } else {
@@ -178,8 +249,27 @@ pub(super) fn fit_order(
             ));
         }
     }
+    let (x0, b, d) = unpack_theta(&theta, n, m, p, opts.estimate_x0, with_d);
+    Ok(OutputErrorFit {
+        b,
+        d,
+        x0,
+        with_d,
+        resid_logdet: resid_logdet(&resid, p, len),
+    })
+}
+
+/// θ = [x0; vec(B); vec(D)] (x0 and D only when estimated; column-major blocks) → x0, B, D.
+fn unpack_theta(
+    theta: &Mat<f64>,
+    n: usize,
+    m: usize,
+    p: usize,
+    with_x0: bool,
+    with_d: bool,
+) -> (Vec<f64>, Mat<f64>, Mat<f64>) {
     let mut idx = 0;
-    let x0: Vec<f64> = if opts.estimate_x0 {
+    let x0: Vec<f64> = if with_x0 {
         idx = n;
         (0..n).map(|i| theta[(i, 0)]).collect()
     } else {
@@ -200,28 +290,21 @@ pub(super) fn fit_order(
             }
         }
     }
-    // Residual covariance of the output error.
-    let rv = resid.as_slice();
+    (x0, b_s, d_s)
+}
+
+/// ln det of the residual covariance (p outputs of `len` samples each, stacked).
+fn resid_logdet(resid: &[f64], p: usize, len: usize) -> f64 {
     let sigma = Mat::from_fn(p, p, |i, j| {
-        dot(&rv[i * len..(i + 1) * len], &rv[j * len..(j + 1) * len]) / len as f64
+        dot(
+            &resid[i * len..(i + 1) * len],
+            &resid[j * len..(j + 1) * len],
+        ) / len as f64
     });
     let lu = sigma.partial_piv_lu();
-    let resid_logdet: f64 = (0..p)
+    (0..p)
         .map(|i| lu.U()[(i, i)].abs().max(f64::MIN_POSITIVE).ln())
-        .sum();
-    Ok(OrderFit {
-        n,
-        a: a_s,
-        b: b_s,
-        c: c_s,
-        d: d_s,
-        x0,
-        gamma,
-        resid_logdet,
-        notes,
-        stability_enforced,
-        d_fixed_by_test: opts.estimate_d && !with_d,
-    })
+        .sum()
 }
 
 /// Outcome of the singular-value rules.

@@ -19,8 +19,8 @@
 //!    N4SID is biased). With [`IdentifyOptions::closed_loop`] the reference channels are split
 //!    off the logs and the plant is identified by an unbiased closed-loop method
 //!    ([`crate::closed_loop`]) instead.
-use super::frf::{check_compatible, LogSummary, MethodSummary};
-use super::Progress;
+use super::frf::{check_compatible, FrfReport, LogSummary, MethodSummary};
+use super::{NoProgress, Progress};
 use crate::closed_loop::{
     feedback_test, identify_closed_loop, ClosedLoopMethod, ClosedLoopOptions, ClosedLoopSummary,
     FeedbackTest,
@@ -323,10 +323,9 @@ fn concatenate(logs: &[Log]) -> Log {
 fn compare_pairs(
     model: &StateSpace,
     vlog: &Log,
+    report: &FrfReport,
     opts: &IdentifyOptions,
-    progress: &dyn Progress,
 ) -> Result<(String, Vec<PairComparison>)> {
-    let report = super::frf::estimate(std::slice::from_ref(vlog), &opts.etfe, progress)?;
     let label = match &report.method {
         MethodSummary::Welch {
             nperseg, noverlap, ..
@@ -431,13 +430,21 @@ pub fn identify(
     };
     let operating_point = operating_point_of(&records, est.inputs.len(), est.outputs.len())?;
     progress.begin("N4SID", None);
-    let res = estimate(&est, &refs, opts, &mut warnings);
+    // The work that needs the data only (the feedback test, the validation data and its ETFE)
+    // runs on a second thread beside N4SID; its results are used in the order a serial run
+    // would use them, so the report is the same.
+    let (res, data_only) = std::thread::scope(|scope| {
+        let data_only = scope.spawn(|| data_only_work(&est, vlog, opts));
+        let res = estimate(&est, &refs, opts, &mut warnings);
+        (res, join(data_only))
+    });
     progress.end();
     let (res, closed_loop) = res?;
-    let feedback = match closed_loop {
-        Some(_) => None,
-        None => run_feedback_test(&est, opts.max_lag, &mut warnings),
-    };
+    let DataOnly {
+        feedback: (feedback, feedback_warnings),
+        validation_data,
+    } = data_only;
+    warnings.extend(feedback_warnings);
     warnings.extend(res.warnings.iter().map(|w| format!("n4sid: {w}")));
     let model = &res.model;
     let mut poles: Vec<Root> = model
@@ -448,7 +455,7 @@ pub fn identify(
     sort_roots(&mut poles);
     let continuous = continuous_equivalent(model, &mut warnings)?;
     progress.begin("validating", None);
-    let validation = validate_model(&res, &est, vlog, &operating_point, opts, progress);
+    let validation = validate_model(&res, vlog, validation_data, &operating_point, opts);
     progress.end();
     let validation = validation?;
     let physical = match &opts.physical {
@@ -616,6 +623,32 @@ fn estimate(
     Ok((out.plant, Some(summary)))
 }
 
+/// The result of a scoped thread, its panic passed on.
+fn join<T>(h: std::thread::ScopedJoinHandle<'_, T>) -> T {
+    h.join()
+        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+}
+
+/// The work on the data alone: the feedback test (direct identification only) with its
+/// warnings, and the validation data with its ETFE.
+struct DataOnly<'a> {
+    feedback: (Option<FeedbackTest>, Vec<String>),
+    validation_data: Result<ValidationData<'a>>,
+}
+
+/// [`DataOnly`] for the preprocessed estimation data `est` and the validation log `vlog`.
+fn data_only_work<'a>(est: &'a Log, vlog: Option<&Log>, opts: &IdentifyOptions) -> DataOnly<'a> {
+    let mut warnings = Vec::new();
+    let feedback = match opts.closed_loop {
+        Some(_) => None,
+        None => run_feedback_test(est, opts.max_lag, &mut warnings),
+    };
+    DataOnly {
+        feedback: (feedback, warnings),
+        validation_data: validation_data(est, vlog, opts),
+    }
+}
+
 /// The feedback test of the direct model on the estimation data, with a warning when it
 /// detects feedback; `None` (and a warning saying why) when it cannot run.
 fn run_feedback_test(
@@ -700,18 +733,26 @@ fn continuous_equivalent(
     }))
 }
 
-/// Validation of the identified model on `vlog` (preprocessed like the estimation logs) or, without
-/// one, on the preprocessed estimation data `est`.
-fn validate_model(
-    res: &N4sidResult,
-    est: &Log,
+/// The data a model is validated on, prepared before the model exists.
+struct ValidationData<'a> {
+    /// What the data are ("estimation data" or the validation log's path).
+    label: String,
+    /// The validation log's preprocessing (`None` on the estimation data).
+    record: Option<Preprocessing>,
+    /// The preprocessed data.
+    log: std::borrow::Cow<'a, Log>,
+    /// Their ETFE.
+    etfe: Result<FrfReport>,
+}
+
+/// The validation log `vlog` preprocessed like the estimation logs or, without one, the
+/// preprocessed estimation data `est`, with the ETFE of either.
+fn validation_data<'a>(
+    est: &'a Log,
     vlog: Option<&Log>,
-    operating_point: &OperatingPoint,
     opts: &IdentifyOptions,
-    progress: &dyn Progress,
-) -> Result<Validation> {
-    let model = &res.model;
-    let (vdata, vpre, vlog_pre) = match vlog {
+) -> Result<ValidationData<'a>> {
+    let (label, record, log) = match vlog {
         Some(v) => {
             if v.inputs.len() != est.inputs.len() || v.outputs.len() != est.outputs.len() {
                 return Err(Error::Data {
@@ -726,32 +767,80 @@ fn validate_model(
                 });
             }
             let (p, r) = preprocess(v, &opts.steps())?;
-            if ((p.ts - model.ts) / model.ts).abs() > 1e-9 {
-                return Err(Error::Data {
-                    file: v.path.clone(),
-                    msg: format!(
-                        "validation sample time {} s (after preprocessing) differs from the \
-                         model's {} s",
-                        p.ts, model.ts
-                    ),
-                });
-            }
-            (v.path.display().to_string(), Some(r), p)
+            (
+                v.path.display().to_string(),
+                Some(r),
+                std::borrow::Cow::Owned(p),
+            )
         }
-        None => ("estimation data".to_string(), None, est.clone()),
+        None => (
+            "estimation data".to_string(),
+            None,
+            std::borrow::Cow::Borrowed(est),
+        ),
     };
-    let fit = simulation_fit_log(model, &vlog_pre, InitialState::Estimate)?;
-    let (etfe_label, phase) = compare_pairs(model, &vlog_pre, opts, progress)?;
+    let etfe = super::frf::estimate(std::slice::from_ref(&*log), &opts.etfe, &NoProgress);
+    Ok(ValidationData {
+        label,
+        record,
+        log,
+        etfe,
+    })
+}
+
+/// Validation of the identified model on the prepared data `data` (the preprocessed `vlog`,
+/// or the estimation data without one). The residual tests run on a second thread beside the
+/// simulation fit and the ETFE comparison.
+fn validate_model(
+    res: &N4sidResult,
+    vlog: Option<&Log>,
+    data: Result<ValidationData<'_>>,
+    operating_point: &OperatingPoint,
+    opts: &IdentifyOptions,
+) -> Result<Validation> {
+    let model = &res.model;
+    let ValidationData {
+        label: vdata,
+        record: vpre,
+        log: vlog_pre,
+        etfe,
+    } = data?;
+    if let Some(v) = vlog {
+        if ((vlog_pre.ts - model.ts) / model.ts).abs() > 1e-9 {
+            return Err(Error::Data {
+                file: v.path.clone(),
+                msg: format!(
+                    "validation sample time {} s (after preprocessing) differs from the \
+                     model's {} s",
+                    vlog_pre.ts, model.ts
+                ),
+            });
+        }
+    }
     let u: Vec<&[f64]> = vlog_pre.inputs.iter().map(|c| c.data.as_slice()).collect();
     let y: Vec<&[f64]> = vlog_pre.outputs.iter().map(|c| c.data.as_slice()).collect();
     let max_lag = opts.max_lag.min(vlog_pre.len() / 4).max(1);
-    let residuals = residual_test(
-        model,
-        res.kalman_gain.as_ref().map(|k| k.as_ref()),
-        &u,
-        &y,
-        max_lag,
-    )?;
+    let (fit, pairs, residuals) = std::thread::scope(|scope| {
+        let residuals = scope.spawn(|| {
+            residual_test(
+                model,
+                res.kalman_gain.as_ref().map(|k| k.as_ref()),
+                &u,
+                &y,
+                max_lag,
+            )
+        });
+        let fit = simulation_fit_log(model, &vlog_pre, InitialState::Estimate);
+        let pairs = match (&fit, etfe) {
+            (Ok(_), Ok(report)) => compare_pairs(model, &vlog_pre, &report, opts),
+            (_, Err(e)) => Err(e),
+            (Err(_), Ok(_)) => Ok((String::new(), Vec::new())), // not used: `fit` fails first
+        };
+        (fit, pairs, join(residuals))
+    });
+    let fit = fit?;
+    let (etfe_label, phase) = pairs?;
+    let residuals = residuals?;
     let (operating_point_fit, operating_point_fit_note) = match vlog {
         None => (None, Some("no --validate log".to_string())),
         Some(_) if operating_point.decimation > 1 => (
