@@ -166,16 +166,7 @@ impl ModalModel {
             }
             yy += wt * yl;
         }
-        for i in 0..k {
-            for j in 0..i {
-                g[(i, j)] = g[(j, i)];
-            }
-        }
-        let c = solve_scaled(&g, &h)?;
-        let quad: f64 = (0..k)
-            .map(|i| c[i] * ((0..k).map(|j| g[(i, j)] * c[j]).sum::<f64>() - 2.0 * h[(i, 0)]))
-            .sum();
-        let cost = (yy + quad).max(0.0);
+        let (c, cost) = least_squares_from_normal(&mut g, &h, yy)?;
         if !cost.is_finite() {
             return None;
         }
@@ -245,16 +236,7 @@ impl ModalModel {
             }
             level.push((wt, sy, sphi, cnt));
         }
-        for i in 0..k {
-            for j in 0..i {
-                g[(i, j)] = g[(j, i)];
-            }
-        }
-        let c = solve_scaled(&g, &h)?;
-        let quad: f64 = (0..k)
-            .map(|i| c[i] * ((0..k).map(|j| g[(i, j)] * c[j]).sum::<f64>() - 2.0 * h[(i, 0)]))
-            .sum();
-        let cost = (yy + quad).max(0.0);
+        let (c, cost) = least_squares_from_normal(&mut g, &h, yy)?;
         let (num, den) = level
             .iter()
             .fold((0.0, 0.0), |(a, b), (wt, sy, sphi, cnt)| {
@@ -333,6 +315,22 @@ impl ModalModel {
         }
         c
     }
+}
+
+/// The least-squares solution c of the normal equations (upper triangle of `g` filled, `h`,
+/// and Σy² = `yy`; `g` is mirrored in place) and its cost yy − 2cᵀh + cᵀgc, clamped at 0.
+fn least_squares_from_normal(g: &mut Mat<f64>, h: &Mat<f64>, yy: f64) -> Option<(Vec<f64>, f64)> {
+    let k = g.nrows();
+    for i in 0..k {
+        for j in 0..i {
+            g[(i, j)] = g[(j, i)];
+        }
+    }
+    let c = solve_scaled(g, h)?;
+    let quad: f64 = (0..k)
+        .map(|i| c[i] * ((0..k).map(|j| g[(i, j)] * c[j]).sum::<f64>() - 2.0 * h[(i, 0)]))
+        .sum();
+    Some((c, (yy + quad).max(0.0)))
 }
 
 /// Solves the symmetric positive semi-definite system g·c = h after equilibrating by the
