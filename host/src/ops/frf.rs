@@ -442,4 +442,3 @@ pub fn estimate(logs: &[Log], opts: &FrfOptions, progress: &dyn Progress) -> Res
         normalisation: NORMALISATION_NOTE,
     })
 }
-

@@ -15,8 +15,8 @@
 //! [`super::WeightFitMethod::NelderMead`] so the tests can compare the rational fit with it.
 use super::{build_weight, Band, UncertaintyWeight, WeightFitOptions};
 use crate::error::{Error, Result};
-use crate::optim::nelder_mead;
 use crate::lti::poly_mul;
+use crate::optim::nelder_mead;
 
 const OBJECTIVE: &str = "minimise Σ_i w_i·ln(|W_m(jω_i)|/l_m(ω_i)) / Σ_i w_i (w_i: trapezoidal \
                          weights in ln ω) subject to |W_m(jω_i)| >= l_m(ω_i) at every measured \
