@@ -434,41 +434,59 @@ pub fn read_control(path: &Path, model: &StateSpace) -> Result<Option<cg::StateC
                 ..block(&k)
             }))
         }
-        ControlMethod::Mpc => {
-            let model_states = d.model_states.ok_or_else(|| missing("model_states"))?;
-            let unconstrained_kx = d
-                .unconstrained_kx
-                .ok_or_else(|| missing("unconstrained_kx"))?;
-            let spec = crate::pipeline::control_mpc::mpc_spec(&settings);
-            let d = crate::synth::mpc::MpcDesign::new(model, spec).map_err(err)?;
-            let kx = d.unconstrained_law().map_err(err)?.kx;
-            let scale = unconstrained_kx
-                .iter()
-                .fold(0.0f64, |m, v| m.max(v.abs()))
-                .max(1e-300);
-            let same = model.n_states() == model_states
-                && kx.len() == unconstrained_kx.len()
-                && kx
-                    .iter()
-                    .zip(&unconstrained_kx)
-                    .all(|(a, b)| (a - b).abs() <= 1e-9 * scale);
-            if !same {
-                return Err(data_err(
-                    path,
-                    format!(
-                        "the run's MPC was designed on another model: its unconstrained law \
-                         k_x = {unconstrained_kx:?} ({model_states} states), the MPC re-designed \
-                         on --model gives {kx:?} ({} states)",
-                        model.n_states()
-                    ),
-                ));
-            }
-            Ok(Some(crate::pipeline::control_mpc::mpc_state_controller(
-                &d, model,
-            )))
-        }
+        ControlMethod::Mpc => mpc_controller(path, model, &settings, &d).map(Some),
         ControlMethod::Pid => Ok(None),
     }
+}
+
+/// The MPC block of a run's `control` record, re-designed on `model` with the run's settings
+/// and checked against the run's recorded unconstrained law (another model: an error naming
+/// both laws).
+fn mpc_controller(
+    path: &Path,
+    model: &StateSpace,
+    settings: &crate::pipeline::PipelineConfig,
+    d: &DesignRecord,
+) -> Result<cg::StateController> {
+    let err = |e: Error| data_err(path, e.to_string());
+    let missing = |what: &str| {
+        data_err(
+            path,
+            format!("the mpc record's \"design\" has no \"{what}\""),
+        )
+    };
+    let model_states = d.model_states.ok_or_else(|| missing("model_states"))?;
+    let unconstrained_kx = d
+        .unconstrained_kx
+        .as_deref()
+        .ok_or_else(|| missing("unconstrained_kx"))?;
+    let spec = crate::pipeline::control_mpc::mpc_spec(settings);
+    let design = crate::synth::mpc::MpcDesign::new(model, spec).map_err(err)?;
+    let kx = design.unconstrained_law().map_err(err)?.kx;
+    let scale = unconstrained_kx
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(1e-300);
+    let same = model.n_states() == model_states
+        && kx.len() == unconstrained_kx.len()
+        && kx
+            .iter()
+            .zip(unconstrained_kx)
+            .all(|(a, b)| (a - b).abs() <= 1e-9 * scale);
+    if !same {
+        return Err(data_err(
+            path,
+            format!(
+                "the run's MPC was designed on another model: its unconstrained law \
+                 k_x = {unconstrained_kx:?} ({model_states} states), the MPC re-designed \
+                 on --model gives {kx:?} ({} states)",
+                model.n_states()
+            ),
+        ));
+    }
+    Ok(crate::pipeline::control_mpc::mpc_state_controller(
+        &design, model,
+    ))
 }
 
 /// The `kind` of a method's design summary.
