@@ -398,16 +398,7 @@ pub fn build_app_image_with(
     if !features.is_empty() {
         cmd.arg("--features").arg(features.join(","));
     }
-    for var in [
-        "CARGO_BUILD_TARGET",
-        "CARGO_BUILD_RUSTFLAGS",
-        "RUSTFLAGS",
-        "CARGO_ENCODED_RUSTFLAGS",
-        "CARGO_TARGET_DIR",
-        "CARGO_BUILD_TARGET_DIR",
-    ] {
-        cmd.env_remove(var);
-    }
+    crate::scrub_cargo_env(&mut cmd);
     cmd.env("CARGO_TARGET_DIR", target_dir)
         .env("DEFMT_LOG", "info")
         .env("FERROSID_POWERUP_MODEL", model_rs)

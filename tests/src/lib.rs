@@ -148,16 +148,7 @@ pub fn build_model_image(bin: &str, model_env: &str, module: &Path, target_dir: 
     ])
     .arg("--manifest-path")
     .arg(image_manifest());
-    for var in [
-        "CARGO_BUILD_TARGET",
-        "CARGO_BUILD_RUSTFLAGS",
-        "RUSTFLAGS",
-        "CARGO_ENCODED_RUSTFLAGS",
-        "CARGO_TARGET_DIR",
-        "CARGO_BUILD_TARGET_DIR",
-    ] {
-        cmd.env_remove(var);
-    }
+    scrub_cargo_env(&mut cmd);
     cmd.env("CARGO_TARGET_DIR", target_dir)
         .env("DEFMT_LOG", "info")
         .env(model_env, module)
@@ -201,16 +192,7 @@ pub fn build_images(bins: &[&str]) -> Result<Vec<PathBuf>, Error> {
     for bin in bins {
         cmd.arg("--bin").arg(bin);
     }
-    for var in [
-        "CARGO_BUILD_TARGET",
-        "CARGO_BUILD_RUSTFLAGS",
-        "RUSTFLAGS",
-        "CARGO_ENCODED_RUSTFLAGS",
-        "CARGO_TARGET_DIR",
-        "CARGO_BUILD_TARGET_DIR",
-    ] {
-        cmd.env_remove(var);
-    }
+    scrub_cargo_env(&mut cmd);
     cmd.env("CARGO_TARGET_DIR", image_target_dir())
         .env("DEFMT_LOG", "info")
         .stdin(Stdio::null());
@@ -693,5 +675,20 @@ mod tests {
         assert_eq!(s.bss, 25000);
         assert_eq!(s.flash(), 24040);
         assert_eq!(s.ram(), 25016);
+    }
+}
+
+/// Removes the host build's target and rustflags variables from `cmd`, a cargo build of a
+/// thumbv7em image (they would redirect or break it).
+pub fn scrub_cargo_env(cmd: &mut std::process::Command) {
+    for var in [
+        "CARGO_BUILD_TARGET",
+        "CARGO_BUILD_RUSTFLAGS",
+        "RUSTFLAGS",
+        "CARGO_ENCODED_RUSTFLAGS",
+        "CARGO_TARGET_DIR",
+        "CARGO_BUILD_TARGET_DIR",
+    ] {
+        cmd.env_remove(var);
     }
 }
