@@ -13,7 +13,7 @@
 //! | `time_delay` | `seconds` | pure delay of the input |
 //! | `resonance` | `freq_hz` (Hz), `damping` (ratio) | extra mode in series with the input, ω²/(s² + 2ζωs + ω²), unit DC gain |
 //! | `quantization` | `step` (output units) | sensor rounding y = step·round(y/step) |
-//! | `slew_rate` | `rate` (input units per second) | rate limit on the command: w changes by at most `rate`·ts per sample |
+//! | `slew_rate` | `rate` (input units per second) | rate limit on the command in continuous time: the drive output ramps at most `rate`; the linear part receives its average over each sample |
 //! | `state_limit` | `limit` (input units) | a level that saturates inside the plant: the state of the linear part's slowest stable real mode (the body's velocity behind an integrator, a body's speed) is held within the level a constant input `limit` settles it at; while it is held, every mode sees the input that holds it there (see [`crate::gap::state_limit::state_clamp`]) |
 //! | `current_limit` | `limit` (input units) | the drive's current (torque) limit: the input may exceed the one that holds the slowest stable real mode's present state by at most `limit`, which bounds that mode's change per sample (an acceleration limit; for a voltage-driven motor `limit` = R·I_max, see [`crate::gap::state_limit::rate_clamp`]) |
 //!
@@ -313,6 +313,24 @@ impl RateLimiter {
         self.out += (u - self.out).clamp(-self.max_step, self.max_step);
         self.out
     }
+    /// The limit acting in continuous time on `u` held over one sample (an analog drive, or a
+    /// digital one updated much faster than the log): the output ramps toward `u` at
+    /// `max_step` per sample until it reaches it; returns the ramp's **average over the
+    /// sample**, which is what a plant sampled with a zero-order hold responds to (to first
+    /// order in ts). With d = u − out: |d| ≥ max_step gives out + max_step·sign(d)/2 (a ramp
+    /// over the whole sample: half a sample behind [`Self::apply`]); else u − d·|d|/(2·max_step).
+    #[inline]
+    pub fn apply_averaged(&mut self, u: f64) -> f64 {
+        let m = self.max_step;
+        let d = u - self.out;
+        let avg = if d.abs() >= m {
+            self.out + 0.5 * m * d.signum()
+        } else {
+            u - 0.5 * d * d.abs() / m
+        };
+        self.out += d.clamp(-m, m);
+        avg
+    }
 }
 
 /// Play (backlash) operator with total play `gap`, starting engaged at 0: the output follows
@@ -527,6 +545,29 @@ mod tests {
         assert_eq!(r.apply(2.0), 1.0);
         assert_eq!(r.apply(1.2), 1.2);
         assert_eq!(r.apply(-5.0), 0.7);
+    }
+
+    /// Against a continuous rate limiter integrated in 10,000 Euler sub-steps per sample
+    /// (independent of the closed form): averages within 1e-3 of a step, the end value exact.
+    #[test]
+    fn averaged_rate_limiter_is_the_sample_mean_of_the_continuous_ramp() {
+        let m = 0.5;
+        let (mut r, mut out) = (RateLimiter::new(m), 0.0f64);
+        let sub = 10_000;
+        for &u in &[2.0, 2.0, 1.2, 1.15, -5.0, -4.9, 0.3, 0.3] {
+            let mut acc = 0.0;
+            for _ in 0..sub {
+                out += (u - out).clamp(-m / sub as f64, m / sub as f64);
+                acc += out;
+            }
+            let avg = r.apply_averaged(u);
+            assert!(
+                (avg - acc / sub as f64).abs() < 1e-3 * m,
+                "u {u}: {avg} vs {}",
+                acc / sub as f64
+            );
+            assert!((r.out - out).abs() < 1e-9);
+        }
     }
 
     #[test]

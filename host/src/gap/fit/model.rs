@@ -73,7 +73,7 @@ pub fn input_transform(effect: &Effect, u: &[f64], ts: f64) -> Result<Option<Vec
         Effect::Resonance { freq_hz, damping } => Some(resonance_filter(u, ts, freq_hz, damping)?),
         Effect::SlewRate { rate } => {
             let mut r = RateLimiter::new(rate * ts);
-            Some(u.iter().map(|&v| r.apply(v)).collect())
+            Some(u.iter().map(|&v| r.apply_averaged(v)).collect())
         }
         _ => None,
     })
@@ -188,6 +188,21 @@ impl AugmentedModel {
             m.place = pe.place;
         } else {
             m.extra.push(pe);
+        }
+        m
+    }
+
+    /// A copy without the `i`-th effect of [`Self::effects_in_selection_order`] (the others and
+    /// the linear part unchanged).
+    pub fn without(&self, i: usize) -> Self {
+        let mut m = self.clone();
+        m.effect = None;
+        m.place = Place::Drive;
+        m.extra.clear();
+        for (j, pe) in self.effects_in_selection_order().into_iter().enumerate() {
+            if j != i {
+                m = m.with_added(pe);
+            }
         }
         m
     }

@@ -18,7 +18,11 @@
 //!    NRMSE of the single by `pair_margin` (relative) and removes `min_excess_closed` of the
 //!    single's excess over the noise floor (the verdict rule's test, step by step), a pair with Coulomb friction at the motor
 //!    weighed against its stiction variant as the singles are; no pair is sought once the
-//!    single is within [`PAIR_FLOOR_FACTOR`] of the noise floor;
+//!    single is within [`PAIR_FLOOR_FACTOR`] of the noise floor. A backward step then drops
+//!    each effect of that pair in turn: when the pair does not beat a reduced model by the
+//!    same rule, the dropped effect was a passenger (a Coulomb level of 1e-4 of its single fit
+//!    "closing" a gap that the partner's longer fit closed) and the reduced model is the
+//!    single;
 //! 4. a lattice in the measured outputs ([`lattice_evidence`]) decides quantization by itself:
 //!    a sensor whose readings sit on a lattice quantizes, whatever the margin says.
 //!
@@ -27,8 +31,8 @@
 use super::drift::validation_nrmse;
 use super::effect::{Effect, EffectKind};
 use super::fit::{
-    fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
-    JOINT_MAX_ITER,
+    eval_model, fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
+    FRICTION_SUBSTEPS, JOINT_MAX_ITER,
 };
 use super::modal::ModalModel;
 use super::place::{Candidate, Place, PlacedEffect};
@@ -354,7 +358,12 @@ pub fn select_effects(
         pairs = tried;
         selected_models.extend(chosen);
     }
-    if tentative && selected_models.len() < 2 {
+    if tentative
+        && selected_models.len() < 2
+        && selected_models
+            .first()
+            .is_some_and(|s| s.improvement < opts.margin)
+    {
         // The forward step below the margin found no pair that reaches it: nothing selected.
         selected_models.clear();
     }
@@ -613,6 +622,26 @@ impl PairContext<'_> {
             && closed >= opts.min_excess_closed
             && (!tentative || p.improvement >= opts.margin)
         {
+            if let Some(r) = self.passenger_free(&p) {
+                notes.push(format!(
+                    "pair {} ({:.4}) without its {} scores {:.4}: the pair adds no effect, \
+                     kept as the single {}",
+                    p.effects
+                        .iter()
+                        .map(|e| e.to_string())
+                        .collect::<Vec<_>>()
+                        .join(" + "),
+                    p.gap,
+                    p.effects
+                        .iter()
+                        .find(|e| !r.effects.contains(e))
+                        .map_or("?".to_string(), |e| e.effect.kind().to_string()),
+                    r.gap,
+                    r.effects.first().map_or("?".to_string(), |e| e.to_string()),
+                ));
+                let first = if r.gap < first.gap { r } else { first };
+                return (first, pairs, None);
+            }
             let p = pair_stiction_variant(
                 p,
                 self.td,
@@ -634,6 +663,27 @@ impl PairContext<'_> {
             100.0 * opts.min_excess_closed
         ));
         (first, pairs, None)
+    }
+
+    /// Backward step on a pair about to be selected: each of its effects removed (the other's
+    /// parameters and the linear part's poles as the pair fitted them, residues re-fitted) and
+    /// the reduced model scored. When the pair does not beat the best reduced model by the pair
+    /// rule (`pair_margin` and `min_excess_closed` of the reduced model's excess over the
+    /// floor), the removed effect is a passenger — the pair's gain came from its partner's
+    /// longer fit — and the reduced model is returned.
+    fn passenger_free(&self, pair: &Scored) -> Option<Scored> {
+        let n = pair.model.effects_in_selection_order().len();
+        if n < 2 {
+            return None;
+        }
+        let r = (0..n)
+            .filter_map(|i| eval_model(self.td, pair.model.without(i), FRICTION_SUBSTEPS))
+            .map(|f| score(f, self.val, self.gap_linear))
+            .min_by(|a, b| a.gap.total_cmp(&b.gap))?;
+        let floor = self.opts.noise_floor.unwrap_or(0.0).clamp(0.0, r.gap);
+        let rel = (r.gap - pair.gap) / r.gap;
+        let closed = (r.gap - pair.gap) / (r.gap - floor).max(1e-300);
+        (!(rel >= self.opts.pair_margin && closed >= self.opts.min_excess_closed)).then_some(r)
     }
 
     /// Every partner of `first` ([`Self::partners`]) fitted on top of it and scored.
