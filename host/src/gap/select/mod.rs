@@ -53,8 +53,8 @@ mod conditioning;
 
 pub use dwell::{dwell_evidence, DwellEvidence, MIN_DWELLS, MIN_DWELL_SAMPLES};
 pub use lattice::{lattice_evidence, LatticeEvidence, LATTICE_TOL_STEPS, MIN_LATTICE_SHARE};
-use nested::resolve_nested;
 pub use nested::NESTED_FLOOR_FACTOR;
+use nested::{pair_nested_variant, resolve_nested};
 
 /// Settings of [`select_effects`].
 #[derive(Debug, Clone, PartialEq)]
@@ -352,6 +352,7 @@ pub fn select_effects(
             val,
             gap_linear,
             opts,
+            velocity: vel,
         };
         let (first, tried, chosen) = ctx.select(first, tentative, dwell.as_ref(), &mut notes);
         selected_models[0] = first;
@@ -538,6 +539,8 @@ struct PairContext<'a> {
     val: Val<'a>,
     gap_linear: f64,
     opts: &'a SelectOptions,
+    /// The velocity the dwell evidence reads (output or its derivative).
+    velocity: VelocitySource,
 }
 
 impl PairContext<'_> {
@@ -642,17 +645,7 @@ impl PairContext<'_> {
                 let first = if r.gap < first.gap { r } else { first };
                 return (first, pairs, None);
             }
-            let p = pair_stiction_variant(
-                p,
-                self.td,
-                &first.model,
-                self.sim_poles,
-                self.hints,
-                (self.val, self.gap_linear),
-                dwell,
-                opts,
-                notes,
-            );
+            let p = pair_nested_variant(p, self, &first.model, dwell, notes);
             return (first, pairs, Some(p));
         }
         notes.push(format!(
@@ -717,64 +710,6 @@ impl PairContext<'_> {
     }
 }
 
-/// A selected pair with Coulomb friction at the motor against its stiction variant (started
-/// from it, the other effect kept; see [`resolve_nested`] for the decision): the better-ranked
-/// of the two.
-#[allow(clippy::too_many_arguments)]
-fn pair_stiction_variant(
-    pair: Scored,
-    td: &TrainData,
-    base: &AugmentedModel,
-    sim_poles: &[Complex64],
-    hints: &FitHints,
-    (val, gap_linear): (Val, f64),
-    dwell: Option<&DwellEvidence>,
-    opts: &SelectOptions,
-    notes: &mut Vec<String>,
-) -> Scored {
-    let has_coulomb = pair
-        .effects
-        .iter()
-        .any(|p| p.effect.kind() == EffectKind::CoulombFriction && p.place == Place::Motor);
-    if !has_coulomb {
-        return pair;
-    }
-    let c = Fitted {
-        model: pair.model.clone(),
-        train_cost: pair.train_cost,
-    };
-    let cand = Candidate::new(EffectKind::Stiction, Place::Motor);
-    let Some(f) = fit_placed(
-        cand,
-        td,
-        std::slice::from_ref(base),
-        Some(&c),
-        sim_poles,
-        hints,
-    ) else {
-        return pair;
-    };
-    let s = score(f, val, gap_linear);
-    if !s
-        .effects
-        .iter()
-        .any(|p| p.effect.kind() == EffectKind::Stiction)
-    {
-        return pair;
-    }
-    let mut two = vec![pair, s];
-    two.sort_by(|a, b| a.gap.total_cmp(&b.gap));
-    resolve_nested(
-        &mut two,
-        td,
-        dwell,
-        opts.nested_margin,
-        opts.noise_floor,
-        notes,
-    );
-    two.swap_remove(0)
-}
-
 /// The selected effects with their forward-selection shares: each step's model adds one effect
 /// to the previous one; its share is its drop of the validation NRMSE, clipped at zero,
 /// normalised to sum to 1 (equal shares when nothing dropped).
@@ -794,14 +729,15 @@ fn shares(steps: &[Scored], gap_linear: f64) -> Vec<SelectedEffect> {
             gap_after: s.gap,
         });
     }
-    // Effects of the final model carry the refined parameters.
+    // Effects of the final model carry the refined parameters, and the kind the pair stage's
+    // nested decision gave the friction at a place (stiction or Coulomb friction).
     if let Some(last) = steps.last() {
         for o in out.iter_mut() {
-            if let Some(p) = last
-                .effects
-                .iter()
-                .find(|p| p.effect.kind() == o.effect.kind() && p.place == o.place)
-            {
+            let (k, place) = (o.effect.kind(), o.place);
+            if let Some(p) = last.effects.iter().find(|p| {
+                p.place == place
+                    && (p.effect.kind() == k || (p.effect.kind().is_friction() && k.is_friction()))
+            }) {
                 o.effect = p.effect;
             }
         }

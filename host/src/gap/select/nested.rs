@@ -1,10 +1,14 @@
 //! Stiction against Coulomb friction at one place (nested models: stiction with breakaway =
 //! level is Coulomb friction), decided on the dwell evidence, the training likelihood ratio
 //! and the validation NRMSE.
-use super::{DwellEvidence, Scored};
+use super::{dwell_evidence, score, DwellEvidence, PairContext, Scored};
 use crate::gap::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD};
 use crate::gap::effect::{Effect, EffectKind};
-use crate::gap::fit::TrainData;
+use crate::gap::fit::{
+    eval_model, fit_placed, joint_fit, AugmentedModel, Fitted, TrainData, FRICTION_SUBSTEPS,
+    JOINT_MAX_ITER,
+};
+use crate::gap::place::{Candidate, Place, PlacedEffect};
 
 /// Smallest fitted breakaway/level ratio that counts as a stick band: below it stiction is
 /// Coulomb friction with a breakaway the data barely move (a fit's wobble around the nested
@@ -36,7 +40,9 @@ pub const NESTED_FLOOR_FACTOR: f64 = 2.0;
 /// fitted breakaway at least [`MIN_STICK_BAND`] times the level. With that evidence, a stiction model whose
 /// validation NRMSE is within [`NESTED_FLOOR_FACTOR`] of the noise floor (`noise_floor`, when
 /// known) also ranks first: there the validation log cannot separate the two (what is left is
-/// noise), and the training evidence decides.
+/// noise), and the training evidence decides — provided the training likelihood ratio is
+/// positive (a stiction fit that ends no better than Coulomb friction on the training logs is
+/// evidence against its stick band).
 pub(super) fn resolve_nested(
     singles: &mut [Scored],
     td: &TrainData,
@@ -91,7 +97,11 @@ pub(super) fn resolve_nested(
     }) && band;
     let decisive = lr > NESTED_LR_THRESHOLD && band;
     let evidence = dwell_says || decisive;
-    let at_floor = noise_floor.is_some_and(|fl| fl > 0.0 && gs <= NESTED_FLOOR_FACTOR * fl);
+    // At the floor the training evidence decides, so it must not speak against stiction: a
+    // stiction fit no better on the training logs than Coulomb friction (ratio clamped at 0)
+    // does not take the floor's tie.
+    let at_floor =
+        lr > 0.0 && noise_floor.is_some_and(|fl| fl > 0.0 && gs <= NESTED_FLOOR_FACTOR * fl);
     let tolerance = if decisive {
         EVIDENCE_TOLERANCE
     } else {
@@ -116,6 +126,106 @@ pub(super) fn resolve_nested(
     ));
     if stiction_wins != (is < ic) {
         singles.swap(is, ic);
+    }
+}
+
+/// A selected pair with friction at the motor against its nested variant, the other effect
+/// kept: Coulomb friction against its stiction variant (fitted from it, the breakaway scanned),
+/// stiction against its Coulomb variant (the stiction replaced by Coulomb friction at its level,
+/// refined jointly). Decided by [`resolve_nested`], with the dwell evidence read on the pair's
+/// drive output when it has a drive-side effect (what the friction feels: a play in front of
+/// it holds the input a half gap away from the force that breaks the body loose). Returns the
+/// better-ranked of the two.
+pub(super) fn pair_nested_variant(
+    pair: Scored,
+    ctx: &PairContext,
+    base: &AugmentedModel,
+    dwell: Option<&DwellEvidence>,
+    notes: &mut Vec<String>,
+) -> Scored {
+    let td = ctx.td;
+    let Some(fp) = pair
+        .effects
+        .iter()
+        .find(|p| p.place == Place::Motor && p.effect.kind().is_friction())
+        .copied()
+    else {
+        return pair;
+    };
+    let variant = match fp.effect {
+        Effect::CoulombFriction { .. } => {
+            let c = Fitted {
+                model: pair.model.clone(),
+                train_cost: pair.train_cost,
+            };
+            fit_placed(
+                Candidate::new(EffectKind::Stiction, Place::Motor),
+                td,
+                std::slice::from_ref(base),
+                Some(&c),
+                ctx.sim_poles,
+                ctx.hints,
+            )
+        }
+        Effect::Stiction { level, .. } => coulomb_variant(td, &pair, fp, level),
+        _ => None,
+    };
+    let Some(v) = variant.map(|f| score(f, ctx.val, ctx.gap_linear)) else {
+        return pair;
+    };
+    let other = match fp.effect.kind() {
+        EffectKind::Stiction => EffectKind::CoulombFriction,
+        _ => EffectKind::Stiction,
+    };
+    if !v.effects.iter().any(|p| p.effect.kind() == other) {
+        return pair;
+    }
+    let drive_dwell = if pair.effects.iter().any(|p| p.place == Place::Drive) {
+        let w: Option<Vec<Vec<f64>>> =
+            td.u.iter()
+                .map(|u| pair.model.drive_input(u).ok())
+                .collect();
+        w.and_then(|w| dwell_evidence(&w, &td.base.y, td.ts, ctx.velocity, td.base.warmup))
+    } else {
+        dwell.cloned()
+    };
+    let mut two = vec![pair, v];
+    two.sort_by(|a, b| a.gap.total_cmp(&b.gap));
+    resolve_nested(
+        &mut two,
+        td,
+        drive_dwell.as_ref(),
+        ctx.opts.nested_margin,
+        ctx.opts.noise_floor,
+        notes,
+    );
+    two.swap_remove(0)
+}
+
+/// `pair` with its stiction `fp` replaced by Coulomb friction at `level`, residues re-fitted,
+/// then refined jointly (kept when that lowers the training cost).
+fn coulomb_variant(td: &TrainData, pair: &Scored, fp: PlacedEffect, level: f64) -> Option<Fitted> {
+    let list: Vec<PlacedEffect> = pair
+        .model
+        .effects_in_selection_order()
+        .into_iter()
+        .map(|p| {
+            if p == fp {
+                PlacedEffect {
+                    effect: Effect::CoulombFriction { level },
+                    place: p.place,
+                }
+            } else {
+                p
+            }
+        })
+        .collect();
+    let mut m = pair.model.clone();
+    m.set_effects_in_selection_order(&list);
+    let f = eval_model(td, m, FRICTION_SUBSTEPS)?;
+    match joint_fit(td, &f, JOINT_MAX_ITER) {
+        Some(j) if j.train_cost < f.train_cost => Some(j),
+        _ => Some(f),
     }
 }
 
@@ -205,6 +315,41 @@ mod tests {
         let mut s = behind;
         resolve_nested(&mut s, &td, None, 0.03, Some(0.001), &mut notes);
         assert!(!first_is_stiction(&s), "{notes:?}");
+    }
+
+    /// Dwell evidence at the noise floor does not hand the tie to stiction when the training
+    /// logs speak against it: on data made by Coulomb friction the stiction model (breakaway
+    /// 2× level) fits the training logs worse (likelihood ratio clamped at 0) and stays behind,
+    /// while the same dwell evidence with decisive training evidence (the logs made by
+    /// stiction) puts it first.
+    #[test]
+    fn floor_tie_needs_training_evidence_for_stiction() {
+        let (singles, td) = nested_pair();
+        let coulomb_y: Vec<Vec<f64>> =
+            td.u.iter()
+                .map(|u| singles[0].model.simulate(u).unwrap())
+                .collect();
+        let td_c = TrainData::new(1e-3, td.u.clone(), coulomb_y, 100).unwrap();
+        let dwell = DwellEvidence {
+            dwells: 20,
+            dwell_share: 0.1,
+            breakaway: 0.4,
+            exit_median: 0.45,
+            hold_max: 0.35,
+            band: 1e-3,
+            velocity: crate::gap::fit::VelocitySource::Output,
+        };
+        // Stiction 25 % behind on validation, both within twice the floor.
+        let mut behind = singles;
+        behind[1].gap = 0.0074;
+        let mut notes = Vec::new();
+        let mut s = behind.clone();
+        resolve_nested(&mut s, &td_c, Some(&dwell), 0.03, Some(0.0043), &mut notes);
+        assert!(!first_is_stiction(&s), "{notes:?}");
+        assert!(notes[0].contains("likelihood ratio 0.0"), "{notes:?}");
+        let mut s = behind;
+        resolve_nested(&mut s, &td, Some(&dwell), 0.03, Some(0.0043), &mut notes);
+        assert!(first_is_stiction(&s), "{notes:?}");
     }
 
     /// A fitted breakaway below [`MIN_STICK_BAND`] times the level is Coulomb friction, even 5 %
