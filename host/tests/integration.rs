@@ -7,6 +7,8 @@
 //! binary also links once instead of 65 times. The support modules (`cli_support`, …) are
 //! declared inside the files that use them, as before: a file loaded with `#[path]` resolves its
 //! own `mod x;` next to itself, so each file still reads as it did when it was its own crate.
+#[path = "bundled_example.rs"]
+mod bundled_example;
 #[path = "cli_codegen.rs"]
 mod cli_codegen;
 #[path = "cli_errors.rs"]

@@ -148,33 +148,9 @@ fn firmware_terms_reproduce_the_linear_term() {
 // ---- The pipeline's `[control] method = "mpc"` on the bundled example ---------------------
 
 mod pipeline {
-    use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun, ReceiptsDocument};
+    use crate::bundled_example::{assert_bad_control_keys, run};
+    use ferrosid::pipeline::ReceiptsDocument;
     use ferrosid::synth::mpc::{MpcDesign, MpcSpec};
-    use std::path::{Path, PathBuf};
-
-    fn example_path() -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/pipeline.toml")
-    }
-
-    /// The example without the gap, compensation and physical stages, with `extra` lines
-    /// appended to `[control]`.
-    fn example_text(extra: &str) -> String {
-        let t = std::fs::read_to_string(example_path()).unwrap();
-        let t = t.replace("[gap]\nrun = \"always\"", "[gap]\nrun = \"never\"");
-        let t = match t.find("[physical]") {
-            Some(i) => t[..i].to_string(),
-            None => t,
-        };
-        t.replace(
-            "reference_amplitude = 5.0   # rad/s speed step\n",
-            &format!("reference_amplitude = 5.0   # rad/s speed step\n{extra}"),
-        )
-    }
-
-    fn run(extra: &str) -> PipelineRun {
-        let cfg = LoadedConfig::from_text(&example_path(), &example_text(extra)).unwrap();
-        run_pipeline(&cfg, &|_| {}).unwrap()
-    }
 
     #[test]
     fn mpc_designs_with_its_receipts_report_and_codegen() {
@@ -295,13 +271,7 @@ mod pipeline {
 
     #[test]
     fn bad_mpc_keys_name_file_line_and_key() {
-        let text = example_text("");
-        let line = text
-            .lines()
-            .position(|l| l.starts_with("reference_amplitude"))
-            .unwrap()
-            + 2;
-        for (extra, key, what) in [
+        assert_bad_control_keys(&[
             (
                 "mpc_horizon = 10",
                 "control.mpc_horizon",
@@ -367,14 +337,6 @@ mod pipeline {
                 "control.mpc_horizn",
                 "unknown field",
             ),
-        ] {
-            let t = example_text(&format!("{extra}\n"));
-            let e = LoadedConfig::from_text(&example_path(), &t)
-                .unwrap_err()
-                .to_string();
-            let at = line + extra.matches('\n').count();
-            assert!(e.contains(&format!("pipeline.toml:{at}")), "{extra}: {e}");
-            assert!(e.contains(key) && e.contains(what), "{extra}: {e}");
-        }
+        ]);
     }
 }
