@@ -141,6 +141,8 @@ mod synth_riccati;
 mod synth_sim;
 #[path = "target_frame.rs"]
 mod target_frame;
+#[path = "test_models.rs"]
+mod test_models;
 #[path = "validate_model.rs"]
 mod validate_model;
 

@@ -1,15 +1,11 @@
 //! Condensed MPC: the ADMM solution against the closed-form unconstrained optimum and a KKT
 //! certificate, and a constrained step on the two-mass model that respects the rails.
 use faer::Mat;
-use ferrosid::lti::{StateSpace, StateSpaceData};
+use ferrosid::lti::StateSpace;
 use ferrosid::synth::mpc::{MpcDesign, MpcSpec};
 
 fn two_mass_1khz() -> StateSpace {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/two_mass_sim.json");
-    let data: StateSpaceData =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    StateSpace::try_from(&data).unwrap().c2d_zoh(1e-3).unwrap()
+    crate::test_models::two_mass().c2d_zoh(1e-3).unwrap()
 }
 
 fn spec(horizon: usize) -> MpcSpec {
