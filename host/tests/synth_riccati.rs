@@ -1,11 +1,32 @@
 //! CARE/DARE against closed forms and published benchmark cases, and refusal of equations
 //! without a stabilising solution.
-use faer::Mat;
-use ferrosid::synth::riccati::{care, care_g, care_residual, dare, RICCATI_RESIDUAL_TOL};
+use faer::{Mat, MatRef};
+use ferrosid::synth::riccati::{
+    care, care_g, care_residual, dare, RiccatiSolution, RICCATI_RESIDUAL_TOL,
+};
 
 fn m(rows: &[&[f64]]) -> Mat<f64> {
     Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
 }
+
+/// The solution of a scalar (1×1) equation by `solve` ([`care`] or [`dare`]).
+fn scalar(solve: Solver, a: f64, b: f64, q: f64, r: f64) -> RiccatiSolution {
+    solve(
+        m(&[&[a]]).as_ref(),
+        m(&[&[b]]).as_ref(),
+        m(&[&[q]]).as_ref(),
+        m(&[&[r]]).as_ref(),
+    )
+    .unwrap()
+}
+
+/// The signature of [`care`] and [`dare`].
+type Solver = fn(
+    MatRef<'_, f64>,
+    MatRef<'_, f64>,
+    MatRef<'_, f64>,
+    MatRef<'_, f64>,
+) -> ferrosid::error::Result<RiccatiSolution>;
 
 fn max_abs_diff(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
     let mut d = 0.0f64;
@@ -25,13 +46,7 @@ fn scalar_care_matches_closed_form() {
         (-3.0, 0.5, 2.0, 0.1),
         (10.0, 2.0, 1e-3, 5.0),
     ] {
-        let s = care(
-            m(&[&[a]]).as_ref(),
-            m(&[&[b]]).as_ref(),
-            m(&[&[q]]).as_ref(),
-            m(&[&[r]]).as_ref(),
-        )
-        .unwrap();
+        let s = scalar(care, a, b, q, r);
         let x = r * (a + (a * a + b * b * q / r).sqrt()) / (b * b);
         let rel = (s.x[(0, 0)] - x).abs() / x;
         assert!(
@@ -51,13 +66,7 @@ fn scalar_dare_matches_closed_form() {
         (0.5, 0.3, 2.0, 0.1),
         (-2.0, 1.5, 0.01, 3.0),
     ] {
-        let s = dare(
-            m(&[&[a]]).as_ref(),
-            m(&[&[b]]).as_ref(),
-            m(&[&[q]]).as_ref(),
-            m(&[&[r]]).as_ref(),
-        )
-        .unwrap();
+        let s = scalar(dare, a, b, q, r);
         let p = (1.0 - a * a) * r - q * b * b;
         let x = (-p + (p * p + 4.0 * b * b * q * r).sqrt()) / (2.0 * b * b);
         let rel = (s.x[(0, 0)] - x).abs() / x;
