@@ -121,6 +121,8 @@ mod robust_step;
 mod robust_uncertainty;
 #[path = "robust_wm_fit.rs"]
 mod robust_wm_fit;
+#[path = "splitmix.rs"]
+mod splitmix;
 #[path = "spectral_periodic.rs"]
 mod spectral_periodic;
 #[path = "spectral_plants.rs"]
