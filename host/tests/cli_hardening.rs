@@ -64,6 +64,13 @@ fn write_pipeline(dir: &Path, extra: &str) -> PathBuf {
     p
 }
 
+/// `ferrosid run` of [`write_pipeline`] with `extra` in a fresh scratch directory `name`.
+fn run_with(name: &str, extra: &str) -> Run {
+    let d = scratch(name);
+    let p = write_pipeline(&d, extra);
+    ferrosid(&["run", s(&p), "--out", s(&d.join("out"))])
+}
+
 // ---- 1. Panics: every numeric parameter is range-checked before any work -------------------
 
 #[test]
@@ -98,9 +105,10 @@ fn huge_numeric_parameters_are_usage_errors_with_the_bound() {
 
 #[test]
 fn pipeline_block_rows_huge_is_a_key_error() {
-    let d = scratch("pipe_block_rows");
-    let p = write_pipeline(&d, "[identification]\nblock_rows = 3074457345618258600\n");
-    let r = ferrosid(&["run", s(&p), "--out", s(&d.join("out"))]);
+    let r = run_with(
+        "pipe_block_rows",
+        "[identification]\nblock_rows = 3074457345618258600\n",
+    );
     expect(
         &r,
         3,
@@ -162,9 +170,7 @@ fn reidentify_orders_and_delays_are_bounded() {
 
 #[test]
 fn audit_band_factor_is_bounded() {
-    let d = scratch("band_factor");
-    let p = write_pipeline(&d, "[audit]\nband_factor = 1e300\n");
-    let r = ferrosid(&["run", s(&p), "--out", s(&d.join("out"))]);
+    let r = run_with("band_factor", "[audit]\nband_factor = 1e300\n");
     expect(
         &r,
         3,
