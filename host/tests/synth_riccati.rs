@@ -20,6 +20,16 @@ fn scalar(solve: Solver, a: f64, b: f64, q: f64, r: f64) -> RiccatiSolution {
     .unwrap()
 }
 
+/// The scalar solution `s` equals the closed form `x` within relative `tol` (case `a`).
+fn assert_scalar(s: &RiccatiSolution, x: f64, tol: f64, a: f64) {
+    let rel = (s.x[(0, 0)] - x).abs() / x;
+    assert!(
+        rel < tol,
+        "a={a}: X = {} vs {x} (rel {rel:.2e})",
+        s.x[(0, 0)]
+    );
+}
+
 /// The signature of [`care`] and [`dare`].
 type Solver = fn(
     MatRef<'_, f64>,
@@ -48,12 +58,7 @@ fn scalar_care_matches_closed_form() {
     ] {
         let s = scalar(care, a, b, q, r);
         let x = r * (a + (a * a + b * b * q / r).sqrt()) / (b * b);
-        let rel = (s.x[(0, 0)] - x).abs() / x;
-        assert!(
-            rel < 1e-13,
-            "a={a}: X = {} vs {x} (rel {rel:.2e})",
-            s.x[(0, 0)]
-        );
+        assert_scalar(&s, x, 1e-13, a);
         assert!(s.closed_loop_abscissa < 0.0);
     }
 }
@@ -69,12 +74,7 @@ fn scalar_dare_matches_closed_form() {
         let s = scalar(dare, a, b, q, r);
         let p = (1.0 - a * a) * r - q * b * b;
         let x = (-p + (p * p + 4.0 * b * b * q * r).sqrt()) / (2.0 * b * b);
-        let rel = (s.x[(0, 0)] - x).abs() / x;
-        assert!(
-            rel < 1e-12,
-            "a={a}: X = {} vs {x} (rel {rel:.2e})",
-            s.x[(0, 0)]
-        );
+        assert_scalar(&s, x, 1e-12, a);
         assert!(s.closed_loop_abscissa < 1.0);
     }
 }
