@@ -14,6 +14,17 @@ fn ferrosid() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ferrosid"))
 }
 
+/// `ferrosid run TOML --out OUT`, waited for.
+fn run_to(toml: &Path, out: impl AsRef<std::ffi::OsStr>) -> std::process::Output {
+    ferrosid()
+        .arg("run")
+        .arg(toml)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .expect("run ferrosid")
+}
+
 fn read_json(p: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(p).expect("read json")).expect("parse json")
 }
@@ -115,13 +126,7 @@ fn known_plant_end_to_end_receipts_cross_checked() {
     let toml = sup::setup("pipeline-known", "", "");
     let dir = toml.parent().expect("dir").to_path_buf();
     let out = dir.join("out");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&toml)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("run ferrosid");
+    let st = run_to(&toml, &out);
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(
         st.status.code(),
@@ -309,13 +314,7 @@ fn failing_receipts_exit_one() {
         "[receipts]\ncross_validation_fit_min = 99.99\n",
     );
     let out = toml.parent().expect("dir").join("out");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&toml)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("run");
+    let st = run_to(&toml, &out);
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(st.status.code(), Some(1), "{stdout}");
     assert!(
@@ -330,13 +329,7 @@ fn failing_receipts_exit_one() {
     // An impossible M_s limit: no controller can be tuned; controller_design fails and says why.
     let toml = sup::setup("pipeline-fail-ms", "ms_max = 1.01", "");
     let out = toml.parent().expect("dir").join("out");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&toml)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("run");
+    let st = run_to(&toml, &out);
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(st.status.code(), Some(1), "{stdout}");
     let doc = read_json(&out.join("receipts.json"));
@@ -386,13 +379,7 @@ fn run_err(name: &str, toml_text: &str) -> (Option<i32>, String) {
     sup::write_dataset(&d);
     let p = d.join("pipeline.toml");
     std::fs::write(&p, toml_text).expect("write");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&p)
-        .arg("--out")
-        .arg(d.join("out"))
-        .output()
-        .expect("run");
+    let st = run_to(&p, d.join("out"));
     (
         st.status.code(),
         String::from_utf8_lossy(&st.stderr).into_owned(),
