@@ -331,6 +331,17 @@ fn hand_simulation_lag_aware(seconds: f64, coulomb: f64, lag_s: f64, stick_band:
 /// observable and do not count.
 const FLOOR: f64 = 1e-3;
 
+/// The analysis of the lag-aware tests: 6 s with a kick of 0.5, cycles below [`FLOOR`] do not
+/// count.
+fn floor_options() -> AnalysisOptions {
+    AnalysisOptions {
+        duration_s: Some(6.0),
+        kick: Some(0.5),
+        amplitude_tol: FLOOR,
+        ..AnalysisOptions::default()
+    }
+}
+
 /// The lag-aware feedforward at the true level and lag removes the cycle: the `limit_cycle`
 /// receipt (describing function on the residual + nonlinear simulation, tolerance the 1 mrad
 /// floor) passes where the plain feedforward's fails; the host simulation's output settles
@@ -338,12 +349,7 @@ const FLOOR: f64 = 1e-3;
 #[test]
 fn lag_aware_feedforward_removes_the_cycle() {
     let lp = lure();
-    let opts = AnalysisOptions {
-        duration_s: Some(6.0),
-        kick: Some(0.5),
-        amplitude_tol: FLOOR,
-        ..AnalysisOptions::default()
-    };
+    let opts = floor_options();
     let off = analyse(&lp, &relay(), None, &opts).unwrap();
     let comp = lag_aware(M, TAU, 1e-4);
     let on = analyse(&lp, &relay(), Some(&comp), &opts).unwrap();
@@ -388,12 +394,7 @@ fn lag_aware_feedforward_removes_the_cycle() {
 #[test]
 fn lag_aware_feedforward_needs_each_part_and_the_model() {
     let lp = lure();
-    let opts = AnalysisOptions {
-        duration_s: Some(6.0),
-        kick: Some(0.5),
-        amplitude_tol: FLOOR,
-        ..AnalysisOptions::default()
-    };
+    let opts = floor_options();
     for (what, comp, df_sees_it) in [
         ("no lag inverse", lag_aware(M, 1e-4, 1e-4), false),
         ("no stuck branch", lag_aware(M, TAU, 1e3), false),
