@@ -45,6 +45,24 @@ pub fn run(extra: &str) -> PipelineRun {
     run_pipeline(&load(extra).unwrap(), &|_| {}).unwrap()
 }
 
+/// The run's HTML report.
+pub fn report_html(run: &PipelineRun) -> String {
+    let figs = ferrosid::report::figures(run).unwrap();
+    ferrosid::report::render_html(run, &figs).unwrap()
+}
+
+/// The run's code-generation input with the prefix `axis1`.
+pub fn codegen_axis1(run: &PipelineRun) -> ferrosid_codegen::CodegenInput {
+    ferrosid::ops::codegen::codegen_input(
+        run.codegen_parts().unwrap(),
+        &ferrosid::ops::codegen::CodegenOptions {
+            prefix: "axis1".into(),
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 /// Each `(extra, key, what)`: [`example_text`] with the lines `extra` (one or more) fails to
 /// load with an error naming `pipeline.toml`, the line of the last extra line, `key` and
 /// `what`.

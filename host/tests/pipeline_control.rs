@@ -2,7 +2,8 @@
 //! `pid` stays what it was, `loopshape` and `hinf` replace the loop receipts with their own,
 //! computed on their sampled loop, and every new key refuses bad input with file, line and key.
 use crate::bundled_example::{
-    assert_bad_control_keys, example_path, run, with_control, without_physical,
+    assert_bad_control_keys, codegen_axis1, example_path, report_html, run, with_control,
+    without_physical,
 };
 use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun, ReceiptsDocument};
 use ferrosid::robust::loops::FeedbackLoop;
@@ -82,8 +83,7 @@ fn check_chosen(run: &PipelineRun, method: &str) -> (f64, f64) {
     let rec = run.receipts.get("sensitivity_peak").unwrap().value;
     assert!((ms - rec).abs() <= 1e-6 * ms, "M_s {ms} vs receipt {rec}");
     // The report: the section with its three figures and the comparison against the PID.
-    let figs = ferrosid::report::figures(run).unwrap();
-    let html = ferrosid::report::render_html(run, &figs).unwrap();
+    let html = report_html(run);
     assert!(html.contains("<section id=\"chosen-controller\">"));
     assert!(html.contains(&format!("Chosen controller: {method}")));
     for f in ["control_loop", "control_sensitivity", "control_step"] {
@@ -92,14 +92,7 @@ fn check_chosen(run: &PipelineRun, method: &str) -> (f64, f64) {
     assert!(html.contains("PID baseline"));
     // Codegen: the chosen controller is in the header and the module; the header compiles
     // with the strict flags and its matrices are the written controller's.
-    let input = ferrosid::ops::codegen::codegen_input(
-        run.codegen_parts().unwrap(),
-        &ferrosid::ops::codegen::CodegenOptions {
-            prefix: "axis1".into(),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let input = codegen_axis1(run);
     let sk = input
         .state_controller
         .as_ref()

@@ -144,7 +144,7 @@ fn firmware_terms_reproduce_the_linear_term() {
 // ---- The pipeline's `[control] method = "mpc"` on the bundled example ---------------------
 
 mod pipeline {
-    use crate::bundled_example::{assert_bad_control_keys, run};
+    use crate::bundled_example::{assert_bad_control_keys, codegen_axis1, report_html, run};
     use ferrosid::pipeline::ReceiptsDocument;
     use ferrosid::synth::mpc::{MpcDesign, MpcSpec};
 
@@ -242,19 +242,11 @@ mod pipeline {
         assert_eq!(doc["control"]["method"], "mpc");
         assert_eq!(doc["control"]["design"]["kind"], "mpc");
         assert!(doc["control"]["not_applicable"].as_array().unwrap().len() >= 6);
-        let figs = ferrosid::report::figures(&run).unwrap();
-        let html = ferrosid::report::render_html(&run, &figs).unwrap();
+        let html = report_html(&run);
         assert!(html.contains("Chosen controller: mpc"));
         assert!(html.contains("id=\"fig-control_step\""));
         assert!(html.contains("do not apply"));
-        let input = ferrosid::ops::codegen::codegen_input(
-            run.codegen_parts().unwrap(),
-            &ferrosid::ops::codegen::CodegenOptions {
-                prefix: "axis1".into(),
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let input = codegen_axis1(&run);
         let sk = input.state_controller.as_ref().expect("mpc block");
         let m = sk.mpc.as_ref().expect("mpc data");
         assert_eq!(m.horizon, 10);
