@@ -121,8 +121,8 @@ mod robust_step;
 mod robust_uncertainty;
 #[path = "robust_wm_fit.rs"]
 mod robust_wm_fit;
-#[path = "splitmix.rs"]
-mod splitmix;
+#[path = "scipy_spectra.rs"]
+mod scipy_spectra;
 #[path = "spectral_periodic.rs"]
 mod spectral_periodic;
 #[path = "spectral_plants.rs"]
@@ -131,6 +131,8 @@ mod spectral_plants;
 mod spectral_real_data;
 #[path = "spectral_scipy.rs"]
 mod spectral_scipy;
+#[path = "splitmix.rs"]
+mod splitmix;
 #[path = "synth_hinf.rs"]
 mod synth_hinf;
 #[path = "synth_loopshape.rs"]
