@@ -20,29 +20,12 @@
 //! The data are read in place; when ../shared/data is absent the test prints a notice and
 //! returns.
 mod cli_support;
+use crate::shared_data::shared_data;
 use cli_support::{ferrosid, s, scratch};
 use serde_json::Value;
-use std::path::PathBuf;
-
-/// `shared/data/<rel>` in the nearest ancestor of the crate directory that has it (the project
-/// checkout's `../shared/data`, also from a git worktree elsewhere).
-fn shared_data(rel: &str) -> Option<PathBuf> {
-    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    for dir in here.ancestors() {
-        let p = dir.join("shared/data").join(rel);
-        if p.exists() {
-            return Some(p);
-        }
-    }
-    println!(
-        "notice: shared/data/{rel} not found above {}; skipping the F-16 gap test",
-        here.display()
-    );
-    None
-}
 
 fn diagnose_output(output: &str) -> Option<Value> {
-    let dir = shared_data("f16-gvt")?;
+    let dir = shared_data("f16-gvt", "the F-16 gap test")?;
     let f = |name: &str| dir.join(name).to_str().unwrap().to_string();
     let (l1, l7, l4) = (
         f("F16Data_FullMSine_Level1.csv"),

@@ -123,6 +123,8 @@ mod robust_uncertainty;
 mod robust_wm_fit;
 #[path = "scipy_spectra.rs"]
 mod scipy_spectra;
+#[path = "shared_data.rs"]
+mod shared_data;
 #[path = "spectral_periodic.rs"]
 mod spectral_periodic;
 #[path = "spectral_plants.rs"]

@@ -2,7 +2,7 @@
 //! motor bench (.mat, periodic multisine: period-synchronous FRF must show the two-mass
 //! anti-resonance / resonance pair) and DaISy (.dat: Welch spectra equal scipy's on the same
 //! file, reference tests/fixtures/spectral_daisy_scipy.json from tests/ref/scipy_daisy.py).
-use std::path::{Path, PathBuf};
+use crate::shared_data::shared_data;
 
 use ferrosid::io::{read_columns, read_log, LogSpec, TextOptions};
 use ferrosid::spectral::{Detrend, PeriodicAveraging, Welch, Window, DEFAULT_COHERENCE_THRESHOLD};
@@ -10,18 +10,6 @@ use num_complex::Complex64;
 use serde::Deserialize;
 
 use crate::scipy_spectra::ScipySpectra;
-
-fn data_dir(sub: &str) -> Option<PathBuf> {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(sub);
-    if d.exists() {
-        Some(d)
-    } else {
-        eprintln!("skipping: {} not present", d.display());
-        None
-    }
-}
 
 /// (frequency, magnitude) of the largest |H| and of the smallest |H| below it, in a band.
 fn pair_in(freq: &[f64], h: &[Complex64], lo: f64, hi: f64) -> ((f64, f64), (f64, f64)) {
@@ -42,7 +30,7 @@ fn pair_in(freq: &[f64], h: &[Complex64], lo: f64, hi: f64) -> ((f64, f64), (f64
 
 #[test]
 fn motor_bench_resonance_and_antiresonance() {
-    let Some(dir) = data_dir("motor-bench") else {
+    let Some(dir) = shared_data("motor-bench", "the real-data spectral test") else {
         return;
     };
     for f in ["MultisineTypeA.mat", "MultisineTypeB.mat"] {
@@ -155,7 +143,7 @@ struct DaisyRef {
 
 #[test]
 fn daisy_welch_matches_scipy_on_the_real_files() {
-    let Some(dir) = data_dir("daisy") else {
+    let Some(dir) = shared_data("daisy", "the real-data spectral test") else {
         return;
     };
     let fx: DaisyRef = serde_json::from_str(
