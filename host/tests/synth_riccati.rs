@@ -30,6 +30,21 @@ fn assert_scalar(s: &RiccatiSolution, x: f64, tol: f64, a: f64) {
     );
 }
 
+/// `solve`(A, B, Q = I, R = 1) for a single-input pair (A, B).
+fn unit_weights(
+    solve: Solver,
+    a: &Mat<f64>,
+    b: &Mat<f64>,
+) -> ferrosid::error::Result<RiccatiSolution> {
+    let n = a.nrows();
+    solve(
+        a.as_ref(),
+        b.as_ref(),
+        Mat::<f64>::identity(n, n).as_ref(),
+        m(&[&[1.0]]).as_ref(),
+    )
+}
+
 /// The signature of [`care`] and [`dare`].
 type Solver = fn(
     MatRef<'_, f64>,
@@ -84,13 +99,7 @@ fn double_integrator_lqr_has_the_known_solution() {
     // A = [0 1; 0 0], B = [0; 1], Q = I, R = 1: X = [√3 1; 1 √3].
     let a = m(&[&[0.0, 1.0], &[0.0, 0.0]]);
     let b = m(&[&[0.0], &[1.0]]);
-    let s = care(
-        a.as_ref(),
-        b.as_ref(),
-        Mat::<f64>::identity(2, 2).as_ref(),
-        m(&[&[1.0]]).as_ref(),
-    )
-    .unwrap();
+    let s = unit_weights(care, &a, &b).unwrap();
     let r3 = 3f64.sqrt();
     let x = m(&[&[r3, 1.0], &[1.0, r3]]);
     eprintln!(
@@ -176,26 +185,14 @@ fn unstabilisable_pair_is_refused() {
     // An unstable mode that B cannot reach: no stabilising solution.
     let a = m(&[&[1.0, 0.0], &[0.0, -1.0]]);
     let b = m(&[&[0.0], &[1.0]]);
-    let e = care(
-        a.as_ref(),
-        b.as_ref(),
-        Mat::<f64>::identity(2, 2).as_ref(),
-        m(&[&[1.0]]).as_ref(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = unit_weights(care, &a, &b).unwrap_err().to_string();
     assert!(
         e.contains("stabilising") || e.contains("imaginary axis"),
         "{e}"
     );
-    let e = dare(
-        m(&[&[1.5, 0.0], &[0.0, 0.5]]).as_ref(),
-        b.as_ref(),
-        Mat::<f64>::identity(2, 2).as_ref(),
-        m(&[&[1.0]]).as_ref(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = unit_weights(dare, &m(&[&[1.5, 0.0], &[0.0, 0.5]]), &b)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("stabilising") || e.contains("imaginary axis") || e.contains("graph"),
         "{e}"
@@ -220,12 +217,7 @@ fn nearly_uncontrollable_unstable_mode_fails_or_is_accurate() {
     for eps in [1e-2, 1e-4, 1e-6, 1e-8, 1e-10] {
         let a = m(&[&[1.0, 0.0], &[0.0, -2.0]]);
         let b = m(&[&[eps], &[1.0]]);
-        match care(
-            a.as_ref(),
-            b.as_ref(),
-            Mat::<f64>::identity(2, 2).as_ref(),
-            m(&[&[1.0]]).as_ref(),
-        ) {
+        match unit_weights(care, &a, &b) {
             Ok(s) => {
                 let g = &b * b.transpose();
                 let res = care_residual(
