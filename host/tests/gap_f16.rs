@@ -34,39 +34,35 @@ fn diagnose_output(output: &str) -> Option<Value> {
     );
     let work = scratch(&format!("f16-{output}"));
     let sim = work.join("f16.json");
-    let r = ferrosid(&[
-        "identify",
-        &l1,
-        "--fs",
-        "400",
-        "--input",
-        "Force",
-        "--output",
-        output,
-        "--order",
-        "8",
-        "--out",
-        s(&sim),
-    ]);
+    // The channels and rate of the F-16 files, for both commands.
+    let signals = ["--fs", "400", "--input", "Force", "--output", output];
+    let r = ferrosid(
+        &[
+            &["identify", &l1][..],
+            &signals,
+            &["--order", "8", "--out", s(&sim)],
+        ]
+        .concat(),
+    );
     assert!(r.code == 0 || r.code == 1, "identify failed: {}", r.stderr);
-    let r = ferrosid(&[
-        "gap",
-        "--sim",
-        s(&sim),
-        "--real",
-        &l1,
-        "--real",
-        &l7,
-        "--validate",
-        &l4,
-        "--fs",
-        "400",
-        "--input",
-        "Force",
-        "--output",
-        output,
-        "--json",
-    ]);
+    let r = ferrosid(
+        &[
+            &[
+                "gap",
+                "--sim",
+                s(&sim),
+                "--real",
+                &l1,
+                "--real",
+                &l7,
+                "--validate",
+                &l4,
+            ][..],
+            &signals,
+            &["--json"],
+        ]
+        .concat(),
+    );
     assert_eq!(r.code, 0, "gap failed: {}", r.stderr);
     Some(serde_json::from_str(&r.stdout).expect("JSON report"))
 }
