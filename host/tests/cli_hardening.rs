@@ -64,6 +64,13 @@ fn write_pipeline(dir: &Path, extra: &str) -> PathBuf {
     p
 }
 
+/// `ferrosid run` of [`write_pipeline`] with `extra` in a fresh scratch directory `name`.
+fn run_with(name: &str, extra: &str) -> Run {
+    let d = scratch(name);
+    let p = write_pipeline(&d, extra);
+    ferrosid(&["run", s(&p), "--out", s(&d.join("out"))])
+}
+
 // ---- 1. Panics: every numeric parameter is range-checked before any work -------------------
 
 #[test]
@@ -98,9 +105,10 @@ fn huge_numeric_parameters_are_usage_errors_with_the_bound() {
 
 #[test]
 fn pipeline_block_rows_huge_is_a_key_error() {
-    let d = scratch("pipe_block_rows");
-    let p = write_pipeline(&d, "[identification]\nblock_rows = 3074457345618258600\n");
-    let r = ferrosid(&["run", s(&p), "--out", s(&d.join("out"))]);
+    let r = run_with(
+        "pipe_block_rows",
+        "[identification]\nblock_rows = 3074457345618258600\n",
+    );
     expect(
         &r,
         3,
@@ -162,9 +170,7 @@ fn reidentify_orders_and_delays_are_bounded() {
 
 #[test]
 fn audit_band_factor_is_bounded() {
-    let d = scratch("band_factor");
-    let p = write_pipeline(&d, "[audit]\nband_factor = 1e300\n");
-    let r = ferrosid(&["run", s(&p), "--out", s(&d.join("out"))]);
+    let r = run_with("band_factor", "[audit]\nband_factor = 1e300\n");
     expect(
         &r,
         3,
@@ -199,6 +205,21 @@ fn model_json(dir: &Path) -> PathBuf {
     p
 }
 
+/// `ferrosid codegen --model MODEL --wm-level 0.2 --out-dir OUT` and the arguments `extra`.
+fn codegen_wm(model: &Path, out: &Path, extra: &[&str]) -> Run {
+    let mut args = vec![
+        "codegen",
+        "--model",
+        s(model),
+        "--wm-level",
+        "0.2",
+        "--out-dir",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    ferrosid(&args)
+}
+
 #[test]
 fn runaway_user_template_ends_with_an_error() {
     let d = scratch("template_fuel");
@@ -210,17 +231,7 @@ fn runaway_user_template_ends_with_an_error() {
         "{% for i in range(100000) %}{% for j in range(100000) %}x{% endfor %}{% endfor %}\n",
     )
     .unwrap();
-    let r = ferrosid(&[
-        "codegen",
-        "--model",
-        s(&m),
-        "--wm-level",
-        "0.2",
-        "--out-dir",
-        s(&d.join("gen")),
-        "--templates",
-        s(&t),
-    ]);
+    let r = codegen_wm(&m, &d.join("gen"), &["--templates", s(&t)]);
     expect(&r, 3, &["model.h", "fuel"], "nested 100k loops");
 }
 
@@ -320,17 +331,7 @@ fn codegen_missing_template_directory_is_an_error() {
     let d = scratch("templates_missing");
     let m = model_json(&d);
     let missing = d.join("nonexistent");
-    let r = ferrosid(&[
-        "codegen",
-        "--model",
-        s(&m),
-        "--wm-level",
-        "0.2",
-        "--out-dir",
-        s(&d.join("gen")),
-        "--templates",
-        s(&missing),
-    ]);
+    let r = codegen_wm(&m, &d.join("gen"), &["--templates", s(&missing)]);
     expect(
         &r,
         3,
@@ -506,15 +507,7 @@ fn codegen_bad_model_contents_are_data_errors_naming_the_file() {
         r#"{"a":[[0.5]],"b":[[1e300]],"c":[[1.0]],"d":[[0.0]],"ts":0.001}"#,
     )
     .unwrap();
-    let r = ferrosid(&[
-        "codegen",
-        "--model",
-        s(&m),
-        "--wm-level",
-        "0.2",
-        "--out-dir",
-        s(&d.join("gen")),
-    ]);
+    let r = codegen_wm(&m, &d.join("gen"), &[]);
     expect(&r, 3, &[s(&m), "model.b"], "codegen model with 1e300");
     let w = d.join("wm.json");
     std::fs::write(&w, r#"{"num":[1e300],"den":[1.0]}"#).unwrap();
@@ -709,15 +702,7 @@ fn identify_writes_the_operating_point_and_codegen_emits_it() {
     assert_eq!(op["decimation"], 1);
     // codegen puts U0/Y0 into both headers.
     let gen = d.join("gen");
-    let r = ferrosid(&[
-        "codegen",
-        "--model",
-        s(&m),
-        "--wm-level",
-        "0.2",
-        "--out-dir",
-        s(&gen),
-    ]);
+    let r = codegen_wm(&m, &gen, &[]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     let h = std::fs::read_to_string(gen.join("ferrosid.h")).unwrap();
     let lit = |v: f64| format!("{}", v as f32);
@@ -736,15 +721,7 @@ fn identify_writes_the_operating_point_and_codegen_emits_it() {
         "{rs}"
     );
     // An old model file without the field still loads; the headers then say so.
-    let r = ferrosid(&[
-        "codegen",
-        "--model",
-        s(&model_json(&d)),
-        "--wm-level",
-        "0.2",
-        "--out-dir",
-        s(&d.join("gen_old")),
-    ]);
+    let r = codegen_wm(&model_json(&d), &d.join("gen_old"), &[]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     let h = std::fs::read_to_string(d.join("gen_old/ferrosid.h")).unwrap();
     assert!(h.contains("no operating point recorded"), "{h}");

@@ -1,6 +1,6 @@
 //! Bad input to the gap diagnosis: every case is a clear error naming the file (or variable),
 //! never a panic.
-use ferrosid::data::{Channel, Log};
+use ferrosid::data::Log;
 use ferrosid::error::Error;
 use ferrosid::gap::simfile::{discretise_for_logs, load_sim, parse_sim};
 use ferrosid::gap::{diagnose, GapOptions};
@@ -23,19 +23,7 @@ fn log(name: &str, n: usize, ts: f64) -> Log {
     for k in 1..n {
         y[k] = 0.9 * y[k - 1] + 0.1 * u[k - 1];
     }
-    Log {
-        path: PathBuf::from(name),
-        ts,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u,
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y,
-        }],
-        warnings: vec![],
-    }
+    Log::siso(name, ts, u, y)
 }
 
 fn first_order_sim() -> ferrosid::lti::StateSpace {

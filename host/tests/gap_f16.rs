@@ -20,29 +20,12 @@
 //! The data are read in place; when ../shared/data is absent the test prints a notice and
 //! returns.
 mod cli_support;
+use crate::shared_data::shared_data;
 use cli_support::{ferrosid, s, scratch};
 use serde_json::Value;
-use std::path::PathBuf;
-
-/// `shared/data/<rel>` in the nearest ancestor of the crate directory that has it (the project
-/// checkout's `../shared/data`, also from a git worktree elsewhere).
-fn shared_data(rel: &str) -> Option<PathBuf> {
-    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    for dir in here.ancestors() {
-        let p = dir.join("shared/data").join(rel);
-        if p.exists() {
-            return Some(p);
-        }
-    }
-    println!(
-        "notice: shared/data/{rel} not found above {}; skipping the F-16 gap test",
-        here.display()
-    );
-    None
-}
 
 fn diagnose_output(output: &str) -> Option<Value> {
-    let dir = shared_data("f16-gvt")?;
+    let dir = shared_data("f16-gvt", "the F-16 gap test")?;
     let f = |name: &str| dir.join(name).to_str().unwrap().to_string();
     let (l1, l7, l4) = (
         f("F16Data_FullMSine_Level1.csv"),
@@ -51,39 +34,35 @@ fn diagnose_output(output: &str) -> Option<Value> {
     );
     let work = scratch(&format!("f16-{output}"));
     let sim = work.join("f16.json");
-    let r = ferrosid(&[
-        "identify",
-        &l1,
-        "--fs",
-        "400",
-        "--input",
-        "Force",
-        "--output",
-        output,
-        "--order",
-        "8",
-        "--out",
-        s(&sim),
-    ]);
+    // The channels and rate of the F-16 files, for both commands.
+    let signals = ["--fs", "400", "--input", "Force", "--output", output];
+    let r = ferrosid(
+        &[
+            &["identify", &l1][..],
+            &signals,
+            &["--order", "8", "--out", s(&sim)],
+        ]
+        .concat(),
+    );
     assert!(r.code == 0 || r.code == 1, "identify failed: {}", r.stderr);
-    let r = ferrosid(&[
-        "gap",
-        "--sim",
-        s(&sim),
-        "--real",
-        &l1,
-        "--real",
-        &l7,
-        "--validate",
-        &l4,
-        "--fs",
-        "400",
-        "--input",
-        "Force",
-        "--output",
-        output,
-        "--json",
-    ]);
+    let r = ferrosid(
+        &[
+            &[
+                "gap",
+                "--sim",
+                s(&sim),
+                "--real",
+                &l1,
+                "--real",
+                &l7,
+                "--validate",
+                &l4,
+            ][..],
+            &signals,
+            &["--json"],
+        ]
+        .concat(),
+    );
     assert_eq!(r.code, 0, "gap failed: {}", r.stderr);
     Some(serde_json::from_str(&r.stdout).expect("JSON report"))
 }

@@ -9,30 +9,17 @@
 //! * distortion on the non-excited lines of an odd multisine with detection lines: a cubic
 //!   puts power on odd lines, a square on even lines, a linear plant on neither;
 //! * a position-output axis (integrator in the nominal) is diagnosed without error.
-use ferrosid::data::{Channel, Log};
+use ferrosid::data::Log;
 use ferrosid::gap::benchmark::{filtered_noise, multisine};
 use ferrosid::gap::evidence::distortion;
 use ferrosid::gap::rng::Rng;
 use ferrosid::gap::{diagnose, GapOptions};
 use ferrosid::lti::{StateSpace, TransferFunction};
-use std::path::PathBuf;
 
 const TS: f64 = 1e-3;
 
 fn log(name: &str, u: Vec<f64>, y: Vec<f64>) -> Log {
-    Log {
-        path: PathBuf::from(name),
-        ts: TS,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u,
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y,
-        }],
-        warnings: vec![],
-    }
+    Log::siso(name, TS, u, y)
 }
 
 fn std_dev(v: &[f64]) -> f64 {

@@ -14,28 +14,10 @@
 //! The data are read in place from ../shared/data; when absent the test prints a notice and
 //! returns.
 mod cli_support;
+use crate::shared_data::shared_data;
 use cli_support::{ferrosid, s, scratch};
 use ferrosid::io::{read_mat, MatOptions};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-
-/// `shared/data/<rel>` in the nearest ancestor of the crate directory that has it (the project
-/// checkout's `../shared/data`, also from a git worktree elsewhere).
-fn shared_data(rel: &str) -> Option<PathBuf> {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for dir in here.ancestors() {
-        let p = dir.join("shared/data").join(rel);
-        if p.exists() {
-            return Some(p);
-        }
-    }
-    println!(
-        "notice: shared/data/{rel} not found above {}; skipping the motor-bench gap test (see \
-         ../shared/data/README.md)",
-        here.display()
-    );
-    None
-}
 
 /// Samples per multisine period in the motor-bench files.
 const PERIOD: usize = 2500;
@@ -85,8 +67,8 @@ fn non_excited_floor(u: &[f64], y: &[f64]) -> f64 {
 #[test]
 fn motor_bench_gap_against_an_identified_linear_model() {
     let (Some(a), Some(b)) = (
-        shared_data("motor-bench/MultisineTypeA.mat"),
-        shared_data("motor-bench/MultisineTypeB.mat"),
+        shared_data("motor-bench/MultisineTypeA.mat", "the motor-bench gap test"),
+        shared_data("motor-bench/MultisineTypeB.mat", "the motor-bench gap test"),
     ) else {
         return;
     };

@@ -4,32 +4,19 @@
 //! and input nonlinearities that act only at one amplitude (dead zone: small inputs;
 //! saturation: large inputs), which must show up as amplitude dependence; for saturation the
 //! linear re-fit's residual must concentrate where |u| is largest.
-use ferrosid::data::{Channel, Log};
+use ferrosid::data::Log;
 use ferrosid::gap::benchmark::{filtered_noise, multisine};
 use ferrosid::gap::effect::Effect;
 use ferrosid::gap::plant::{simulate, Plant, SimSettings};
 use ferrosid::gap::rng::Rng;
 use ferrosid::gap::{diagnose, Diagnosis, GapOptions};
 use ferrosid::lti::StateSpace;
-use std::path::PathBuf;
 
 const TS: f64 = 1e-3;
 const N: usize = 8192;
 
 fn log(name: &str, u: Vec<f64>, y: Vec<f64>) -> Log {
-    Log {
-        path: PathBuf::from(name),
-        ts: TS,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u,
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y,
-        }],
-        warnings: vec![],
-    }
+    Log::siso(name, TS, u, y)
 }
 
 fn rms(v: &[f64]) -> f64 {

@@ -92,6 +92,23 @@ fn truth(case: &Case, name: &str) -> f64 {
     case.truth.iter().find(|(n, _)| *n == name).unwrap().1
 }
 
+/// Rates of the two-mass states (motor angle, load angle, motor speed, load speed) under the
+/// drive command `i`, for (Jm, Jl, k, c, b, Kt).
+fn two_mass_rates(
+    x: &[f64],
+    i: f64,
+    (jm, jl, k, c, b, kt): (f64, f64, f64, f64, f64, f64),
+) -> Vec<f64> {
+    let tw = x[0] - x[1];
+    let dw = x[2] - x[3];
+    vec![
+        x[2],
+        x[3],
+        (kt * i - b * x[2] - k * tw - c * dw) / jm,
+        (k * tw + c * dw) / jl,
+    ]
+}
+
 /// Noise-free response of the case's plant to `u` (hand-written ODEs).
 fn simulate(case: &Case, u: &[f64], sensor_pole_hz: Option<f64>) -> Vec<f64> {
     let t = |n| truth(case, n);
@@ -125,23 +142,14 @@ fn simulate(case: &Case, u: &[f64], sensor_pole_hz: Option<f64>) -> Vec<f64> {
             )
         }
         Structure::TwoMass(out) => {
-            let (jm, jl, k, c, b, kt) = (t("Jm"), t("Jl"), t("k"), t("c"), t("b"), t("Kt"));
+            let p = (t("Jm"), t("Jl"), t("k"), t("c"), t("b"), t("Kt"));
             // States: motor angle, load angle, motor speed, load speed.
             rk4(
                 vec![0.0; 4],
                 u,
                 case.ts,
                 8,
-                |x, u| {
-                    let tw = x[0] - x[1];
-                    let dw = x[2] - x[3];
-                    vec![
-                        x[2],
-                        x[3],
-                        (kt * u - b * x[2] - k * tw - c * dw) / jm,
-                        (k * tw + c * dw) / jl,
-                    ]
-                },
+                |x, u| two_mass_rates(x, u, p),
                 |x| {
                     if out == Measured::Position {
                         x[0]
@@ -152,8 +160,8 @@ fn simulate(case: &Case, u: &[f64], sensor_pole_hz: Option<f64>) -> Vec<f64> {
             )
         }
         Structure::TwoMassLag => {
-            let (jm, jl, k, c, b, kt, tau) =
-                (t("Jm"), t("Jl"), t("k"), t("c"), t("b"), t("Kt"), t("tau"));
+            let p = (t("Jm"), t("Jl"), t("k"), t("c"), t("b"), t("Kt"));
+            let tau = t("tau");
             // States: motor angle, load angle, motor speed, load speed, lagged command.
             rk4(
                 vec![0.0; 5],
@@ -161,15 +169,9 @@ fn simulate(case: &Case, u: &[f64], sensor_pole_hz: Option<f64>) -> Vec<f64> {
                 case.ts,
                 8,
                 |x, u| {
-                    let tw = x[0] - x[1];
-                    let dw = x[2] - x[3];
-                    vec![
-                        x[2],
-                        x[3],
-                        (kt * x[4] - b * x[2] - k * tw - c * dw) / jm,
-                        (k * tw + c * dw) / jl,
-                        (u - x[4]) / tau,
-                    ]
+                    let mut dx = two_mass_rates(x, x[4], p);
+                    dx.push((u - x[4]) / tau);
+                    dx
                 },
                 |x| x[2],
             )

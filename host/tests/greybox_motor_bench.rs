@@ -16,28 +16,11 @@
 //!
 //! The data are read in place from ../shared/data; when absent the test prints a notice and
 //! returns.
+use crate::shared_data::shared_data;
 use ferrosid::greybox::{fit_log, GreyBoxFit, GreyBoxOptions, Structure};
 use ferrosid::io::{read_mat, MatOptions};
 use ferrosid::preprocess::{preprocess, steps, Removal};
-use std::path::{Path, PathBuf};
-
-/// `shared/data/<rel>` in the nearest ancestor of the crate directory that has it (the project
-/// checkout's `../shared/data`, also from a git worktree elsewhere).
-fn shared_data(rel: &str) -> Option<PathBuf> {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for dir in here.ancestors() {
-        let p = dir.join("shared/data").join(rel);
-        if p.exists() {
-            return Some(p);
-        }
-    }
-    println!(
-        "notice: shared/data/{rel} not found above {}; skipping the motor-bench grey-box test (see \
-         ../shared/data/README.md)",
-        here.display()
-    );
-    None
-}
+use std::path::Path;
 
 fn fit(path: &Path) -> GreyBoxFit {
     let log = read_mat(
@@ -57,8 +40,14 @@ fn fit(path: &Path) -> GreyBoxFit {
 #[test]
 fn motor_bench_two_mass_lag_from_type_a_and_type_b() {
     let (Some(a), Some(b)) = (
-        shared_data("motor-bench/MultisineTypeA.mat"),
-        shared_data("motor-bench/MultisineTypeB.mat"),
+        shared_data(
+            "motor-bench/MultisineTypeA.mat",
+            "the motor-bench grey-box test",
+        ),
+        shared_data(
+            "motor-bench/MultisineTypeB.mat",
+            "the motor-bench grey-box test",
+        ),
     ) else {
         return;
     };

@@ -7,6 +7,8 @@
 //! binary also links once instead of 65 times. The support modules (`cli_support`, …) are
 //! declared inside the files that use them, as before: a file loaded with `#[path]` resolves its
 //! own `mod x;` next to itself, so each file still reads as it did when it was its own crate.
+#[path = "bundled_example.rs"]
+mod bundled_example;
 #[path = "cli_codegen.rs"]
 mod cli_codegen;
 #[path = "cli_errors.rs"]
@@ -119,6 +121,10 @@ mod robust_step;
 mod robust_uncertainty;
 #[path = "robust_wm_fit.rs"]
 mod robust_wm_fit;
+#[path = "scipy_spectra.rs"]
+mod scipy_spectra;
+#[path = "shared_data.rs"]
+mod shared_data;
 #[path = "spectral_periodic.rs"]
 mod spectral_periodic;
 #[path = "spectral_plants.rs"]
@@ -127,6 +133,8 @@ mod spectral_plants;
 mod spectral_real_data;
 #[path = "spectral_scipy.rs"]
 mod spectral_scipy;
+#[path = "splitmix.rs"]
+mod splitmix;
 #[path = "synth_hinf.rs"]
 mod synth_hinf;
 #[path = "synth_loopshape.rs"]
@@ -139,6 +147,8 @@ mod synth_riccati;
 mod synth_sim;
 #[path = "target_frame.rs"]
 mod target_frame;
+#[path = "test_models.rs"]
+mod test_models;
 #[path = "validate_model.rs"]
 mod validate_model;
 

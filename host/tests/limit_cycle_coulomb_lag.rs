@@ -93,38 +93,81 @@ fn spec() -> SimSpec {
 /// The same loop simulated independently: Tustin PID in its textbook form, the lag and the
 /// body by semi-implicit Euler at 64 sub-steps with Karnopp friction. Returns the velocity.
 fn hand_simulation(seconds: f64) -> Vec<f64> {
-    let p = pid();
-    let c = 2.0 / TS;
-    let (ki_d, tc) = (p.ki / c, p.tau_f * c);
-    let (ad, bd) = ((tc - 1.0) / (tc + 1.0), p.kd * c / (tc + 1.0));
-    let sub = 64;
-    let h = TS / sub as f64;
-    let decay = (-h / TAU).exp();
-    let (mut th, mut w, mut t) = (0.0f64, 0.0f64, 0.0f64);
-    let (mut i_acc, mut d, mut e_prev) = (0.0f64, 0.0f64, 0.0f64);
+    let mut lp = HandLoop::new();
     let mut out = Vec::new();
     for k in 0..(seconds / TS).round() as usize {
-        let e = -th;
-        i_acc += ki_d * (e + e_prev);
-        d = -ad * d + bd * (e - e_prev);
-        e_prev = e;
-        let u = p.kp * e + i_acc + d + if k < 5 { 0.5 } else { 0.0 };
-        out.push(w);
-        for _ in 0..sub {
-            t = decay * t + (1.0 - decay) * u;
+        let u = lp.pid(-lp.th) + if k < 5 { 0.5 } else { 0.0 };
+        out.push(lp.w);
+        lp.plant(u);
+    }
+    out
+}
+
+/// The loop of [`hand_simulation`], written out independently: the PID in its Tustin textbook
+/// form and the plant (current lag, body with Karnopp friction) by semi-implicit Euler at 64
+/// sub-steps per sample.
+struct HandLoop {
+    kp: f64,
+    ki_d: f64,
+    ad: f64,
+    bd: f64,
+    i_acc: f64,
+    d: f64,
+    e_prev: f64,
+    /// Position, velocity and lagged torque of the plant.
+    th: f64,
+    w: f64,
+    t: f64,
+}
+
+impl HandLoop {
+    const SUB: usize = 64;
+
+    fn new() -> Self {
+        let p = pid();
+        let c = 2.0 / TS;
+        let (ki_d, tc) = (p.ki / c, p.tau_f * c);
+        let (ad, bd) = ((tc - 1.0) / (tc + 1.0), p.kd * c / (tc + 1.0));
+        Self {
+            kp: p.kp,
+            ki_d,
+            ad,
+            bd,
+            i_acc: 0.0,
+            d: 0.0,
+            e_prev: 0.0,
+            th: 0.0,
+            w: 0.0,
+            t: 0.0,
+        }
+    }
+
+    /// The PID's command for the error `e`.
+    fn pid(&mut self, e: f64) -> f64 {
+        self.i_acc += self.ki_d * (e + self.e_prev);
+        self.d = -self.ad * self.d + self.bd * (e - self.e_prev);
+        self.e_prev = e;
+        self.kp * e + self.i_acc + self.d
+    }
+
+    /// One sample of the plant under the command `u` (held).
+    fn plant(&mut self, u: f64) {
+        let h = TS / Self::SUB as f64;
+        let decay = (-h / TAU).exp();
+        for _ in 0..Self::SUB {
+            self.t = decay * self.t + (1.0 - decay) * u;
             let g = h / J;
-            let trial = w + g * t;
+            let trial = self.w + g * self.t;
             let hold = trial / g;
             let f = if hold.abs() <= M {
                 hold
             } else {
                 M * hold.signum()
             };
-            w = trial - g * f;
-            th += h * w;
+            self.w = trial - g * f;
+            self.th += h * self.w;
         }
     }
-    out
 }
 
 /// The describing function predicts a stable cycle; the host's nonlinear simulation shows it
@@ -252,27 +295,15 @@ fn half_ptp(x: &[f64], n: usize) -> f64 {
 /// `ferrosid_codegen::compensation`), closing the same loop as [`hand_simulation`]: returns
 /// the position.
 fn hand_simulation_lag_aware(seconds: f64, coulomb: f64, lag_s: f64, stick_band: f64) -> Vec<f64> {
-    let p = pid();
-    let c = 2.0 / TS;
-    let (ki_d, tc) = (p.ki / c, p.tau_f * c);
-    let (ad, bd) = ((tc - 1.0) / (tc + 1.0), p.kd * c / (tc + 1.0));
     let alpha = 1.0 - (-2.0 * std::f64::consts::PI * 200.0 * TS).exp();
     let predict = TS + TS / 2.0 + TS * (1.0 - alpha) / alpha;
     let pole = (-TS / lag_s).exp();
-    let sub = 64;
-    let h = TS / sub as f64;
-    let decay = (-h / TAU).exp();
-    let (mut th, mut w, mut t) = (0.0f64, 0.0f64, 0.0f64);
-    let (mut i_acc, mut d, mut e_prev) = (0.0f64, 0.0f64, 0.0f64);
+    let mut lp = HandLoop::new();
     let (mut y_prev, mut v_est, mut v_prev, mut t_pid, mut f_prev) = (None, 0.0, 0.0, 0.0, 0.0);
     let mut out = Vec::new();
     for k in 0..(seconds / TS).round() as usize {
-        let y = th;
-        let e = -y;
-        i_acc += ki_d * (e + e_prev);
-        d = -ad * d + bd * (e - e_prev);
-        e_prev = e;
-        let u_pid = p.kp * e + i_acc + d;
+        let y = lp.th;
+        let u_pid = lp.pid(-y);
         let first = y_prev.is_none();
         let raw = y_prev.map_or(0.0, |yp: f64| (y - yp) / TS);
         y_prev = Some(y);
@@ -290,20 +321,8 @@ fn hand_simulation_lag_aware(seconds: f64, coulomb: f64, lag_s: f64, stick_band:
         let u_ff = f + pole / (1.0 - pole) * (f - f_prev);
         f_prev = f;
         let u = u_pid + u_ff + if k < 5 { 0.5 } else { 0.0 };
-        out.push(th);
-        for _ in 0..sub {
-            t = decay * t + (1.0 - decay) * u;
-            let g = h / J;
-            let trial = w + g * t;
-            let hold = trial / g;
-            let fr = if hold.abs() <= M {
-                hold
-            } else {
-                M * hold.signum()
-            };
-            w = trial - g * fr;
-            th += h * w;
-        }
+        out.push(lp.th);
+        lp.plant(u);
     }
     out
 }
@@ -312,6 +331,17 @@ fn hand_simulation_lag_aware(seconds: f64, coulomb: f64, lag_s: f64, stick_band:
 /// observable and do not count.
 const FLOOR: f64 = 1e-3;
 
+/// The analysis of the lag-aware tests: 6 s with a kick of 0.5, cycles below [`FLOOR`] do not
+/// count.
+fn floor_options() -> AnalysisOptions {
+    AnalysisOptions {
+        duration_s: Some(6.0),
+        kick: Some(0.5),
+        amplitude_tol: FLOOR,
+        ..AnalysisOptions::default()
+    }
+}
+
 /// The lag-aware feedforward at the true level and lag removes the cycle: the `limit_cycle`
 /// receipt (describing function on the residual + nonlinear simulation, tolerance the 1 mrad
 /// floor) passes where the plain feedforward's fails; the host simulation's output settles
@@ -319,12 +349,7 @@ const FLOOR: f64 = 1e-3;
 #[test]
 fn lag_aware_feedforward_removes_the_cycle() {
     let lp = lure();
-    let opts = AnalysisOptions {
-        duration_s: Some(6.0),
-        kick: Some(0.5),
-        amplitude_tol: FLOOR,
-        ..AnalysisOptions::default()
-    };
+    let opts = floor_options();
     let off = analyse(&lp, &relay(), None, &opts).unwrap();
     let comp = lag_aware(M, TAU, 1e-4);
     let on = analyse(&lp, &relay(), Some(&comp), &opts).unwrap();
@@ -369,12 +394,7 @@ fn lag_aware_feedforward_removes_the_cycle() {
 #[test]
 fn lag_aware_feedforward_needs_each_part_and_the_model() {
     let lp = lure();
-    let opts = AnalysisOptions {
-        duration_s: Some(6.0),
-        kick: Some(0.5),
-        amplitude_tol: FLOOR,
-        ..AnalysisOptions::default()
-    };
+    let opts = floor_options();
     for (what, comp, df_sees_it) in [
         ("no lag inverse", lag_aware(M, 1e-4, 1e-4), false),
         ("no stuck branch", lag_aware(M, TAU, 1e3), false),

@@ -49,6 +49,39 @@ fn dead_zone_loop() -> LureLoop {
     LureLoop::new(&ax, &pid, VelocitySource::OutputDerivative).unwrap()
 }
 
+/// The bundled example's two-mass actuator with the pipeline's PI + roll-off for 8 Hz.
+fn two_mass_loop() -> LureLoop {
+    let p = Plant::two_mass().physical().unwrap().sys;
+    LureLoop::new(
+        &p,
+        &tuned(&p, 8.0, Some((4.0, 0.7))),
+        VelocitySource::Output,
+    )
+    .unwrap()
+}
+
+/// `effect` at `place` as a nonlinearity of the loop.
+fn placed(effect: Effect, place: Place) -> Nonlinearity {
+    Nonlinearity::from_placed(&PlacedEffect { effect, place }).unwrap()
+}
+
+/// The one stable predicted cycle of `a`, after checking that the simulation shows `what`
+/// and agrees with it within `f_tol` in frequency and `a_tol` in amplitude.
+fn stable_cycle_agrees(
+    a: &LimitCycleAnalysis,
+    what: &str,
+    f_tol: f64,
+    a_tol: f64,
+) -> PredictedLimitCycle {
+    let p = one_stable(a);
+    let s = a
+        .simulated
+        .as_ref()
+        .unwrap_or_else(|| panic!("simulation shows {what}"));
+    agree(&p, s, f_tol, a_tol);
+    p
+}
+
 fn one_stable(a: &LimitCycleAnalysis) -> PredictedLimitCycle {
     let s: Vec<_> = a.predicted.iter().filter(|p| p.stable).copied().collect();
     assert_eq!(s.len(), 1, "{:?}", a.predicted);
@@ -73,22 +106,14 @@ fn agree(p: &PredictedLimitCycle, s: &SimulatedLimitCycle, f_tol: f64, a_tol: f6
 #[test]
 fn friction_cycle_is_predicted_simulated_and_compensated() {
     let lp = friction_loop();
-    let pe = PlacedEffect {
-        effect: Effect::CoulombFriction { level: 0.008 },
-        place: Place::Motor,
-    };
-    let nl = Nonlinearity::from_placed(&pe).unwrap();
+    let nl = placed(Effect::CoulombFriction { level: 0.008 }, Place::Motor);
     // Acceptance: oscillations under half the speed sensor's noise (0.01 rad/s) do not count.
     let opts = AnalysisOptions {
         amplitude_tol: 0.005,
         ..AnalysisOptions::default()
     };
     let before = analyse(&lp, &nl, None, &opts).unwrap();
-    let p = one_stable(&before);
-    let s = before
-        .simulated
-        .expect("simulation shows the friction cycle");
-    agree(&p, &s, 0.05, 0.1);
+    let p = stable_cycle_agrees(&before, "the friction cycle", 0.05, 0.1);
     assert!(p.freq_hz > 30.0 && p.freq_hz < 50.0, "{p:?}");
     let r = receipt(&before, "coulomb_friction at motor");
     assert_eq!(r.kind(), Some(ReceiptKind::LimitCycle));
@@ -119,22 +144,14 @@ fn friction_cycle_is_predicted_simulated_and_compensated() {
 #[test]
 fn dead_zone_cycle_is_predicted_simulated_and_compensated() {
     let lp = dead_zone_loop();
-    let pe = PlacedEffect {
-        effect: Effect::Deadzone { width: 0.5 },
-        place: Place::Drive,
-    };
-    let nl = Nonlinearity::from_placed(&pe).unwrap();
+    let nl = placed(Effect::Deadzone { width: 0.5 }, Place::Drive);
     // Acceptance: 10 µm (0.01 mm) of position.
     let opts = AnalysisOptions {
         amplitude_tol: 0.01,
         ..AnalysisOptions::default()
     };
     let before = analyse(&lp, &nl, None, &opts).unwrap();
-    let p = one_stable(&before);
-    let s = before
-        .simulated
-        .expect("simulation shows the dead-zone cycle");
-    agree(&p, &s, 0.1, 0.2);
+    stable_cycle_agrees(&before, "the dead-zone cycle", 0.1, 0.2);
     assert!(!receipt(&before, "deadzone at drive").pass);
 
     let comp = design_from(
@@ -153,22 +170,10 @@ fn dead_zone_cycle_is_predicted_simulated_and_compensated() {
 
 #[test]
 fn backlash_cycle_in_the_bundled_example_loop() {
-    let p = Plant::two_mass().physical().unwrap().sys;
-    let lp = LureLoop::new(
-        &p,
-        &tuned(&p, 8.0, Some((4.0, 0.7))),
-        VelocitySource::Output,
-    )
-    .unwrap();
-    let nl = Nonlinearity::from_placed(&PlacedEffect {
-        effect: Effect::Backlash { gap: 0.02 },
-        place: Place::Drive,
-    })
-    .unwrap();
+    let lp = two_mass_loop();
+    let nl = placed(Effect::Backlash { gap: 0.02 }, Place::Drive);
     let a = analyse(&lp, &nl, None, &AnalysisOptions::default()).unwrap();
-    let p = one_stable(&a);
-    let s = a.simulated.expect("simulated backlash cycle");
-    agree(&p, &s, 0.25, 0.2);
+    let p = stable_cycle_agrees(&a, "the backlash cycle", 0.25, 0.2);
     // The describing function of the play has a phase lag: the solution is off the real axis.
     assert!(p.df_value.1 < 0.0 && p.refined);
 }
@@ -177,18 +182,8 @@ fn backlash_cycle_in_the_bundled_example_loop() {
 fn bundled_example_loop_has_no_friction_cycle() {
     // The collocated two-mass speed loop keeps G/(1 + CG) within ±180°: no crossing, and the
     // simulation from a kick of 4 × the friction level settles.
-    let p = Plant::two_mass().physical().unwrap().sys;
-    let lp = LureLoop::new(
-        &p,
-        &tuned(&p, 8.0, Some((4.0, 0.7))),
-        VelocitySource::Output,
-    )
-    .unwrap();
-    let nl = Nonlinearity::from_placed(&PlacedEffect {
-        effect: Effect::CoulombFriction { level: 0.008 },
-        place: Place::Motor,
-    })
-    .unwrap();
+    let lp = two_mass_loop();
+    let nl = placed(Effect::CoulombFriction { level: 0.008 }, Place::Motor);
     let a = analyse(&lp, &nl, None, &AnalysisOptions::default()).unwrap();
     assert!(a.predicted.is_empty(), "{:?}", a.predicted);
     assert!(a.simulated.is_none());

@@ -36,6 +36,18 @@ fn mat(rows: &[&[f64]]) -> Mat<f64> {
     Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
 }
 
+/// ω_n²/(s² + 2ζω_n s + ω_n²) in physical form, x = [position; velocity].
+fn mode(wn: f64, zeta: f64) -> StateSpace {
+    StateSpace::new(
+        mat(&[&[0.0, 1.0], &[-wn * wn, -2.0 * zeta * wn]]),
+        mat(&[&[0.0], &[wn * wn]]),
+        mat(&[&[1.0, 0.0]]),
+        mat(&[&[0.0]]),
+        0.0,
+    )
+    .unwrap()
+}
+
 fn max_abs_diff(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
     assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()));
     let mut m = 0.0f64;
@@ -77,15 +89,7 @@ fn first_order_lag_frequency_response_matches_closed_form() {
 #[test]
 fn second_order_mode_response_matches_closed_form() {
     let (wn, zeta) = (2.0 * PI * 50.0, 0.02);
-    // Physical form x = [position; velocity].
-    let ss = StateSpace::new(
-        mat(&[&[0.0, 1.0], &[-wn * wn, -2.0 * zeta * wn]]),
-        mat(&[&[0.0], &[wn * wn]]),
-        mat(&[&[1.0, 0.0]]),
-        mat(&[&[0.0]]),
-        0.0,
-    )
-    .unwrap();
+    let ss = mode(wn, zeta);
     for &f in &[1.0, 25.0, 49.0, 50.0, 51.0, 200.0] {
         let w = 2.0 * PI * f;
         let exact = c(wn * wn, 0.0) / c(wn * wn - w * w, 2.0 * zeta * wn * w);
@@ -181,14 +185,7 @@ fn c2d_first_order_is_exact() {
 fn c2d_step_response_equals_continuous_step_at_samples() {
     // ZOH invariance: the discrete step response equals the continuous one at t = kTs.
     let (wn, zeta, ts) = (2.0 * PI * 20.0, 0.1, 1e-3);
-    let ss = StateSpace::new(
-        mat(&[&[0.0, 1.0], &[-wn * wn, -2.0 * zeta * wn]]),
-        mat(&[&[0.0], &[wn * wn]]),
-        mat(&[&[1.0, 0.0]]),
-        mat(&[&[0.0]]),
-        0.0,
-    )
-    .unwrap();
+    let ss = mode(wn, zeta);
     let d = ss.c2d_zoh(ts).unwrap();
     let y = d.simulate_siso(&vec![1.0; 400], None).unwrap();
     let wd = wn * (1.0 - zeta * zeta).sqrt();

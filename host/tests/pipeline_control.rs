@@ -1,34 +1,13 @@
 //! The `[control] method` switch on the bundled two-mass example (examples/pipeline.toml):
 //! `pid` stays what it was, `loopshape` and `hinf` replace the loop receipts with their own,
 //! computed on their sampled loop, and every new key refuses bad input with file, line and key.
+use crate::bundled_example::{
+    assert_bad_control_keys, codegen_axis1, example_path, report_html, run, with_control,
+    without_physical,
+};
 use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun, ReceiptsDocument};
 use ferrosid::robust::loops::FeedbackLoop;
 use ferrosid::robust::norms::hinf_norm;
-use std::path::{Path, PathBuf};
-
-fn example_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/pipeline.toml")
-}
-
-/// The example without the gap, compensation and physical stages (not what this tests, and
-/// slow in debug), with `extra` lines appended to `[control]`.
-fn example_text(extra: &str) -> String {
-    let t = std::fs::read_to_string(example_path()).unwrap();
-    let t = t.replace("[gap]\nrun = \"always\"", "[gap]\nrun = \"never\"");
-    let t = match t.find("[physical]") {
-        Some(i) => t[..i].to_string(),
-        None => t,
-    };
-    t.replace(
-        "reference_amplitude = 5.0   # rad/s speed step\n",
-        &format!("reference_amplitude = 5.0   # rad/s speed step\n{extra}"),
-    )
-}
-
-fn run(extra: &str) -> PipelineRun {
-    let cfg = LoadedConfig::from_text(&example_path(), &example_text(extra)).unwrap();
-    run_pipeline(&cfg, &|_| {}).unwrap()
-}
 
 fn json(run: &PipelineRun) -> String {
     ReceiptsDocument::from_run(run).to_json().unwrap()
@@ -104,8 +83,7 @@ fn check_chosen(run: &PipelineRun, method: &str) -> (f64, f64) {
     let rec = run.receipts.get("sensitivity_peak").unwrap().value;
     assert!((ms - rec).abs() <= 1e-6 * ms, "M_s {ms} vs receipt {rec}");
     // The report: the section with its three figures and the comparison against the PID.
-    let figs = ferrosid::report::figures(run).unwrap();
-    let html = ferrosid::report::render_html(run, &figs).unwrap();
+    let html = report_html(run);
     assert!(html.contains("<section id=\"chosen-controller\">"));
     assert!(html.contains(&format!("Chosen controller: {method}")));
     for f in ["control_loop", "control_sensitivity", "control_step"] {
@@ -114,14 +92,7 @@ fn check_chosen(run: &PipelineRun, method: &str) -> (f64, f64) {
     assert!(html.contains("PID baseline"));
     // Codegen: the chosen controller is in the header and the module; the header compiles
     // with the strict flags and its matrices are the written controller's.
-    let input = ferrosid::ops::codegen::codegen_input(
-        run.codegen_parts().unwrap(),
-        &ferrosid::ops::codegen::CodegenOptions {
-            prefix: "axis1".into(),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let input = codegen_axis1(run);
     let sk = input
         .state_controller
         .as_ref()
@@ -243,14 +214,7 @@ fn reduced_hinf_controller_keeps_its_receipts_within_the_truncation_bound() {
 
 #[test]
 fn bad_control_keys_name_file_line_and_key() {
-    // The `reference_amplitude` line is where the extra lines start.
-    let text = example_text("");
-    let line = text
-        .lines()
-        .position(|l| l.starts_with("reference_amplitude"))
-        .unwrap()
-        + 2;
-    for (extra, key, what) in [
+    assert_bad_control_keys(&[
         ("method = \"mpcc\"", "control.method", "unknown variant"),
         ("method = 3", "control.method", ""),
         (
@@ -308,15 +272,7 @@ fn bad_control_keys_name_file_line_and_key() {
             "control.hinf_order",
             "only used with",
         ),
-    ] {
-        let t = example_text(&format!("{extra}\n"));
-        let e = LoadedConfig::from_text(&example_path(), &t)
-            .unwrap_err()
-            .to_string();
-        let at = line + extra.matches('\n').count();
-        assert!(e.contains(&format!("pipeline.toml:{at}")), "{extra}: {e}");
-        assert!(e.contains(key) && e.contains(what), "{extra}: {e}");
-    }
+    ]);
 }
 
 /// `method = "mpc"` on the example as it ships (`[gap] run = "always"` diagnoses Coulomb
@@ -328,11 +284,7 @@ fn bad_control_keys_name_file_line_and_key() {
 #[test]
 fn mpc_step_receipts_simulate_the_diagnosed_friction() {
     use ferrosid::gap::effect::Effect;
-    let t = std::fs::read_to_string(example_path()).unwrap();
-    let t = t[..t.find("[physical]").unwrap()].replace(
-        "reference_amplitude = 5.0   # rad/s speed step\n",
-        "reference_amplitude = 5.0   # rad/s speed step\nmethod = \"mpc\"\n",
-    );
+    let t = with_control(&without_physical(), "method = \"mpc\"\n");
     let cfg = LoadedConfig::from_text(&example_path(), &t).unwrap();
     let run = run_pipeline(&cfg, &|_| {}).unwrap();
     let report = run.gap.report().expect("the example diagnoses every run");

@@ -3,6 +3,7 @@
 //! `hinf` analyse the diagnosed effect in their own loop, the MPC says the analysis does not
 //! apply, and the loop the analysis uses is the chosen controller's (checked against an
 //! independent evaluation and simulation of G0 with that controller).
+use crate::bundled_example::{example_path, with_control, without_physical};
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::limit_cycle::{simulate, DescribingFunction, LureLoop, Nonlinearity, SimSpec, Site};
 use ferrosid::lti::StateSpace;
@@ -12,28 +13,18 @@ use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun};
 use ferrosid::robust::receipts::{Receipt, ReceiptKind};
 use ferrosid::synth::sim::SsFilter;
 use num_complex::Complex64;
-use std::path::{Path, PathBuf};
-
-fn example_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/pipeline.toml")
-}
 
 /// The example with its gap and compensation stages (without the physical stage), every
 /// method in one run.
 fn run_all() -> PipelineRun {
-    let t = std::fs::read_to_string(example_path()).unwrap();
+    let t = without_physical();
     assert!(
         t.contains("[gap]\nrun = \"always\""),
         "the example runs the gap stage"
     );
-    let t = match t.find("[physical]") {
-        Some(i) => t[..i].to_string(),
-        None => t,
-    };
-    let anchor = "reference_amplitude = 5.0   # rad/s speed step\n";
-    let t = t.replace(
-        anchor,
-        &format!("{anchor}methods = [\"pid\", \"pid-notch\", \"hinf\", \"mpc\"]\n"),
+    let t = with_control(
+        &t,
+        "methods = [\"pid\", \"pid-notch\", \"hinf\", \"mpc\"]\n",
     );
     let cfg = LoadedConfig::from_text(&example_path(), &t).unwrap();
     run_pipeline(&cfg, &|_| {}).unwrap()

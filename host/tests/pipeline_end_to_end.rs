@@ -14,6 +14,17 @@ fn ferrosid() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ferrosid"))
 }
 
+/// `ferrosid run TOML --out OUT`, waited for.
+fn run_to(toml: &Path, out: impl AsRef<std::ffi::OsStr>) -> std::process::Output {
+    ferrosid()
+        .arg("run")
+        .arg(toml)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .expect("run ferrosid")
+}
+
 fn read_json(p: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(p).expect("read json")).expect("parse json")
 }
@@ -115,13 +126,7 @@ fn known_plant_end_to_end_receipts_cross_checked() {
     let toml = sup::setup("pipeline-known", "", "");
     let dir = toml.parent().expect("dir").to_path_buf();
     let out = dir.join("out");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&toml)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("run ferrosid");
+    let st = run_to(&toml, &out);
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(
         st.status.code(),
@@ -309,13 +314,7 @@ fn failing_receipts_exit_one() {
         "[receipts]\ncross_validation_fit_min = 99.99\n",
     );
     let out = toml.parent().expect("dir").join("out");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&toml)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("run");
+    let st = run_to(&toml, &out);
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(st.status.code(), Some(1), "{stdout}");
     assert!(
@@ -330,13 +329,7 @@ fn failing_receipts_exit_one() {
     // An impossible M_s limit: no controller can be tuned; controller_design fails and says why.
     let toml = sup::setup("pipeline-fail-ms", "ms_max = 1.01", "");
     let out = toml.parent().expect("dir").join("out");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&toml)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("run");
+    let st = run_to(&toml, &out);
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert_eq!(st.status.code(), Some(1), "{stdout}");
     let doc = read_json(&out.join("receipts.json"));
@@ -386,13 +379,7 @@ fn run_err(name: &str, toml_text: &str) -> (Option<i32>, String) {
     sup::write_dataset(&d);
     let p = d.join("pipeline.toml");
     std::fs::write(&p, toml_text).expect("write");
-    let st = ferrosid()
-        .arg("run")
-        .arg(&p)
-        .arg("--out")
-        .arg(d.join("out"))
-        .output()
-        .expect("run");
+    let st = run_to(&p, d.join("out"));
     (
         st.status.code(),
         String::from_utf8_lossy(&st.stderr).into_owned(),
@@ -408,85 +395,92 @@ fn bad_pipeline_files_name_file_line_and_key() {
             .expect("needle")
             + 1
     };
-    // Unknown key (typo).
-    let t = base.replace("actuator_limit = 2.0", "actuator_limt = 2.0");
-    let (code, err) = run_err("pipeline-bad-unknown", &t);
-    assert_eq!(code, Some(3), "{err}");
-    let l = line_of(&t, "actuator_limt");
-    assert!(
-        err.contains(&format!("pipeline.toml:{l}:")) && err.contains("control.actuator_limt"),
-        "{err}"
-    );
-    // Wrong type.
-    let t = base.replace("nperseg = 500", "nperseg = \"500\"");
-    let (code, err) = run_err("pipeline-bad-type", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains(&format!("pipeline.toml:{}:", line_of(&t, "nperseg")))
-            && err.contains("etfe.nperseg"),
-        "{err}"
-    );
-    // Invalid value.
-    let t = base.replace("crossover_hz = 6.0", "crossover_hz = -6.0");
-    let (code, err) = run_err("pipeline-bad-value", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains(&format!("pipeline.toml:{}:", line_of(&t, "crossover_hz")))
-            && err.contains("control.crossover_hz")
-            && err.contains("> 0"),
-        "{err}"
-    );
-    // Crossover above Nyquist (known only once the data are read).
-    let t = base.replace("crossover_hz = 6.0", "crossover_hz = 600.0");
-    let (code, err) = run_err("pipeline-bad-nyquist", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains("control.crossover_hz") && err.contains("Nyquist"),
-        "{err}"
-    );
-    // Missing required key.
-    let t = base.replace("actuator_limit = 2.0\n", "");
-    let (code, err) = run_err("pipeline-bad-missing", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains("pipeline.toml") && err.contains("actuator_limit"),
-        "{err}"
-    );
-    // Syntax error.
-    let t = base.replace("file = \"low.csv\"", "file = \"low.csv");
-    let (code, err) = run_err("pipeline-bad-syntax", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains(&format!(
-            "pipeline.toml:{}:",
-            line_of(&t, "file = \"low.csv")
-        )),
-        "{err}"
-    );
-    // A log that does not exist: the error names the log file.
-    let t = base.replace("file = \"val.csv\"", "file = \"missing.csv\"");
-    let (code, err) = run_err("pipeline-bad-log", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(err.contains("missing.csv"), "{err}");
-    // A column that is not in the log.
-    let t = base.replace("fs = 1000.0", "fs = 1000.0\ninput = \"current\"");
-    let (code, err) = run_err("pipeline-bad-column", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(err.contains("low.csv") && err.contains("current"), "{err}");
-    // Unknown run in the identification table.
-    let t = format!("{base}\n[identification]\nrun = \"medium\"\n");
-    let (code, err) = run_err("pipeline-bad-run", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains("identification.run") && err.contains("medium"),
-        "{err}"
-    );
-    // Mismatched sample rates between logs.
-    let t = base.replace("file = \"val.csv\"", "file = \"val.csv\"\nfs = 2000.0");
-    let (code, err) = run_err("pipeline-bad-fs", &t);
-    assert_eq!(code, Some(3), "{err}");
-    assert!(
-        err.contains("val.csv") && err.contains("sample rate"),
-        "{err}"
-    );
+    // (scratch name, pipeline text, the line the error must name (by a text on it), what the
+    // error must contain); every one exits 3.
+    let cases: Vec<(&str, String, Option<&str>, &[&str])> = vec![
+        // Unknown key (typo).
+        (
+            "pipeline-bad-unknown",
+            base.replace("actuator_limit = 2.0", "actuator_limt = 2.0"),
+            Some("actuator_limt"),
+            &["control.actuator_limt"],
+        ),
+        // Wrong type.
+        (
+            "pipeline-bad-type",
+            base.replace("nperseg = 500", "nperseg = \"500\""),
+            Some("nperseg"),
+            &["etfe.nperseg"],
+        ),
+        // Invalid value.
+        (
+            "pipeline-bad-value",
+            base.replace("crossover_hz = 6.0", "crossover_hz = -6.0"),
+            Some("crossover_hz"),
+            &["control.crossover_hz", "> 0"],
+        ),
+        // Crossover above Nyquist (known only once the data are read).
+        (
+            "pipeline-bad-nyquist",
+            base.replace("crossover_hz = 6.0", "crossover_hz = 600.0"),
+            None,
+            &["control.crossover_hz", "Nyquist"],
+        ),
+        // Missing required key.
+        (
+            "pipeline-bad-missing",
+            base.replace("actuator_limit = 2.0\n", ""),
+            None,
+            &["pipeline.toml", "actuator_limit"],
+        ),
+        // Syntax error.
+        (
+            "pipeline-bad-syntax",
+            base.replace("file = \"low.csv\"", "file = \"low.csv"),
+            Some("file = \"low.csv"),
+            &[],
+        ),
+        // A log that does not exist: the error names the log file.
+        (
+            "pipeline-bad-log",
+            base.replace("file = \"val.csv\"", "file = \"missing.csv\""),
+            None,
+            &["missing.csv"],
+        ),
+        // A column that is not in the log.
+        (
+            "pipeline-bad-column",
+            base.replace("fs = 1000.0", "fs = 1000.0\ninput = \"current\""),
+            None,
+            &["low.csv", "current"],
+        ),
+        // Unknown run in the identification table.
+        (
+            "pipeline-bad-run",
+            format!("{base}\n[identification]\nrun = \"medium\"\n"),
+            None,
+            &["identification.run", "medium"],
+        ),
+        // Mismatched sample rates between logs.
+        (
+            "pipeline-bad-fs",
+            base.replace("file = \"val.csv\"", "file = \"val.csv\"\nfs = 2000.0"),
+            None,
+            &["val.csv", "sample rate"],
+        ),
+    ];
+    for (name, t, line_needle, needles) in cases {
+        let (code, err) = run_err(name, &t);
+        assert_eq!(code, Some(3), "{name}: {err}");
+        if let Some(n) = line_needle {
+            let l = line_of(&t, n);
+            assert!(
+                err.contains(&format!("pipeline.toml:{l}:")),
+                "{name}: {err}"
+            );
+        }
+        for n in needles {
+            assert!(err.contains(n), "{name}: no `{n}` in {err}");
+        }
+    }
 }

@@ -2,39 +2,13 @@
 //! example, each method's receipts equal to its own single-method run's, the comparison rows
 //! equal to those receipts, and the `method`/`methods` keys refusing bad input with file, line
 //! and key.
+use crate::bundled_example::{example_text, load, run};
 use ferrosid::pipeline::control_methods::{comparison_rows, method_documents, ComparisonRow};
 use ferrosid::pipeline::control_stage::{codegen_block, ControlMethod};
-use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun, ReceiptsDocument};
+use ferrosid::pipeline::{run_pipeline, PipelineRun, ReceiptsDocument};
 use ferrosid::robust::receipts::ReceiptKind;
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-
-fn example_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/pipeline.toml")
-}
-
-/// The example without the gap, compensation and physical stages (slow in debug, and not what
-/// this tests), with `extra` lines appended to `[control]`.
-fn example_text(extra: &str) -> String {
-    let t = std::fs::read_to_string(example_path()).unwrap();
-    let t = t.replace("[gap]\nrun = \"always\"", "[gap]\nrun = \"never\"");
-    let t = match t.find("[physical]") {
-        Some(i) => t[..i].to_string(),
-        None => t,
-    };
-    t.replace(
-        "reference_amplitude = 5.0   # rad/s speed step\n",
-        &format!("reference_amplitude = 5.0   # rad/s speed step\n{extra}"),
-    )
-}
-
-fn load(extra: &str) -> ferrosid::error::Result<LoadedConfig> {
-    LoadedConfig::from_text(&example_path(), &example_text(extra))
-}
-
-fn run(extra: &str) -> PipelineRun {
-    run_pipeline(&load(extra).unwrap(), &|_| {}).unwrap()
-}
+use std::path::Path;
 
 fn doc(run: &PipelineRun) -> Value {
     serde_json::from_str(&ReceiptsDocument::from_run(run).to_json().unwrap()).unwrap()

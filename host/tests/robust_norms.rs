@@ -1,21 +1,29 @@
 //! H∞ norms by Hamiltonian bisection against closed forms and an independent dense grid.
 use faer::Mat;
-use ferrosid::lti::{StateSpace, TransferFunction};
+use ferrosid::lti::StateSpace;
 use ferrosid::robust::norms::{hinf_norm, logspace, peak_gain_on_grid};
 use std::f64::consts::PI;
 
-fn tf(num: &[f64], den: &[f64], ts: f64) -> StateSpace {
-    TransferFunction::new(num.to_vec(), den.to_vec(), ts)
-        .unwrap()
-        .to_state_space()
-        .unwrap()
+use crate::test_models::ss;
+
+/// The certified bound γ is at least the grid peak `gp` (up to `above` relative rounding) and
+/// at most a relative `below` above it (the grid's resolution).
+fn assert_brackets(gamma: f64, gp: f64, above: f64, below: f64, label: &str) {
+    assert!(
+        gp <= gamma * (1.0 + above),
+        "{label}: grid {gp} above certified bound {gamma}"
+    );
+    assert!(
+        gamma <= gp * (1.0 + below),
+        "{label}: bound {gamma} vs grid {gp}"
+    );
 }
 
 #[test]
 fn first_order_lowpass_peak_is_dc_gain() {
     // K/(s + a): sup |G| = K/a at ω = 0.
     for (k, a) in [(3.0, 2.0), (0.5, 100.0), (1e3, 1e-2)] {
-        let r = hinf_norm(&tf(&[k], &[1.0, a], 0.0)).unwrap();
+        let r = hinf_norm(&ss(&[k], &[1.0, a], 0.0)).unwrap();
         assert!((r.gamma - k / a).abs() <= 1e-8 * k / a, "{r:?}");
         assert!(r.gamma_lower <= r.gamma);
         assert_eq!(r.peak_w_rad_s, 0.0);
@@ -31,7 +39,7 @@ fn second_order_resonance_closed_form() {
         (10.0, 0.5),
         (3.0, 0.01),
     ] {
-        let r = hinf_norm(&tf(&[wn * wn], &[1.0, 2.0 * zeta * wn, wn * wn], 0.0)).unwrap();
+        let r = hinf_norm(&ss(&[wn * wn], &[1.0, 2.0 * zeta * wn, wn * wn], 0.0)).unwrap();
         let peak = 1.0 / (2.0 * zeta * (1.0f64 - zeta * zeta).sqrt());
         let wpk = wn * (1.0f64 - 2.0 * zeta * zeta).sqrt();
         assert!(
@@ -49,7 +57,7 @@ fn second_order_resonance_closed_form() {
 #[test]
 fn well_damped_second_order_peak_at_dc() {
     // ζ = 0.9 > 1/√2: no resonance, peak = 1 at ω = 0.
-    let r = hinf_norm(&tf(&[4.0], &[1.0, 3.6, 4.0], 0.0)).unwrap();
+    let r = hinf_norm(&ss(&[4.0], &[1.0, 3.6, 4.0], 0.0)).unwrap();
     assert!((r.gamma - 1.0).abs() <= 1e-8, "{r:?}");
     assert!(r.peak_w_rad_s < 1e-3);
 }
@@ -57,7 +65,7 @@ fn well_damped_second_order_peak_at_dc() {
 #[test]
 fn biproper_highpass_supremum_at_infinity() {
     // 2s/(s + 1): sup = 2 = |D|, approached as ω → ∞.
-    let r = hinf_norm(&tf(&[2.0, 0.0], &[1.0, 1.0], 0.0)).unwrap();
+    let r = hinf_norm(&ss(&[2.0, 0.0], &[1.0, 1.0], 0.0)).unwrap();
     assert!((r.gamma - 2.0).abs() <= 1e-8, "{r:?}");
     assert!(r.peak_w_rad_s.is_infinite());
 }
@@ -66,9 +74,9 @@ fn biproper_highpass_supremum_at_infinity() {
 fn lead_with_feedthrough_closed_form() {
     // (s + 1)/(0.1 s + 1) has |G| increasing from 1 to 10: sup = 10 at ∞; and the inverse
     // (0.1 s + 1)/(s + 1) peaks at DC with 1.
-    let r = hinf_norm(&tf(&[1.0, 1.0], &[0.1, 1.0], 0.0)).unwrap();
+    let r = hinf_norm(&ss(&[1.0, 1.0], &[0.1, 1.0], 0.0)).unwrap();
     assert!((r.gamma - 10.0).abs() <= 1e-7, "{r:?}");
-    let r = hinf_norm(&tf(&[0.1, 1.0], &[1.0, 1.0], 0.0)).unwrap();
+    let r = hinf_norm(&ss(&[0.1, 1.0], &[1.0, 1.0], 0.0)).unwrap();
     assert!((r.gamma - 1.0).abs() <= 1e-8, "{r:?}");
 }
 
@@ -76,10 +84,10 @@ fn lead_with_feedthrough_closed_form() {
 fn discrete_first_order_closed_forms() {
     // b/(z − a): |G(e^{jθ})| = b/|e^{jθ} − a|, max b/(1 − |a|) at θ = 0 (a > 0) or θ = π (a < 0).
     let ts = 1e-3;
-    let r = hinf_norm(&tf(&[0.2], &[1.0, -0.8], ts)).unwrap();
+    let r = hinf_norm(&ss(&[0.2], &[1.0, -0.8], ts)).unwrap();
     assert!((r.gamma - 1.0).abs() <= 1e-8, "{r:?}");
     assert!(r.peak_w_rad_s.abs() < 1e-6);
-    let r = hinf_norm(&tf(&[0.2], &[1.0, 0.8], ts)).unwrap();
+    let r = hinf_norm(&ss(&[0.2], &[1.0, 0.8], ts)).unwrap();
     assert!((r.gamma - 1.0).abs() <= 1e-8, "{r:?}");
     assert!((r.peak_w_rad_s - PI / ts).abs() <= 1e-6 * PI / ts, "{r:?}");
 }
@@ -90,7 +98,7 @@ fn discrete_resonance_matches_zoh_of_continuous_and_dense_grid() {
     // grid over the unit circle refined by golden section (independent code path).
     let wn = 2.0 * PI * 40.0;
     let zeta = 0.03;
-    let g = tf(&[wn * wn], &[1.0, 2.0 * zeta * wn, wn * wn], 0.0)
+    let g = ss(&[wn * wn], &[1.0, 2.0 * zeta * wn, wn * wn], 0.0)
         .c2d_zoh(1e-3)
         .unwrap();
     let r = hinf_norm(&g).unwrap();
@@ -98,16 +106,7 @@ fn discrete_resonance_matches_zoh_of_continuous_and_dense_grid() {
         .map(|k| PI / 1e-3 * k as f64 / 200_000.0)
         .collect();
     let (gp, gw) = peak_gain_on_grid(&g, &grid).unwrap();
-    assert!(
-        gp <= r.gamma * (1.0 + 1e-12),
-        "grid {gp} above certified bound {}",
-        r.gamma
-    );
-    assert!(
-        r.gamma <= gp * (1.0 + 1e-5),
-        "bound {} vs grid {gp}",
-        r.gamma
-    );
+    assert_brackets(r.gamma, gp, 1e-12, 1e-5, "ZOH resonance");
     assert!(
         (r.peak_w_rad_s - gw).abs() <= 2e-3 * gw,
         "{} vs {gw}",
@@ -159,27 +158,18 @@ fn random_stable_mimo_models_agree_with_dense_grid() {
         let r = hinf_norm(&sys).unwrap();
         let grid = logspace(1e-4, 1e4, 40_001);
         let (gp, _) = peak_gain_on_grid(&sys, &grid).unwrap();
-        assert!(
-            gp <= r.gamma * (1.0 + 1e-10),
-            "n={n}: grid {gp} > bound {}",
-            r.gamma
-        );
-        assert!(
-            r.gamma <= gp * (1.0 + 2e-3),
-            "n={n}: bound {} vs grid {gp}",
-            r.gamma
-        );
+        assert_brackets(r.gamma, gp, 1e-10, 2e-3, &format!("n={n}"));
         assert!(r.gamma <= r.gamma_lower * (1.0 + 3e-9));
     }
 }
 
 #[test]
 fn unstable_and_marginal_models_are_refused() {
-    let e = hinf_norm(&tf(&[1.0], &[1.0, -1.0], 0.0)).unwrap_err();
+    let e = hinf_norm(&ss(&[1.0], &[1.0, -1.0], 0.0)).unwrap_err();
     assert!(e.to_string().contains("not stable"), "{e}");
-    let e = hinf_norm(&tf(&[1.0], &[1.0, 0.0], 0.0)).unwrap_err(); // integrator
+    let e = hinf_norm(&ss(&[1.0], &[1.0, 0.0], 0.0)).unwrap_err(); // integrator
     assert!(e.to_string().contains("not stable"), "{e}");
-    let e = hinf_norm(&tf(&[1.0], &[1.0, -1.0], 0.01)).unwrap_err(); // z = 1
+    let e = hinf_norm(&ss(&[1.0], &[1.0, -1.0], 0.01)).unwrap_err(); // z = 1
     assert!(e.to_string().contains("not stable"), "{e}");
 }
 
@@ -198,19 +188,10 @@ fn badly_scaled_high_frequency_resonances() {
     let d1 = [1.0, 2.0 * z1 * w1, w1 * w1];
     let d2 = [1.0, 2.0 * z2 * w2, w2 * w2];
     let den = ferrosid::lti::poly_mul(&d1, &d2);
-    let sys = tf(&[w1 * w1 * w2 * w2], &den, 0.0);
+    let sys = ss(&[w1 * w1 * w2 * w2], &den, 0.0);
     let r = hinf_norm(&sys).unwrap();
     let grid = logspace(2.0 * PI * 10.0, 2.0 * PI * 1e5, 400_001);
     let (gp, gw) = peak_gain_on_grid(&sys, &grid).unwrap();
-    assert!(
-        gp <= r.gamma * (1.0 + 1e-10),
-        "grid {gp} > bound {}",
-        r.gamma
-    );
-    assert!(
-        r.gamma <= gp * (1.0 + 1e-4),
-        "bound {} vs grid {gp}",
-        r.gamma
-    );
+    assert_brackets(r.gamma, gp, 1e-10, 1e-4, "two resonances");
     assert!((r.peak_w_rad_s / gw - 1.0).abs() < 1e-3);
 }

@@ -6,16 +6,11 @@ use ferrosid::robust::norms::logspace;
 use ferrosid::robust::pid::{
     implemented_loop, tune_pid, DiscretePidState, Pid, PidTuningSpec, Rolloff,
 };
-use ferrosid::robust::uncertainty::{
-    fit_uncertainty_weight, multiplicative_envelope, WeightFitOptions,
-};
+use ferrosid::robust::uncertainty::{fit_uncertainty_weight, multiplicative_envelope};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
-fn horner(p: &[f64], x: Complex64) -> Complex64 {
-    p.iter()
-        .fold(Complex64::new(0.0, 0.0), |acc, &c| acc * x + c)
-}
+use crate::test_models::{horner, weight_order};
 
 /// The controller evaluated from its parameters (independent of the library's polynomials).
 fn pid_direct(p: &Pid, s: Complex64) -> Complex64 {
@@ -215,15 +210,7 @@ fn two_mass_resonant_plant_with_uncertainty_weight() {
         .map(|&r| resp(wr0 * r))
         .collect();
     let l = multiplicative_envelope(&g0, &fam).unwrap();
-    let wm = fit_uncertainty_weight(
-        &f,
-        &l,
-        &WeightFitOptions {
-            order: 3,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let wm = fit_uncertainty_weight(&f, &l, &weight_order(3)).unwrap();
     let plant = plant_of(wr0);
     let mut spec = PidTuningSpec::new(25.0);
     spec.min_crossover_scale = 0.05;
@@ -263,15 +250,7 @@ fn infeasible_and_bad_specs_are_clear_errors() {
         .unwrap();
     // |W_m| = 2 everywhere demands |T| < 0.5 at all frequencies: impossible with T(0) = 1.
     let f = logspace(0.1, 100.0, 10);
-    let wm = fit_uncertainty_weight(
-        &f,
-        &[2.0; 10],
-        &WeightFitOptions {
-            order: 1,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let wm = fit_uncertainty_weight(&f, &[2.0; 10], &weight_order(1)).unwrap();
     let mut spec = PidTuningSpec::new(10.0);
     spec.weight = Some(wm);
     let e = tune_pid(&plant, &spec).unwrap_err().to_string();

@@ -8,21 +8,13 @@ use ferrosid::robust::uncertainty::{fit_uncertainty_weight, WeightFitOptions};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
+use crate::test_models::p_only;
+
 fn ss(num: &[f64], den: &[f64]) -> StateSpace {
     TransferFunction::new(num.to_vec(), den.to_vec(), 0.0)
         .unwrap()
         .to_state_space()
         .unwrap()
-}
-
-fn p_only(kp: f64) -> Pid {
-    Pid {
-        kp,
-        ki: 0.0,
-        kd: 0.0,
-        tau_f: 0.0,
-        rolloff: None,
-    }
 }
 
 fn inputs<'a>(plant: &'a StateSpace, pid: &'a Pid, fc: f64) -> ReceiptInputs<'a> {

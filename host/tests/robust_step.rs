@@ -3,15 +3,7 @@ use ferrosid::lti::{StateSpace, TransferFunction};
 use ferrosid::robust::pid::Pid;
 use ferrosid::robust::step::{saturated_step, StepSpec};
 
-fn p_only(kp: f64) -> Pid {
-    Pid {
-        kp,
-        ki: 0.0,
-        kd: 0.0,
-        tau_f: 0.0,
-        rolloff: None,
-    }
-}
+use crate::test_models::p_only;
 
 fn integrator(ts: f64) -> StateSpace {
     // y[k+1] = y[k] + ts·u[k]: G(z) = ts/(z − 1).

@@ -7,29 +7,20 @@ use ferrosid::robust::uncertainty::{
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
+use crate::test_models::{horner, hurwitz, weight_order};
+
 fn j() -> Complex64 {
     Complex64::new(0.0, 1.0)
 }
 
-/// Horner evaluation written here, independent of the library.
-fn eval(p: &[f64], s: Complex64) -> Complex64 {
-    let mut acc = Complex64::new(0.0, 0.0);
-    for &c in p {
-        acc = acc * s + c;
-    }
-    acc
-}
-
-/// Routh–Hurwitz for degree <= 3 (independent of any eigenvalue code): all roots in the open
-/// left half plane.
-fn hurwitz(p: &[f64]) -> bool {
-    let a: Vec<f64> = p.iter().map(|c| c / p[0]).collect();
-    match a.len() {
-        2 => a[1] > 0.0,
-        3 => a[1] > 0.0 && a[2] > 0.0,
-        4 => a[1] > 0.0 && a[2] > 0.0 && a[3] > 0.0 && a[1] * a[2] > a[3],
-        _ => panic!("degree {}", a.len() - 1),
-    }
+/// |num/den|(j2πf) at every frequency of `f` (Hz).
+fn magnitude(num: &[f64], den: &[f64], f: &[f64]) -> Vec<f64> {
+    f.iter()
+        .map(|&f| {
+            let s = j() * 2.0 * PI * f;
+            (horner(num, s) / horner(den, s)).norm()
+        })
+        .collect()
 }
 
 fn check_weight(w: &UncertaintyWeight, f: &[f64], l: &[f64]) {
@@ -41,7 +32,7 @@ fn check_weight(w: &UncertaintyWeight, f: &[f64], l: &[f64]) {
     let mut worst = 0.0f64;
     for (&fi, &li) in f.iter().zip(l) {
         let s = j() * 2.0 * PI * fi;
-        let mag = (eval(&w.num, s) / eval(&w.den, s)).norm();
+        let mag = (horner(&w.num, s) / horner(&w.den, s)).norm();
         assert!(
             mag >= li * (1.0 - 1e-12),
             "|W| = {mag} < l = {li} at {fi} Hz"
@@ -94,7 +85,7 @@ fn envelope_of_weighted_perturbations_equals_the_weight() {
                 .zip(&g0)
                 .map(|(&f, g)| {
                     let s = j() * 2.0 * PI * f;
-                    g * (1.0 + d * eval(&wnum, s) / eval(&wden, s))
+                    g * (1.0 + d * horner(&wnum, s) / horner(&wden, s))
                 })
                 .collect()
         })
@@ -102,7 +93,7 @@ fn envelope_of_weighted_perturbations_equals_the_weight() {
     let l = multiplicative_envelope(&g0, &fam).unwrap();
     for (&fi, &li) in f.iter().zip(&l) {
         let s = j() * 2.0 * PI * fi;
-        let w = (eval(&wnum, s) / eval(&wden, s)).norm();
+        let w = (horner(&wnum, s) / horner(&wden, s)).norm();
         assert!((li - w).abs() <= 1e-12 * w.max(1.0), "{li} vs {w}");
     }
 }
@@ -112,22 +103,8 @@ fn first_order_envelope_is_recovered_by_a_first_order_weight() {
     // l(ω) = |(s/2 + 0.1)/(s/200 + 1)|: 10 % at low frequency rising to 100 at high frequency.
     let (num, den) = ([0.5, 0.1], [0.005, 1.0]);
     let f = logspace(0.01, 1000.0, 120);
-    let l: Vec<f64> = f
-        .iter()
-        .map(|&f| {
-            let s = j() * 2.0 * PI * f;
-            (eval(&num, s) / eval(&den, s)).norm()
-        })
-        .collect();
-    let w = fit_uncertainty_weight(
-        &f,
-        &l,
-        &WeightFitOptions {
-            order: 1,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let l = magnitude(&num, &den, &f);
+    let w = fit_uncertainty_weight(&f, &l, &weight_order(1)).unwrap();
     check_weight(&w, &f, &l);
     assert!(w.worst_overbound_ratio < 1.01, "{w:?}");
     // Recovered zero and pole (0.2 and 200 rad/s) within 2 %.
@@ -143,22 +120,8 @@ fn resonant_envelope_needs_order_two() {
         [1.0, 2.0 * 0.15 * 60.0, 3600.0],
     );
     let f = logspace(0.1, 100.0, 150);
-    let l: Vec<f64> = f
-        .iter()
-        .map(|&f| {
-            let s = j() * 2.0 * PI * f;
-            (eval(&num, s) / eval(&den, s)).norm()
-        })
-        .collect();
-    let fits = fit_uncertainty_weights(
-        &f,
-        &l,
-        &WeightFitOptions {
-            order: 3,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let l = magnitude(&num, &den, &f);
+    let fits = fit_uncertainty_weights(&f, &l, &weight_order(3)).unwrap();
     assert_eq!(fits.len(), 3);
     for w in &fits {
         check_weight(w, &f, &l);
@@ -197,15 +160,7 @@ fn delay_family_overbound_and_order_monotonicity() {
         })
         .collect();
     let l = multiplicative_envelope(&g0, &fam).unwrap();
-    let fits = fit_uncertainty_weights(
-        &f,
-        &l,
-        &WeightFitOptions {
-            order: 2,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let fits = fit_uncertainty_weights(&f, &l, &weight_order(2)).unwrap();
     for w in &fits {
         check_weight(w, &f, &l);
     }
@@ -224,15 +179,7 @@ fn delay_family_overbound_and_order_monotonicity() {
 fn weight_state_space_matches_polynomials() {
     let f = logspace(0.1, 10.0, 20);
     let l: Vec<f64> = f.iter().map(|f| 0.1 + 0.05 * f).collect();
-    let w = fit_uncertainty_weight(
-        &f,
-        &l,
-        &WeightFitOptions {
-            order: 1,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let w = fit_uncertainty_weight(&f, &l, &weight_order(1)).unwrap();
     let ss = w.to_state_space().unwrap();
     for &fi in &f {
         let a = ss.freq_response_siso(fi).unwrap();

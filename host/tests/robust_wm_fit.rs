@@ -18,24 +18,9 @@ use ferrosid::robust::uncertainty::{
 use ferrosid::spectral::PeriodicAveraging;
 use num_complex::Complex64;
 use std::f64::consts::PI;
+
+use crate::test_models::{horner, hurwitz};
 use std::path::{Path, PathBuf};
-
-/// Horner evaluation written here, independent of the library.
-fn eval(p: &[f64], s: Complex64) -> Complex64 {
-    p.iter()
-        .fold(Complex64::new(0.0, 0.0), |acc, &c| acc * s + c)
-}
-
-/// Routh–Hurwitz for degree <= 3: all roots in the open left half plane.
-fn hurwitz(p: &[f64]) -> bool {
-    let a: Vec<f64> = p.iter().map(|c| c / p[0]).collect();
-    match a.len() {
-        2 => a[1] > 0.0,
-        3 => a[1] > 0.0 && a[2] > 0.0,
-        4 => a[1] > 0.0 && a[2] > 0.0 && a[3] > 0.0 && a[1] * a[2] > a[3],
-        _ => panic!("degree {}", a.len() - 1),
-    }
-}
 
 /// J in dB recomputed here: 20·log10 of the trapezoidal-in-ln ω weighted geometric mean of
 /// |W_m|/l_m, after checking the overbound at every bin.
@@ -48,7 +33,7 @@ fn checked_mean_overbound_db(w: &UncertaintyWeight, f: &[f64], l: &[f64]) -> f64
     let (mut acc, mut wsum) = (0.0, 0.0);
     for i in 0..m {
         let s = Complex64::new(0.0, 2.0 * PI * f[i]);
-        let mag = (eval(&w.num, s) / eval(&w.den, s)).norm();
+        let mag = (horner(&w.num, s) / horner(&w.den, s)).norm();
         let li = l[i].max(floor);
         assert!(mag >= li, "|W| = {mag:e} < l = {li:e} at {} Hz", f[i]);
         let lo = ln_w[i.saturating_sub(1)];

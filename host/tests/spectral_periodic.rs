@@ -3,7 +3,7 @@
 use std::f64::consts::PI;
 
 use ferrosid::spectral::PeriodicAveraging;
-use ferrosid::{Channel, Error, Log};
+use ferrosid::{Error, Log};
 
 mod spectral_support;
 use spectral_support::{freqz, lfilter, Rng};
@@ -191,19 +191,7 @@ fn explicit_lines_and_bad_inputs() {
     assert!(inv(PeriodicAveraging::new(p).frf(&u, &y[..399], 1.0)).contains("differ"));
 
     // Log entry point: too short names the file.
-    let log = Log {
-        path: "bench/ms.mat".into(),
-        ts: 1.0,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u[..150].to_vec(),
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y[..150].to_vec(),
-        }],
-        warnings: vec![],
-    };
+    let log = Log::siso("bench/ms.mat", 1.0, u[..150].to_vec(), y[..150].to_vec());
     match PeriodicAveraging::new(p).frf_log(&log, 0, 0) {
         Err(Error::Data { file, msg }) => {
             assert!(file.ends_with("ms.mat"));

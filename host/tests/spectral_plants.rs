@@ -3,7 +3,7 @@
 use std::f64::consts::PI;
 
 use ferrosid::spectral::{coherence_gate, excluded_bands, Detrend, Welch, Window};
-use ferrosid::{Channel, Error, Log};
+use ferrosid::{Error, Log};
 use num_complex::Complex64;
 
 mod spectral_support;
@@ -236,19 +236,12 @@ fn bad_inputs_are_errors() {
     assert!(inv(w.etfe(&u, &y, 1.0)).contains("custom window"));
 
     // Log-level entry point: too short names the file; bad channel index.
-    let log = Log {
-        path: "bench/short.csv".into(),
-        ts: 0.001,
-        inputs: vec![Channel {
-            name: "u".into(),
-            data: u[..100].to_vec(),
-        }],
-        outputs: vec![Channel {
-            name: "y".into(),
-            data: y[..100].to_vec(),
-        }],
-        warnings: vec![],
-    };
+    let log = Log::siso(
+        "bench/short.csv",
+        0.001,
+        u[..100].to_vec(),
+        y[..100].to_vec(),
+    );
     match Welch::new(256).etfe_log(&log, 0, 0) {
         Err(Error::Data { file, msg }) => {
             assert_eq!(file, std::path::PathBuf::from("bench/short.csv"));

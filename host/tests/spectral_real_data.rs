@@ -2,24 +2,14 @@
 //! motor bench (.mat, periodic multisine: period-synchronous FRF must show the two-mass
 //! anti-resonance / resonance pair) and DaISy (.dat: Welch spectra equal scipy's on the same
 //! file, reference tests/fixtures/spectral_daisy_scipy.json from tests/ref/scipy_daisy.py).
-use std::path::{Path, PathBuf};
+use crate::shared_data::shared_data;
 
 use ferrosid::io::{read_columns, read_log, LogSpec, TextOptions};
 use ferrosid::spectral::{Detrend, PeriodicAveraging, Welch, Window, DEFAULT_COHERENCE_THRESHOLD};
 use num_complex::Complex64;
 use serde::Deserialize;
 
-fn data_dir(sub: &str) -> Option<PathBuf> {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data")
-        .join(sub);
-    if d.exists() {
-        Some(d)
-    } else {
-        eprintln!("skipping: {} not present", d.display());
-        None
-    }
-}
+use crate::scipy_spectra::ScipySpectra;
 
 /// (frequency, magnitude) of the largest |H| and of the smallest |H| below it, in a band.
 fn pair_in(freq: &[f64], h: &[Complex64], lo: f64, hi: f64) -> ((f64, f64), (f64, f64)) {
@@ -40,7 +30,7 @@ fn pair_in(freq: &[f64], h: &[Complex64], lo: f64, hi: f64) -> ((f64, f64), (f64
 
 #[test]
 fn motor_bench_resonance_and_antiresonance() {
-    let Some(dir) = data_dir("motor-bench") else {
+    let Some(dir) = shared_data("motor-bench", "the real-data spectral test") else {
         return;
     };
     for f in ["MultisineTypeA.mat", "MultisineTypeB.mat"] {
@@ -141,12 +131,8 @@ struct Pair {
     input_col: usize,
     output_col: usize,
     n: usize,
-    f: Vec<f64>,
-    pxx: Vec<f64>,
-    pyy: Vec<f64>,
-    pxy_re: Vec<f64>,
-    pxy_im: Vec<f64>,
-    cxy: Vec<f64>,
+    #[serde(flatten)]
+    scipy: ScipySpectra,
 }
 
 #[derive(Deserialize)]
@@ -157,7 +143,7 @@ struct DaisyRef {
 
 #[test]
 fn daisy_welch_matches_scipy_on_the_real_files() {
-    let Some(dir) = data_dir("daisy") else {
+    let Some(dir) = shared_data("daisy", "the real-data spectral test") else {
         return;
     };
     let fx: DaisyRef = serde_json::from_str(
@@ -184,28 +170,24 @@ fn daisy_welch_matches_scipy_on_the_real_files() {
         let e = Welch::new(fx.nperseg).etfe_log(&log, 0, 0).unwrap();
         let rel = |a: f64, b: f64, top: f64| (a - b).abs() / b.abs().max(1e-7 * top);
         let (tu, ty) = (
-            pr.pxx.iter().cloned().fold(0.0, f64::max),
-            pr.pyy.iter().cloned().fold(0.0, f64::max),
+            pr.scipy.pxx.iter().cloned().fold(0.0, f64::max),
+            pr.scipy.pyy.iter().cloned().fold(0.0, f64::max),
         );
         // Same rule as tests/spectral_scipy.rs: relative error at bins whose reference is above
         // 1e-7 of the largest; the coherence where the cross-spectrum is (at the band edges of
         // the robot-arm input the spectra sit 1e-13 below their peak, at the round-off floor).
-        let top_xy = pr
-            .pxy_re
-            .iter()
-            .zip(&pr.pxy_im)
-            .map(|(&r, &i)| Complex64::new(r, i).norm())
-            .fold(0.0, f64::max);
+        let pxy = pr.scipy.pxy();
+        let top_xy = pxy.iter().map(|z| z.norm()).fold(0.0, f64::max);
         let mut worst = 0.0f64;
-        for k in 0..pr.f.len() {
-            let pxy = Complex64::new(pr.pxy_re[k], pr.pxy_im[k]);
+        for k in 0..pr.scipy.f.len() {
+            let pxy = pxy[k];
             worst = worst
-                .max(rel(e.freq_hz[k], pr.f[k], 1.0))
-                .max(rel(e.suu[k], pr.pxx[k], tu))
-                .max(rel(e.syy[k], pr.pyy[k], ty))
+                .max(rel(e.freq_hz[k], pr.scipy.f[k], 1.0))
+                .max(rel(e.suu[k], pr.scipy.pxx[k], tu))
+                .max(rel(e.syy[k], pr.scipy.pyy[k], ty))
                 .max((e.suy[k] - pxy).norm() / pxy.norm().max(1e-7 * top_xy));
             if pxy.norm() > 1e-7 * top_xy {
-                worst = worst.max((e.coherence[k] - pr.cxy[k]).abs() / pr.cxy[k]);
+                worst = worst.max((e.coherence[k] - pr.scipy.cxy[k]).abs() / pr.scipy.cxy[k]);
             }
         }
         let gated = e

@@ -7,18 +7,16 @@ use ferrosid::spectral::{Detrend, Welch, Window};
 use num_complex::Complex64;
 use serde::Deserialize;
 
+use crate::scipy_spectra::ScipySpectra;
+
 #[derive(Deserialize)]
 struct Case {
     nperseg: usize,
     noverlap: Option<usize>,
     window: String,
     detrend: String,
-    f: Vec<f64>,
-    pxx: Vec<f64>,
-    pyy: Vec<f64>,
-    pxy_re: Vec<f64>,
-    pxy_im: Vec<f64>,
-    cxy: Vec<f64>,
+    #[serde(flatten)]
+    scipy: ScipySpectra,
 }
 
 #[derive(Deserialize)]
@@ -92,24 +90,19 @@ fn welch_csd_coherence_match_scipy() {
             "nperseg {} noverlap {:?} {} {}",
             c.nperseg, c.noverlap, c.window, c.detrend
         );
-        assert_eq!(e.freq_hz.len(), c.f.len(), "{label}");
-        let (ef, _) = max_rel(&real(&e.freq_hz), &real(&c.f), 0.0);
+        assert_eq!(e.freq_hz.len(), c.scipy.f.len(), "{label}");
+        let (ef, _) = max_rel(&real(&e.freq_hz), &real(&c.scipy.f), 0.0);
         assert!(ef < 1e-14, "{label}: frequencies {ef}");
-        let (eu, ku) = max_rel(&real(&e.suu), &real(&c.pxx), FLOOR);
-        let (ey, ky) = max_rel(&real(&e.syy), &real(&c.pyy), FLOOR);
-        let pxy: Vec<Complex64> = c
-            .pxy_re
-            .iter()
-            .zip(&c.pxy_im)
-            .map(|(&r, &i)| Complex64::new(r, i))
-            .collect();
+        let (eu, ku) = max_rel(&real(&e.suu), &real(&c.scipy.pxx), FLOOR);
+        let (ey, ky) = max_rel(&real(&e.syy), &real(&c.scipy.pyy), FLOOR);
+        let pxy = c.scipy.pxy();
         let (ec, kc) = max_rel(&e.suy, &pxy, FLOOR);
         // Coherence: relative error where the cross-spectrum itself is above the floor.
         let top = pxy.iter().map(|z| z.norm()).fold(0.0, f64::max);
         let mut eh = 0.0f64;
-        for k in 0..c.cxy.len() {
-            if pxy[k].norm() > FLOOR * top && c.cxy[k] > 0.0 {
-                eh = eh.max((e.coherence[k] - c.cxy[k]).abs() / c.cxy[k]);
+        for k in 0..c.scipy.cxy.len() {
+            if pxy[k].norm() > FLOOR * top && c.scipy.cxy[k] > 0.0 {
+                eh = eh.max((e.coherence[k] - c.scipy.cxy[k]).abs() / c.scipy.cxy[k]);
             }
         }
         eprintln!(
@@ -125,8 +118,8 @@ fn welch_csd_coherence_match_scipy() {
         }
         // H1 = Pxy / Pxx, as defined.
         for k in 0..e.h.len() {
-            if c.pxx[k] > FLOOR * c.pxx.iter().cloned().fold(0.0, f64::max) {
-                let h_ref = pxy[k] / c.pxx[k];
+            if c.scipy.pxx[k] > FLOOR * c.scipy.pxx.iter().cloned().fold(0.0, f64::max) {
+                let h_ref = pxy[k] / c.scipy.pxx[k];
                 assert!(
                     (e.h[k] - h_ref).norm() <= TOL * h_ref.norm().max(1e-300),
                     "{label}: H1 bin {k}"
@@ -135,7 +128,7 @@ fn welch_csd_coherence_match_scipy() {
         }
         // Stand-alone PSD equals the auto-spectrum of the ETFE path.
         let p = w.psd(&fx.u, fx.fs).unwrap();
-        let (ep, _) = max_rel(&real(&p.density), &real(&c.pxx), FLOOR);
+        let (ep, _) = max_rel(&real(&p.density), &real(&c.scipy.pxx), FLOOR);
         assert!(ep < TOL, "{label}: psd {ep:e}");
     }
 }

@@ -1,6 +1,6 @@
 //! H∞ mixed sensitivity against an interpolation bound, with the closed-loop norm checked
 //! independently, and balanced truncation against its error bound.
-use ferrosid::lti::{StateSpace, StateSpaceData, TransferFunction};
+use ferrosid::lti::{StateSpace, TransferFunction};
 use ferrosid::robust::loops::margins;
 use ferrosid::robust::norms::hinf_norm;
 use ferrosid::synth::balred::{balanced_truncation, balanced_truncation_to_bound};
@@ -8,6 +8,8 @@ use ferrosid::synth::hinf::{
     hinf_mixed_sensitivity, performance_weight, weighted_closed_loop_norm, HinfOptions,
     MixedSensitivityWeights,
 };
+
+use crate::test_models::two_mass;
 
 fn tf(num: &[f64], den: &[f64]) -> StateSpace {
     TransferFunction::new(num.to_vec(), den.to_vec(), 0.0)
@@ -165,15 +167,6 @@ fn two_mass_weights() -> MixedSensitivityWeights {
         wks: 5.0 / 0.3,
         wt: Some(tf(&[1.0 / w0, 0.1], &[1.0 / (4.0 * w0), 1.0])),
     }
-}
-
-/// examples/data/two_mass_sim.json: motor speed (rad/s) from torque (N·m).
-fn two_mass() -> StateSpace {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/two_mass_sim.json");
-    let data: StateSpaceData =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    StateSpace::try_from(&data).unwrap()
 }
 
 fn chain(n_modes: usize) -> StateSpace {

@@ -1,18 +1,10 @@
 //! PID + notch against plain PID on the bundled two-mass model, same constraints.
-use ferrosid::lti::{StateSpace, StateSpaceData};
 use ferrosid::robust::loops::{margins, FeedbackLoop};
 use ferrosid::robust::norms::hinf_norm;
 use ferrosid::robust::pid::{tune_pid, PidTuningSpec};
 use ferrosid::synth::loopshape::{place_notches, tune_pid_notch, Notch};
 
-/// examples/data/two_mass_sim.json: motor speed (rad/s) from torque (N·m).
-fn two_mass() -> StateSpace {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/two_mass_sim.json");
-    let data: StateSpaceData =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    StateSpace::try_from(&data).unwrap()
-}
+use crate::test_models::two_mass;
 
 /// The `[control]` section of examples/pipeline.toml: 8 Hz target, roll-off at 4× crossover
 /// (ζ 0.7), M_s ≤ 1.6, actuator 0.3 N·m for a 5 rad/s step (‖KS‖∞ ≤ 0.06).

@@ -1,15 +1,11 @@
 //! Condensed MPC: the ADMM solution against the closed-form unconstrained optimum and a KKT
 //! certificate, and a constrained step on the two-mass model that respects the rails.
 use faer::Mat;
-use ferrosid::lti::{StateSpace, StateSpaceData};
+use ferrosid::lti::StateSpace;
 use ferrosid::synth::mpc::{MpcDesign, MpcSpec};
 
 fn two_mass_1khz() -> StateSpace {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/two_mass_sim.json");
-    let data: StateSpaceData =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    StateSpace::try_from(&data).unwrap().c2d_zoh(1e-3).unwrap()
+    crate::test_models::two_mass().c2d_zoh(1e-3).unwrap()
 }
 
 fn spec(horizon: usize) -> MpcSpec {
@@ -148,33 +144,9 @@ fn firmware_terms_reproduce_the_linear_term() {
 // ---- The pipeline's `[control] method = "mpc"` on the bundled example ---------------------
 
 mod pipeline {
-    use ferrosid::pipeline::{run_pipeline, LoadedConfig, PipelineRun, ReceiptsDocument};
+    use crate::bundled_example::{assert_bad_control_keys, codegen_axis1, report_html, run};
+    use ferrosid::pipeline::ReceiptsDocument;
     use ferrosid::synth::mpc::{MpcDesign, MpcSpec};
-    use std::path::{Path, PathBuf};
-
-    fn example_path() -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/pipeline.toml")
-    }
-
-    /// The example without the gap, compensation and physical stages, with `extra` lines
-    /// appended to `[control]`.
-    fn example_text(extra: &str) -> String {
-        let t = std::fs::read_to_string(example_path()).unwrap();
-        let t = t.replace("[gap]\nrun = \"always\"", "[gap]\nrun = \"never\"");
-        let t = match t.find("[physical]") {
-            Some(i) => t[..i].to_string(),
-            None => t,
-        };
-        t.replace(
-            "reference_amplitude = 5.0   # rad/s speed step\n",
-            &format!("reference_amplitude = 5.0   # rad/s speed step\n{extra}"),
-        )
-    }
-
-    fn run(extra: &str) -> PipelineRun {
-        let cfg = LoadedConfig::from_text(&example_path(), &example_text(extra)).unwrap();
-        run_pipeline(&cfg, &|_| {}).unwrap()
-    }
 
     #[test]
     fn mpc_designs_with_its_receipts_report_and_codegen() {
@@ -270,19 +242,11 @@ mod pipeline {
         assert_eq!(doc["control"]["method"], "mpc");
         assert_eq!(doc["control"]["design"]["kind"], "mpc");
         assert!(doc["control"]["not_applicable"].as_array().unwrap().len() >= 6);
-        let figs = ferrosid::report::figures(&run).unwrap();
-        let html = ferrosid::report::render_html(&run, &figs).unwrap();
+        let html = report_html(&run);
         assert!(html.contains("Chosen controller: mpc"));
         assert!(html.contains("id=\"fig-control_step\""));
         assert!(html.contains("do not apply"));
-        let input = ferrosid::ops::codegen::codegen_input(
-            run.codegen_parts().unwrap(),
-            &ferrosid::ops::codegen::CodegenOptions {
-                prefix: "axis1".into(),
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let input = codegen_axis1(&run);
         let sk = input.state_controller.as_ref().expect("mpc block");
         let m = sk.mpc.as_ref().expect("mpc data");
         assert_eq!(m.horizon, 10);
@@ -295,13 +259,7 @@ mod pipeline {
 
     #[test]
     fn bad_mpc_keys_name_file_line_and_key() {
-        let text = example_text("");
-        let line = text
-            .lines()
-            .position(|l| l.starts_with("reference_amplitude"))
-            .unwrap()
-            + 2;
-        for (extra, key, what) in [
+        assert_bad_control_keys(&[
             (
                 "mpc_horizon = 10",
                 "control.mpc_horizon",
@@ -367,14 +325,6 @@ mod pipeline {
                 "control.mpc_horizn",
                 "unknown field",
             ),
-        ] {
-            let t = example_text(&format!("{extra}\n"));
-            let e = LoadedConfig::from_text(&example_path(), &t)
-                .unwrap_err()
-                .to_string();
-            let at = line + extra.matches('\n').count();
-            assert!(e.contains(&format!("pipeline.toml:{at}")), "{extra}: {e}");
-            assert!(e.contains(key) && e.contains(what), "{extra}: {e}");
-        }
+        ]);
     }
 }

@@ -1,11 +1,57 @@
 //! CARE/DARE against closed forms and published benchmark cases, and refusal of equations
 //! without a stabilising solution.
-use faer::Mat;
-use ferrosid::synth::riccati::{care, care_g, care_residual, dare, RICCATI_RESIDUAL_TOL};
+use faer::{Mat, MatRef};
+use ferrosid::synth::riccati::{
+    care, care_g, care_residual, dare, RiccatiSolution, RICCATI_RESIDUAL_TOL,
+};
 
 fn m(rows: &[&[f64]]) -> Mat<f64> {
     Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
 }
+
+/// The solution of a scalar (1×1) equation by `solve` ([`care`] or [`dare`]).
+fn scalar(solve: Solver, a: f64, b: f64, q: f64, r: f64) -> RiccatiSolution {
+    solve(
+        m(&[&[a]]).as_ref(),
+        m(&[&[b]]).as_ref(),
+        m(&[&[q]]).as_ref(),
+        m(&[&[r]]).as_ref(),
+    )
+    .unwrap()
+}
+
+/// The scalar solution `s` equals the closed form `x` within relative `tol` (case `a`).
+fn assert_scalar(s: &RiccatiSolution, x: f64, tol: f64, a: f64) {
+    let rel = (s.x[(0, 0)] - x).abs() / x;
+    assert!(
+        rel < tol,
+        "a={a}: X = {} vs {x} (rel {rel:.2e})",
+        s.x[(0, 0)]
+    );
+}
+
+/// `solve`(A, B, Q = I, R = 1) for a single-input pair (A, B).
+fn unit_weights(
+    solve: Solver,
+    a: &Mat<f64>,
+    b: &Mat<f64>,
+) -> ferrosid::error::Result<RiccatiSolution> {
+    let n = a.nrows();
+    solve(
+        a.as_ref(),
+        b.as_ref(),
+        Mat::<f64>::identity(n, n).as_ref(),
+        m(&[&[1.0]]).as_ref(),
+    )
+}
+
+/// The signature of [`care`] and [`dare`].
+type Solver = fn(
+    MatRef<'_, f64>,
+    MatRef<'_, f64>,
+    MatRef<'_, f64>,
+    MatRef<'_, f64>,
+) -> ferrosid::error::Result<RiccatiSolution>;
 
 fn max_abs_diff(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
     let mut d = 0.0f64;
@@ -25,20 +71,9 @@ fn scalar_care_matches_closed_form() {
         (-3.0, 0.5, 2.0, 0.1),
         (10.0, 2.0, 1e-3, 5.0),
     ] {
-        let s = care(
-            m(&[&[a]]).as_ref(),
-            m(&[&[b]]).as_ref(),
-            m(&[&[q]]).as_ref(),
-            m(&[&[r]]).as_ref(),
-        )
-        .unwrap();
+        let s = scalar(care, a, b, q, r);
         let x = r * (a + (a * a + b * b * q / r).sqrt()) / (b * b);
-        let rel = (s.x[(0, 0)] - x).abs() / x;
-        assert!(
-            rel < 1e-13,
-            "a={a}: X = {} vs {x} (rel {rel:.2e})",
-            s.x[(0, 0)]
-        );
+        assert_scalar(&s, x, 1e-13, a);
         assert!(s.closed_loop_abscissa < 0.0);
     }
 }
@@ -51,21 +86,10 @@ fn scalar_dare_matches_closed_form() {
         (0.5, 0.3, 2.0, 0.1),
         (-2.0, 1.5, 0.01, 3.0),
     ] {
-        let s = dare(
-            m(&[&[a]]).as_ref(),
-            m(&[&[b]]).as_ref(),
-            m(&[&[q]]).as_ref(),
-            m(&[&[r]]).as_ref(),
-        )
-        .unwrap();
+        let s = scalar(dare, a, b, q, r);
         let p = (1.0 - a * a) * r - q * b * b;
         let x = (-p + (p * p + 4.0 * b * b * q * r).sqrt()) / (2.0 * b * b);
-        let rel = (s.x[(0, 0)] - x).abs() / x;
-        assert!(
-            rel < 1e-12,
-            "a={a}: X = {} vs {x} (rel {rel:.2e})",
-            s.x[(0, 0)]
-        );
+        assert_scalar(&s, x, 1e-12, a);
         assert!(s.closed_loop_abscissa < 1.0);
     }
 }
@@ -75,13 +99,7 @@ fn double_integrator_lqr_has_the_known_solution() {
     // A = [0 1; 0 0], B = [0; 1], Q = I, R = 1: X = [√3 1; 1 √3].
     let a = m(&[&[0.0, 1.0], &[0.0, 0.0]]);
     let b = m(&[&[0.0], &[1.0]]);
-    let s = care(
-        a.as_ref(),
-        b.as_ref(),
-        Mat::<f64>::identity(2, 2).as_ref(),
-        m(&[&[1.0]]).as_ref(),
-    )
-    .unwrap();
+    let s = unit_weights(care, &a, &b).unwrap();
     let r3 = 3f64.sqrt();
     let x = m(&[&[r3, 1.0], &[1.0, r3]]);
     eprintln!(
@@ -167,26 +185,14 @@ fn unstabilisable_pair_is_refused() {
     // An unstable mode that B cannot reach: no stabilising solution.
     let a = m(&[&[1.0, 0.0], &[0.0, -1.0]]);
     let b = m(&[&[0.0], &[1.0]]);
-    let e = care(
-        a.as_ref(),
-        b.as_ref(),
-        Mat::<f64>::identity(2, 2).as_ref(),
-        m(&[&[1.0]]).as_ref(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = unit_weights(care, &a, &b).unwrap_err().to_string();
     assert!(
         e.contains("stabilising") || e.contains("imaginary axis"),
         "{e}"
     );
-    let e = dare(
-        m(&[&[1.5, 0.0], &[0.0, 0.5]]).as_ref(),
-        b.as_ref(),
-        Mat::<f64>::identity(2, 2).as_ref(),
-        m(&[&[1.0]]).as_ref(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = unit_weights(dare, &m(&[&[1.5, 0.0], &[0.0, 0.5]]), &b)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("stabilising") || e.contains("imaginary axis") || e.contains("graph"),
         "{e}"
@@ -211,12 +217,7 @@ fn nearly_uncontrollable_unstable_mode_fails_or_is_accurate() {
     for eps in [1e-2, 1e-4, 1e-6, 1e-8, 1e-10] {
         let a = m(&[&[1.0, 0.0], &[0.0, -2.0]]);
         let b = m(&[&[eps], &[1.0]]);
-        match care(
-            a.as_ref(),
-            b.as_ref(),
-            Mat::<f64>::identity(2, 2).as_ref(),
-            m(&[&[1.0]]).as_ref(),
-        ) {
+        match unit_weights(care, &a, &b) {
             Ok(s) => {
                 let g = &b * b.transpose();
                 let res = care_residual(

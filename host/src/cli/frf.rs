@@ -196,15 +196,7 @@ pub fn render_text(r: &FrfReport) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "ferrosid frf");
     for l in &r.logs {
-        let _ = writeln!(
-            s,
-            "log {}: {} samples at {} Hz, inputs [{}], outputs [{}]",
-            l.path,
-            l.samples,
-            output::general(l.fs_hz, 3),
-            l.inputs.join(", "),
-            l.outputs.join(", ")
-        );
+        let _ = writeln!(s, "{}", output::log_line(l));
         for w in &l.warnings {
             let _ = writeln!(s, "  warning: {w}");
         }

@@ -6,6 +6,7 @@
 //! locale or the clock, so the same inputs give byte-identical output. Nothing printed to stdout
 //! contains a time stamp or a duration.
 use crate::error::{Error, Result};
+use crate::ops::frf::LogSummary;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use std::io::{IsTerminal, Write};
@@ -129,6 +130,19 @@ pub fn general(x: f64, decimals: usize) -> String {
     } else {
         sci(x, decimals + 1)
     }
+}
+
+/// The text reports' line for one log read (`ferrosid frf`, `ferrosid identify`): path, samples,
+/// rate and channels.
+pub fn log_line(l: &LogSummary) -> String {
+    format!(
+        "log {}: {} samples at {} Hz, inputs [{}], outputs [{}]",
+        l.path,
+        l.samples,
+        general(l.fs_hz, 3),
+        l.inputs.join(", "),
+        l.outputs.join(", ")
+    )
 }
 
 /// Writes `text` to stdout. A closed pipe (e.g. `| head`) is not an error.

@@ -56,6 +56,46 @@ fn cost(theta: &[f64], n: usize, ft: bool, u: &[f64], y: &[f64]) -> (f64, Vec<f6
     (if v.is_finite() { v } else { f64::INFINITY }, yh)
 }
 
+/// One Levenberg–Marquardt step on the normal equations `jtj`·δ = `jte` (JᵀJ and Jᵀe): tries δ with the diagonal damped by `lambda` (Marquardt's scaling),
+/// up to 20 times, multiplying `lambda` by 10 after a singular or non-improving trial. The
+/// first trial that lowers the cost `v` is taken (θ, `v`, the simulation `yh` updated and
+/// `lambda` divided by 10, at least 1e-12). `eval` gives (cost, simulation) of a θ. Returns
+/// whether the accepted step lowered the cost by more than 1e-12 relative (false also when no
+/// trial improved: the caller stops).
+fn damped_step<S>(
+    jtj: &Mat<f64>,
+    jte: &Mat<f64>,
+    theta: &mut Vec<f64>,
+    v: &mut f64,
+    yh: &mut S,
+    lambda: &mut f64,
+    eval: impl Fn(&[f64]) -> (f64, S),
+) -> bool {
+    let p = theta.len();
+    for _ in 0..20 {
+        let mut m = jtj.clone();
+        for a in 0..p {
+            m[(a, a)] += *lambda * jtj[(a, a)].max(f64::MIN_POSITIVE);
+        }
+        let Ok(step) = crate::lti::dense::solve_square(m.as_ref(), jte.as_ref(), "OE step") else {
+            *lambda *= 10.0;
+            continue;
+        };
+        let trial: Vec<f64> = (0..p).map(|k| theta[k] + step[(k, 0)]).collect();
+        let (vt, yt) = eval(&trial);
+        if vt < *v {
+            let rel = (*v - vt) / *v;
+            *theta = trial;
+            *v = vt;
+            *yh = yt;
+            *lambda = (*lambda / 10.0).max(1e-12);
+            return rel > 1e-12;
+        }
+        *lambda *= 10.0;
+    }
+    false
+}
+
 /// The OE estimate of order `n` (strictly proper; with `feedthrough` also b₀ on û(t)) from
 /// `uhat` to `y` (mean-removed, equal length), started from `start` (discrete SISO, order n).
 pub(super) fn refine(
@@ -138,30 +178,9 @@ pub(super) fn refine(
                 jtj[(a, b)] = jtj[(b, a)];
             }
         }
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut m = jtj.clone();
-            for a in 0..p {
-                m[(a, a)] += lambda * jtj[(a, a)].max(f64::MIN_POSITIVE);
-            }
-            let Ok(step) = crate::lti::dense::solve_square(m.as_ref(), jte.as_ref(), "OE step")
-            else {
-                lambda *= 10.0;
-                continue;
-            };
-            let trial: Vec<f64> = (0..p).map(|k| theta[k] + step[(k, 0)]).collect();
-            let (vt, yt) = cost(&trial, n, feedthrough, uhat, y);
-            if vt < v {
-                let rel = (v - vt) / v;
-                theta = trial;
-                v = vt;
-                yh = yt;
-                lambda = (lambda / 10.0).max(1e-12);
-                improved = rel > 1e-12;
-                break;
-            }
-            lambda *= 10.0;
-        }
+        let improved = damped_step(&jtj, &jte, &mut theta, &mut v, &mut yh, &mut lambda, |t| {
+            cost(t, n, feedthrough, uhat, y)
+        });
         if !improved {
             break;
         }
@@ -275,31 +294,10 @@ pub(super) fn refine_common(
                 }
             }
         }
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut m = jtj.clone();
-            for a in 0..p {
-                m[(a, a)] += lambda * jtj[(a, a)].max(f64::MIN_POSITIVE);
-            }
-            let Ok(step) = crate::lti::dense::solve_square(m.as_ref(), jte.as_ref(), "OE step")
-            else {
-                lambda *= 10.0;
-                continue;
-            };
-            let trial: Vec<f64> = (0..p).map(|k| theta[k] + step[(k, 0)]).collect();
-            let yt = sim(&trial);
-            let vt = total(&yt);
-            if vt < v {
-                let rel = (v - vt) / v;
-                theta = trial;
-                v = vt;
-                yh = yt;
-                lambda = (lambda / 10.0).max(1e-12);
-                improved = rel > 1e-12;
-                break;
-            }
-            lambda *= 10.0;
-        }
+        let improved = damped_step(&jtj, &jte, &mut theta, &mut v, &mut yh, &mut lambda, |t| {
+            let yt = sim(t);
+            (total(&yt), yt)
+        });
         if !improved {
             break;
         }

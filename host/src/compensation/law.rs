@@ -22,27 +22,46 @@
 //! output units; every command in plant input units; velocities in output units per second
 //! (or output units when the output is a velocity).
 use crate::error::{Error, Result};
-use crate::robust::pid::DiscretePid;
+use crate::robust::pid::{DiscretePid, DiscretePidState};
 use ferrosid_codegen::{Compensation, VelocitySource as CompVelocity};
 
 /// State of [`ControlStep`] between samples.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct StepState {
-    e1: f64,
-    i: f64,
-    d: f64,
-    v1: f64,
-    v2: f64,
-    u1: f64,
-    u2: f64,
+    pid: DiscretePidState,
     y_prev: Option<f64>,
     w_filt: f64,
     u_c: f64,
-    u_dz1: f64,
-    o: f64,
+    inverses: InverseState,
     w_prev: f64,
     t_lag: f64,
     f_prev: f64,
+}
+
+/// State of the dead-zone and backlash inverses of a [`Compensation`] between samples.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct InverseState {
+    u_dz1: f64,
+    o: f64,
+}
+
+impl InverseState {
+    /// u_bl for the command `u_c`: the dead-zone inverse, then the backlash inverse (module
+    /// docs); each the identity when `c` has none.
+    pub(crate) fn apply(&mut self, c: &Compensation, u_c: f64) -> f64 {
+        let mut u_dz = u_c;
+        if let Some(dz) = &c.dead_zone_inverse {
+            u_dz += 0.5 * dz.width * (u_c / dz.smoothing).clamp(-1.0, 1.0);
+        }
+        let mut u_bl = u_dz;
+        if let Some(bl) = &c.backlash_inverse {
+            let h = 0.5 * bl.gap;
+            self.o = (self.o + h / bl.smoothing * (u_dz - self.u_dz1)).clamp(-h, h);
+            u_bl += self.o;
+        }
+        self.u_dz1 = u_dz;
+        u_bl
+    }
 }
 
 /// One controller with its (optional) compensation, stepped once per sample.
@@ -84,23 +103,7 @@ impl ControlStep {
     pub fn step(&mut self, r: f64, y: f64) -> f64 {
         let p = &self.pid;
         let s = &mut self.st;
-        let e = r - y;
-        let i_new = s.i + p.ki_d * (e + s.e1);
-        let d_new = p.a_d * s.d + p.b_d * (e - s.e1);
-        let v = p.kp * e + i_new + d_new;
-        let u_pid = match p.rolloff {
-            Some(bq) => {
-                bq.b[0] * v + bq.b[1] * s.v1 + bq.b[2] * s.v2 - bq.a[1] * s.u1 - bq.a[2] * s.u2
-            }
-            None => v,
-        };
-        s.e1 = e;
-        s.d = d_new;
-        s.v2 = s.v1;
-        s.v1 = v;
-        s.u2 = s.u1;
-        s.u1 = u_pid;
-        s.i = i_new;
+        let u_pid = p.update(&mut s.pid, r - y, None);
         s.u_c = u_pid;
         let Some(c) = &self.comp else {
             return u_pid;
@@ -153,21 +156,12 @@ impl ControlStep {
         }
         s.y_prev = Some(y);
         s.u_c = u_c;
-        let mut u_dz = u_c;
-        if let Some(dz) = &c.dead_zone_inverse {
-            u_dz += 0.5 * dz.width * (u_c / dz.smoothing).clamp(-1.0, 1.0);
-        }
-        let mut u_bl = u_dz;
-        if let Some(bl) = &c.backlash_inverse {
-            let h = 0.5 * bl.gap;
-            s.o = (s.o + h / bl.smoothing * (u_dz - s.u_dz1)).clamp(-h, h);
-            u_bl += s.o;
-        }
-        s.u_dz1 = u_dz;
+        let u_bl = s.inverses.apply(c, u_c);
         match &c.anti_windup {
             Some(aw) => {
                 let u = u_bl.clamp(aw.u_min, aw.u_max);
-                s.i += p.ts / aw.tracking_time_s * (u - u_bl);
+                s.pid
+                    .add_to_integrator(p.ts / aw.tracking_time_s * (u - u_bl));
                 u
             }
             None => u_bl,

@@ -265,15 +265,23 @@ impl DescribingFunction {
         let x: Vec<f64> = (0..2 * n)
             .map(|k| a * ((k as f64 + 0.5) * dth).sin())
             .collect();
-        let y = self.respond(&x);
-        let (mut b1, mut a1) = (0.0, 0.0);
-        for (k, yk) in y.iter().enumerate().skip(n) {
-            let th = (k as f64 + 0.5) * dth;
-            b1 += yk * th.sin();
-            a1 += yk * th.cos();
-        }
-        Complex64::new(b1, a1) * (dth / (PI * a))
+        second_period_harmonic(&self.respond(&x), a)
     }
+}
+
+/// First Fourier coefficients (b₁ + j·a₁)/A of `y`, a response to A·sin θ sampled at the
+/// midpoints θ_k = (k + ½)·2π/n of two periods (2n samples): the midpoint rule over the second
+/// period, so the first period absorbs the transient of a nonlinearity with memory.
+pub(crate) fn second_period_harmonic(y: &[f64], a: f64) -> Complex64 {
+    let n = y.len() / 2;
+    let dth = 2.0 * PI / n as f64;
+    let (mut b1, mut a1) = (0.0, 0.0);
+    for (k, yk) in y.iter().enumerate().skip(n) {
+        let th = (k as f64 + 0.5) * dth;
+        b1 += yk * th.sin();
+        a1 += yk * th.cos();
+    }
+    Complex64::new(b1, a1) * (dth / (PI * a))
 }
 
 #[cfg(test)]

@@ -23,7 +23,9 @@
 //! * Anything else (anti-windup, a part for another site): the effect's own N — anti-windup
 //!   acts on the controller's integrator, outside the describing-function model; its effect is
 //!   seen in the simulation only.
+use super::describing::second_period_harmonic;
 use super::{DescribingFunction, Nonlinearity, Site};
+use crate::compensation::law::InverseState;
 use ferrosid_codegen::Compensation;
 use num_complex::Complex64;
 use std::f64::consts::PI;
@@ -112,32 +114,10 @@ impl Residual {
         }
         let n = RESIDUAL_QUADRATURE_POINTS;
         let dth = 2.0 * PI / n as f64;
-        let mut o = 0.0;
-        let mut u_dz1 = 0.0;
+        let mut inverses = InverseState::default();
         let x: Vec<f64> = (0..2 * n)
-            .map(|k| {
-                let u = a * ((k as f64 + 0.5) * dth).sin();
-                let mut u_dz = u;
-                if let Some(dz) = &c.dead_zone_inverse {
-                    u_dz += 0.5 * dz.width * (u / dz.smoothing).clamp(-1.0, 1.0);
-                }
-                let mut u_bl = u_dz;
-                if let Some(bl) = &c.backlash_inverse {
-                    let h = 0.5 * bl.gap;
-                    o = (o + h / bl.smoothing * (u_dz - u_dz1)).clamp(-h, h);
-                    u_bl += o;
-                }
-                u_dz1 = u_dz;
-                u_bl
-            })
+            .map(|k| inverses.apply(c, a * ((k as f64 + 0.5) * dth).sin()))
             .collect();
-        let y = self.nl.df.respond(&x);
-        let (mut b1, mut a1) = (0.0, 0.0);
-        for (k, yk) in y.iter().enumerate().skip(n) {
-            let th = (k as f64 + 0.5) * dth;
-            b1 += yk * th.sin();
-            a1 += yk * th.cos();
-        }
-        Complex64::new(b1, a1) * (dth / (PI * a))
+        second_period_harmonic(&self.nl.df.respond(&x), a)
     }
 }

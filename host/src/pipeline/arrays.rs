@@ -29,12 +29,11 @@ use super::config::{
     UncertaintySettings,
 };
 use super::document::{AuditSummary, ControllerSummary, WeightSummary};
-use super::{rms, stages, LogData};
+use super::{stages, LogData};
 use crate::data::{Log, OperatingPoint};
 use crate::error::{Error, Result};
 use crate::gap::{diagnose_at_operating_point, GapOptions, GapReport};
 use crate::lti::{StateSpace, StateSpaceData};
-use crate::preprocess::preprocess;
 use crate::robust::receipts::{Receipt, Receipts};
 use crate::robust::uncertainty::UncertaintyWeight;
 
@@ -203,21 +202,7 @@ pub fn prepare(
     // As the pipeline's `prepare_logs`: preprocessing, the ETFE on the common grid, the
     // amplitude (configured, else the input RMS after preprocessing).
     let prep = |name: String, amplitude: Option<f64>, raw: Log| -> Result<LogData> {
-        let (log, record) = preprocess(&raw, &steps)?;
-        let etfe = welch.etfe_log(&log, 0, 0)?;
-        let (amplitude, is_rms) = match amplitude {
-            Some(a) => (a, false),
-            None => (rms(log.u()), true),
-        };
-        Ok(LogData {
-            name,
-            amplitude,
-            amplitude_is_rms: is_rms,
-            log,
-            raw,
-            preprocessing: record,
-            etfe,
-        })
+        stages::prepare_log(name, amplitude, raw, &steps, &welch)
     };
     let runs = runs
         .into_iter()

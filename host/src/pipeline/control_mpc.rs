@@ -24,7 +24,8 @@ use super::control_stage::{
 use super::{fmt_num, log_grid};
 use crate::error::Result;
 use crate::robust::receipts::{
-    push_failed_step_receipts, Comparison, Receipt, ReceiptKind, ReceiptLimits, Receipts,
+    push_failed_step_receipts, push_step_shape_receipts, Comparison, Receipt, ReceiptKind,
+    ReceiptLimits, Receipts,
 };
 use crate::synth::mpc::{MpcDesign, MpcSpec, MpcStep, UnconstrainedLaw};
 
@@ -447,29 +448,22 @@ fn step_receipts(
             d.spec.horizon
         ),
     ));
-    rs.push(Receipt::new(
-        ReceiptKind::StepOvershoot,
-        "overshoot of the MPC's constrained closed-loop step",
-        s.overshoot_pct,
-        Comparison::AtMost,
-        limits.overshoot_pct_max,
-        "%",
-        format!("{with}rise time 10–90 %: {:?} s", s.rise_time_s),
-    ));
-    rs.push(Receipt::new(
-        ReceiptKind::StepSettlingTime,
-        "2 % settling time of the MPC's constrained closed-loop step (tracking)",
-        s.settling_time_s.unwrap_or(f64::INFINITY),
-        Comparison::AtMost,
-        limits.settling_time_s_max,
-        "s",
+    push_step_shape_receipts(
+        &mut rs,
+        limits,
+        s,
+        [
+            "overshoot of the MPC's constrained closed-loop step",
+            "2 % settling time of the MPC's constrained closed-loop step (tracking)",
+        ],
+        &with,
         format!(
             "{with}simulated {} s; final error {} (no integral action: offset-free only on the \
              model itself)",
             fmt_num(s.t.last().copied().unwrap_or(0.0)),
             fmt_num(s.final_error)
         ),
-    ));
+    );
     Ok((rs.receipts, Some(step)))
 }
 

@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::io::{read_log, LogSpec};
 use crate::lti::StateSpace;
 use crate::n4sid::{n4sid, N4sidOptions, N4sidResult, OrderSelection};
-use crate::preprocess::preprocess;
+use crate::preprocess::{preprocess, Step};
 use crate::robust::audit::{audit_nonlinearity, AuditOptions, FrfRun, NonlinearityAudit};
 use crate::robust::pid::{implemented_loop, tune_pid, Pid, TunedPid};
 use crate::robust::receipts::{
@@ -26,6 +26,7 @@ use crate::robust::receipts::{
 use crate::robust::uncertainty::{
     fit_uncertainty_weight, multiplicative_envelope, UncertaintyWeight, WeightFitOptions,
 };
+use crate::spectral::Welch;
 use crate::validate::{
     residual_test, simulation_fit_log, InitialState, ResidualTest, SimulationFit,
 };
@@ -169,6 +170,33 @@ pub(super) fn ingest_all(cfg: &LoadedConfig, names: &[String]) -> Result<Ingeste
     })
 }
 
+/// One log of a pipeline run: `raw` preprocessed with `steps`, its ETFE with `welch`, and the
+/// audit's excitation amplitude (`amplitude` when configured, else the input RMS after
+/// preprocessing).
+pub(super) fn prepare_log(
+    name: String,
+    amplitude: Option<f64>,
+    raw: Log,
+    steps: &[Step],
+    welch: &Welch,
+) -> Result<LogData> {
+    let (log, preprocessing) = preprocess(&raw, steps)?;
+    let etfe = welch.etfe_log(&log, 0, 0)?;
+    let (amplitude, amplitude_is_rms) = match amplitude {
+        Some(a) => (a, false),
+        None => (rms(log.u()), true),
+    };
+    Ok(LogData {
+        name,
+        amplitude,
+        amplitude_is_rms,
+        log,
+        raw,
+        preprocessing,
+        etfe,
+    })
+}
+
 /// Preprocesses every log identically and estimates its ETFE on the common Welch grid.
 /// Returns the runs, the validation log and the provenance entries.
 pub(super) fn prepare_logs(
@@ -181,25 +209,11 @@ pub(super) fn prepare_logs(
     let steps = c.preprocess.steps();
     let welch = c.etfe.welch();
     let prep = |r: RawLog, written: String| -> Result<LogData> {
-        let raw = r.log;
-        let (log, mut record) = preprocess(&raw, &steps)?;
+        let mut d = prepare_log(r.name, r.amplitude, r.log, &steps, &welch)?;
         // Record the path as written in the pipeline file, not as resolved from the current
         // directory, so receipts.json does not depend on where `ferrosid run` was started.
-        record.source = written;
-        let etfe = welch.etfe_log(&log, 0, 0)?;
-        let (amplitude, is_rms) = match r.amplitude {
-            Some(a) => (a, false),
-            None => (rms(log.u()), true),
-        };
-        Ok(LogData {
-            name: r.name,
-            amplitude,
-            amplitude_is_rms: is_rms,
-            log,
-            raw,
-            preprocessing: record,
-            etfe,
-        })
+        d.preprocessing.source = written;
+        Ok(d)
     };
     progress("etfe");
     let Ingested {

@@ -38,6 +38,7 @@ pub use compute::{
 };
 pub(crate) use compute::{
     push_failed_step_receipts, push_margin_receipts, push_norm_receipts, push_step_receipts,
+    push_step_shape_receipts,
 };
 pub use curves::{loop_curves, LoopCurves};
 pub use phase::{etfe_phase_receipt, phase_agreement, EtfeView, PhaseAgreement, PhaseSlice};

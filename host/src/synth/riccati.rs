@@ -144,30 +144,40 @@ fn care_rel(a: MatRef<'_, f64>, g: MatRef<'_, f64>, q: MatRef<'_, f64>, x: MatRe
     fro(care_residual(a, g, q, x).as_ref()) / scale.max(f64::MIN_POSITIVE)
 }
 
-fn check_a(a: MatRef<'_, f64>) -> Result<usize> {
-    let n = a.nrows();
-    if a.ncols() != n || n == 0 {
+/// An [`Error::InvalidArgument`] "`name` must be `shape`" with the size of `x` unless
+/// `shape_ok`; then `x`'s entries must be finite.
+fn check_input(name: &str, x: MatRef<'_, f64>, shape_ok: bool, shape: &str) -> Result<()> {
+    if !shape_ok {
         return Err(Error::InvalidArgument(format!(
-            "Riccati equation: A must be square with n >= 1, got {}x{}",
-            a.nrows(),
-            a.ncols()
+            "Riccati equation: {name} must be {shape}, got {}x{}",
+            x.nrows(),
+            x.ncols()
         )));
     }
-    crate::lti::dense::check_finite("A", a)?;
+    crate::lti::dense::check_finite(name, x)
+}
+
+fn check_a(a: MatRef<'_, f64>) -> Result<usize> {
+    let n = a.nrows();
+    check_input("A", a, a.ncols() == n && n != 0, "square with n >= 1")?;
     Ok(n)
 }
 
-/// G = B R⁻¹ Bᵀ after checking B (n×m) and R (m×m, symmetric positive definite).
-fn gain_weight(b: MatRef<'_, f64>, r: MatRef<'_, f64>, n: usize) -> Result<Mat<f64>> {
+/// (n, G = B R⁻¹ Bᵀ) after checking A (n×n), B (n×m) and R (m×m, symmetric positive
+/// definite).
+fn gain_weight(
+    a: MatRef<'_, f64>,
+    b: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+) -> Result<(usize, Mat<f64>)> {
+    let n = check_a(a)?;
     let m = b.ncols();
-    if b.nrows() != n || m == 0 {
-        return Err(Error::InvalidArgument(format!(
-            "Riccati equation: B must be {n}xm with m >= 1, got {}x{}",
-            b.nrows(),
-            b.ncols()
-        )));
-    }
-    crate::lti::dense::check_finite("B", b)?;
+    check_input(
+        "B",
+        b,
+        b.nrows() == n && m != 0,
+        &format!("{n}xm with m >= 1"),
+    )?;
     check_symmetric("R", r, m)?;
     let r_sym = sym(r);
     let ev = r_sym
@@ -185,7 +195,7 @@ fn gain_weight(b: MatRef<'_, f64>, r: MatRef<'_, f64>, n: usize) -> Result<Mat<f
         )));
     }
     let rinv_bt = solve_square(r_sym.as_ref(), b.transpose(), "R")?;
-    Ok(sym((b * &rinv_bt).as_ref()))
+    Ok((n, sym((b * &rinv_bt).as_ref())))
 }
 
 /// Stabilising solution of Aᵀ X + X A − X B R⁻¹ Bᵀ X + Q = 0 (LQR: u = −R⁻¹BᵀX x). `q`
@@ -196,8 +206,7 @@ pub fn care(
     q: MatRef<'_, f64>,
     r: MatRef<'_, f64>,
 ) -> Result<RiccatiSolution> {
-    let n = check_a(a)?;
-    let g = gain_weight(b, r, n)?;
+    let (_, g) = gain_weight(a, b, r)?;
     care_g(a, g.as_ref(), q)
 }
 
@@ -230,27 +239,19 @@ pub fn care_g(
         x = Mat::zeros(n, n);
         asym = 0.0;
     }
-    let mut rel = care_rel(a, g.as_ref(), q.as_ref(), x.as_ref());
-    let mut refinement_steps = 0;
-    for _ in 0..4 {
-        if rel < 1e-15 {
-            break;
-        }
-        // Kleinman step: (A − G X)ᵀ Δ + Δ (A − G X) + res = 0.
-        let ac = a - &g * &x;
-        let res = care_residual(a, g.as_ref(), q.as_ref(), x.as_ref());
-        let Ok(d) = lyap(ac.transpose(), res.as_ref()) else {
-            break;
-        };
-        let x2 = sym((&x + &d.x).as_ref());
-        let rel2 = care_rel(a, g.as_ref(), q.as_ref(), x2.as_ref());
-        if !(rel2 < 0.5 * rel) {
-            break;
-        }
-        x = x2;
-        rel = rel2;
-        refinement_steps += 1;
-    }
+    let rel_at = |x: &Mat<f64>| care_rel(a, g.as_ref(), q.as_ref(), x.as_ref());
+    let first = (rel_at(&x), ());
+    let (x, rel, (), refinement_steps) = refine(
+        x,
+        first,
+        |x| Some((rel_at(x), ())),
+        |x, ()| {
+            // Kleinman step: (A − G X)ᵀ Δ + Δ (A − G X) + res = 0.
+            let ac = a - &g * x;
+            let res = care_residual(a, g.as_ref(), q.as_ref(), x.as_ref());
+            lyap(ac.transpose(), res.as_ref()).ok().map(|d| d.x)
+        },
+    );
     let ac = a - &g * &x;
     let abscissa = eigenvalues(ac.as_ref())?
         .iter()
@@ -263,18 +264,54 @@ pub fn care_g(
              {abscissa:.3e}): no stabilising solution"
         )));
     }
-    check_residual("CARE", rel, asym)?;
-    Ok(RiccatiSolution {
-        x,
-        residual_rel: rel,
-        asymmetry_before_symmetrising: asym,
-        closed_loop_abscissa: abscissa,
-        sign_steps,
-        refinement_steps,
-    })
+    checked_solution("CARE", x, rel, asym, abscissa, sign_steps, refinement_steps)
 }
 
-fn check_residual(what: &str, rel: f64, asym: f64) -> Result<()> {
+/// Newton refinement of a Riccati solution `x` (Kleinman's for the CARE, Hewer's for the
+/// DARE): at most four steps X ← sym(X + Δ) with Δ = `delta`(X, state), each kept only when it
+/// at least halves the relative residual; stops early below 1e-15, or when Δ or the evaluation
+/// fails. `first` is (relative residual, state) at `x`, `eval` the same at another X. Returns
+/// (X, relative residual, state, steps kept).
+fn refine<E>(
+    mut x: Mat<f64>,
+    first: (f64, E),
+    eval: impl Fn(&Mat<f64>) -> Option<(f64, E)>,
+    delta: impl Fn(&Mat<f64>, &E) -> Option<Mat<f64>>,
+) -> (Mat<f64>, f64, E, usize) {
+    let (mut rel, mut state) = first;
+    let mut steps = 0;
+    for _ in 0..4 {
+        if rel < 1e-15 {
+            break;
+        }
+        let Some(d) = delta(&x, &state) else {
+            break;
+        };
+        let x2 = sym((&x + &d).as_ref());
+        let Some((rel2, state2)) = eval(&x2) else {
+            break;
+        };
+        if !(rel2 < 0.5 * rel) {
+            break;
+        }
+        (x, rel, state) = (x2, rel2, state2);
+        steps += 1;
+    }
+    (x, rel, state, steps)
+}
+
+/// The solution `x` of a `what` equation with its evidence (relative residual `rel`,
+/// asymmetry `asym` before symmetrising, closed-loop abscissa or spectral radius `stability`,
+/// step counts), or an [`Error::Numerical`] when the residual or the asymmetry is too large.
+fn checked_solution(
+    what: &str,
+    x: Mat<f64>,
+    rel: f64,
+    asym: f64,
+    stability: f64,
+    sign_steps: usize,
+    refinement_steps: usize,
+) -> Result<RiccatiSolution> {
     if !(rel <= RICCATI_RESIDUAL_TOL) {
         return Err(Error::Numerical(format!(
             "{what}: relative residual {rel:.3e} exceeds {RICCATI_RESIDUAL_TOL:.0e} after \
@@ -287,7 +324,14 @@ fn check_residual(what: &str, rel: f64, asym: f64) -> Result<()> {
              {asym:.3e}): ill-conditioned"
         )));
     }
-    Ok(())
+    Ok(RiccatiSolution {
+        x,
+        residual_rel: rel,
+        asymmetry_before_symmetrising: asym,
+        closed_loop_abscissa: stability,
+        sign_steps,
+        refinement_steps,
+    })
 }
 
 /// DARE quantities at X: (residual, K, relative residual).
@@ -318,8 +362,7 @@ pub fn dare(
     q: MatRef<'_, f64>,
     r: MatRef<'_, f64>,
 ) -> Result<RiccatiSolution> {
-    let n = check_a(a)?;
-    let g = gain_weight(b, r, n)?;
+    let (n, g) = gain_weight(a, b, r)?;
     check_symmetric("Q", q, n)?;
     let q = sym(q);
     let i = Mat::<f64>::identity(n, n);
@@ -344,28 +387,21 @@ pub fn dare(
     let (w, sign_steps) = matrix_sign(hd.as_ref(), "DARE")?;
     let x0 = graph_from_sign(&w, n, "DARE")?;
     let asym = asymmetry(x0.as_ref());
-    let mut x = sym(x0.as_ref());
-    let (mut res, mut k, mut rel) = dare_eval(a, b, q.as_ref(), r, x.as_ref())?;
-    let mut refinement_steps = 0;
-    for _ in 0..4 {
-        if rel < 1e-15 {
-            break;
-        }
-        // Hewer step: (A − BK)ᵀ Δ (A − BK) − Δ + res = 0.
-        let ac = a - b * &k;
-        let Ok(d) = stein(ac.transpose(), res.as_ref()) else {
-            break;
-        };
-        let x2 = sym((&x + &d.x).as_ref());
-        let Ok((res2, k2, rel2)) = dare_eval(a, b, q.as_ref(), r, x2.as_ref()) else {
-            break;
-        };
-        if !(rel2 < 0.5 * rel) {
-            break;
-        }
-        (x, res, k, rel) = (x2, res2, k2, rel2);
-        refinement_steps += 1;
-    }
+    let x = sym(x0.as_ref());
+    let eval = |x: &Mat<f64>| {
+        dare_eval(a, b, q.as_ref(), r, x.as_ref()).map(|(res, k, rel)| (rel, (res, k)))
+    };
+    let first = eval(&x)?;
+    let (x, rel, (_, k), refinement_steps) = refine(
+        x,
+        first,
+        |x| eval(x).ok(),
+        |_, (res, k)| {
+            // Hewer step: (A − BK)ᵀ Δ (A − BK) − Δ + res = 0.
+            let ac = a - b * k;
+            stein(ac.transpose(), res.as_ref()).ok().map(|d| d.x)
+        },
+    );
     let ac = a - b * &k;
     let radius = eigenvalues(ac.as_ref())?
         .iter()
@@ -377,13 +413,5 @@ pub fn dare(
              {radius:.6e}): no stabilising solution"
         )));
     }
-    check_residual("DARE", rel, asym)?;
-    Ok(RiccatiSolution {
-        x,
-        residual_rel: rel,
-        asymmetry_before_symmetrising: asym,
-        closed_loop_abscissa: radius,
-        sign_steps,
-        refinement_steps,
-    })
+    checked_solution("DARE", x, rel, asym, radius, sign_steps, refinement_steps)
 }

@@ -52,28 +52,8 @@ pub fn write_csv(path: &Path, ts: f64, u: &[f64], y: &[f64]) {
     std::fs::write(path, text).expect("write csv");
 }
 
-/// SplitMix64 with Box–Muller normals.
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^ (z >> 31)
-    }
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-    pub fn noise(&mut self, n: usize, std: f64) -> Vec<f64> {
-        (0..n).map(|_| std * self.normal()).collect()
-    }
-}
+#[allow(unused_imports)] // not every test that declares this module draws noise
+pub use crate::splitmix::Rng;
 
 /// Row-major real matrix from JSON rows.
 pub fn rows(v: &serde_json::Value) -> Vec<Vec<f64>> {

@@ -8,36 +8,8 @@ use num_complex::Complex64;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-/// SplitMix64 with Box–Muller normals: reproducible without extra crates.
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Standard normal.
-    pub fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
-    }
-    /// Random binary ±1 sequence (a PRBS-like white binary signal).
-    pub fn binary(&mut self, n: usize) -> Vec<f64> {
-        (0..n)
-            .map(|_| if self.next_u64() & 1 == 1 { 1.0 } else { -1.0 })
-            .collect()
-    }
-    pub fn noise(&mut self, n: usize, std: f64) -> Vec<f64> {
-        (0..n).map(|_| std * self.normal()).collect()
-    }
-}
+#[allow(unused_imports)] // not every test that declares this module draws noise
+pub use crate::splitmix::Rng;
 
 pub fn std_dev(x: &[f64]) -> f64 {
     let m = x.iter().sum::<f64>() / x.len() as f64;

@@ -252,6 +252,14 @@ pub struct DiscretePidState {
     u2: f64,
 }
 
+impl DiscretePidState {
+    /// Adds `delta` to the integrator state i (the back-calculation anti-windup of a law that
+    /// wraps the controller: the compensated control step).
+    pub(crate) fn add_to_integrator(&mut self, delta: f64) {
+        self.i += delta;
+    }
+}
+
 impl DiscretePid {
     /// The whole controller as a discrete transfer function.
     pub fn transfer_function(&self) -> Result<TransferFunction> {

@@ -470,28 +470,21 @@ pub(crate) fn push_step_receipts(
                     s.samples_at_rail
                 ),
             ));
-            rs.push(Receipt::new(
-                ReceiptKind::StepOvershoot,
-                "overshoot of the saturated closed-loop step",
-                s.overshoot_pct,
-                Comparison::AtMost,
-                lim.overshoot_pct_max,
-                "%",
-                format!("rise time 10–90 %: {:?} s", s.rise_time_s),
-            ));
-            rs.push(Receipt::new(
-                ReceiptKind::StepSettlingTime,
-                "2 % settling time of the saturated closed-loop step",
-                s.settling_time_s.unwrap_or(f64::INFINITY),
-                Comparison::AtMost,
-                lim.settling_time_s_max,
-                "s",
+            push_step_shape_receipts(
+                rs,
+                lim,
+                s,
+                [
+                    "overshoot of the saturated closed-loop step",
+                    "2 % settling time of the saturated closed-loop step",
+                ],
+                "",
                 format!(
                     "simulated {} s; final error {}",
                     fmt_sig(s.t.last().copied().unwrap_or(0.0)),
                     fmt_sig(s.final_error)
                 ),
-            ));
+            );
         }
         Err(e) => push_failed_step_receipts(
             rs,
@@ -504,6 +497,37 @@ pub(crate) fn push_step_receipts(
             e,
         ),
     }
+}
+
+/// The overshoot and settling-time receipts of a simulated step `s` (descriptions `what`):
+/// the overshoot's note is `prefix` and the 10–90 % rise time, the settling time's
+/// `settling_note`; a step that never settles reads as an infinite settling time.
+pub(crate) fn push_step_shape_receipts(
+    rs: &mut Receipts,
+    lim: &ReceiptLimits,
+    s: &StepResponse,
+    what: [&str; 2],
+    prefix: &str,
+    settling_note: String,
+) {
+    rs.push(Receipt::new(
+        ReceiptKind::StepOvershoot,
+        what[0],
+        s.overshoot_pct,
+        Comparison::AtMost,
+        lim.overshoot_pct_max,
+        "%",
+        format!("{prefix}rise time 10–90 %: {:?} s", s.rise_time_s),
+    ));
+    rs.push(Receipt::new(
+        ReceiptKind::StepSettlingTime,
+        what[1],
+        s.settling_time_s.unwrap_or(f64::INFINITY),
+        Comparison::AtMost,
+        lim.settling_time_s_max,
+        "s",
+        settling_note,
+    ));
 }
 
 /// The three step receipts (actuator demand, overshoot, settling time; descriptions `what`)
