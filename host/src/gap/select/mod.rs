@@ -568,9 +568,11 @@ impl PairContext<'_> {
     /// The second effects tried on top of `first`: the next best singles of other kinds (at
     /// most `pair_partners`, each reaching half the margin alone), Coulomb friction at the motor whatever its
     /// single score (alone it is fitted against the gap of the stronger effect too, a
-    /// saturated drive, a delay, which can pull its level to zero), and play in the drive
+    /// saturated drive, a delay, which can pull its level to zero), play in the drive
     /// behind friction (both act at velocity reversals, and alone the play is fitted against
-    /// the friction's gap).
+    /// the friction's gap), and with a two-mass structure backlash in the drivetrain (alone it
+    /// is fitted against a saturated drive's gap too: 4 % on a shaft whose play the pair
+    /// closes).
     fn partners(&self, first: &Scored) -> Vec<Candidate> {
         let k1 = kind_of(first);
         let friction1 = k1.is_some_and(|k| k.is_friction());
@@ -596,6 +598,15 @@ impl PairContext<'_> {
         }
         if friction1 && !partners.iter().any(|c| c.kind == EffectKind::Backlash) {
             partners.push(Candidate::new(EffectKind::Backlash, Place::Drive));
+        }
+        let drivetrain = Candidate::new(EffectKind::Backlash, Place::Drivetrain);
+        let structure = self
+            .singles
+            .iter()
+            .any(|s| s.effects.iter().any(|p| p.place == Place::Drivetrain));
+        let first_in_drivetrain = first.effects.iter().any(|p| p.place == Place::Drivetrain);
+        if structure && !first_in_drivetrain && !partners.contains(&drivetrain) {
+            partners.push(drivetrain);
         }
         partners
     }
@@ -679,22 +690,39 @@ impl PairContext<'_> {
         (!(rel >= self.opts.pair_margin && closed >= self.opts.min_excess_closed)).then_some(r)
     }
 
+    /// The model partner `c` is fitted on: `first`'s; for a partner inside the two-mass
+    /// structure (drivetrain, load) on a `first` fitted on the modal linear part, the
+    /// structure's two-mass plant (as the best single inside it fitted it) carrying `first`'s
+    /// effects — a modal linear part refined around a drive effect need not convert back to a
+    /// two-mass plant, and the pair must be one model.
+    fn base_for(&self, first: &Scored, c: Candidate) -> Option<AugmentedModel> {
+        let base = &first.model;
+        if !c.place.needs_two_mass() || base.two_mass.is_some() {
+            return Some(base.clone());
+        }
+        let s = self.singles.iter().find(|s| s.model.two_mass.is_some())?;
+        let mut m = s.model.clone();
+        m.effect = None;
+        m.place = Place::Drive;
+        m.extra.clear();
+        for pe in base.effects_in_selection_order() {
+            m = m.with_added(pe);
+        }
+        Some(m)
+    }
+
     /// Every partner of `first` ([`Self::partners`]) fitted on top of it and scored.
     fn pairs_on(&self, first: &Scored) -> Vec<Scored> {
-        let base = &first.model;
         let mut pairs = Vec::new();
         for c in self.partners(first) {
-            if c.place.needs_two_mass()
-                && base.two_mass.is_none()
-                && base.motor_friction().is_some()
-            {
+            let Some(base) = self.base_for(first, c) else {
                 continue;
-            }
+            };
             let t0 = profile_seconds();
             let fc = fit_placed(
                 c,
                 self.td,
-                std::slice::from_ref(base),
+                std::slice::from_ref(&base),
                 None,
                 self.sim_poles,
                 self.hints,
@@ -702,6 +730,16 @@ impl PairContext<'_> {
             if std::env::var_os("GAP_PROFILE").is_some() {
                 eprintln!("profile: pair + {c} {:.3} s (cpu)", profile_seconds() - t0);
             }
+            // A pair inside the two-mass structure: a second joint refinement (its cost is
+            // narrow in the gap and the first stops short when the drive effect moves too).
+            let fc = match fc {
+                Some(f) if c.place.needs_two_mass() => match joint_fit(self.td, &f, JOINT_MAX_ITER)
+                {
+                    Some(j) if j.train_cost < f.train_cost => Some(j),
+                    _ => Some(f),
+                },
+                other => other,
+            };
             if let Some(f) = fc {
                 pairs.push(score(f, self.val, self.gap_linear));
             }
