@@ -5,8 +5,25 @@ use crate::error::{Error, Result};
 use faer::linalg::solvers::SolveLstsq;
 use faer::{Mat, MatRef};
 
-/// 8-lane dot product (vectorisable without reassociation by the compiler).
+/// 8-lane dot product: lane `l` sums the products of the elements `8i + l` in order, the
+/// lanes are added as `(0+4) + (1+5) + ((2+6) + (3+7))`, then the remainder in order
+/// (vectorisable without reassociation). With AVX2 (detected at run time, [`Avx`]) lanes 0–3
+/// and 4–7 are two 256-bit registers: the same multiplications and additions in the same
+/// order (no fused multiply-add), so the same bits, in about a third of the instructions.
+#[inline]
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(avx) = Avx::new() {
+        return avx.run(
+            #[inline(always)]
+            || dot_avx(avx, a, b),
+        );
+    }
+    dot_lanes(a, b)
+}
+
+/// [`dot`] on the target's baseline instructions (the reference of the AVX2 path).
+fn dot_lanes(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
     let mut acc = [0.0f64; 8];
@@ -20,6 +37,88 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     }
     let mut s = (acc[0] + acc[4]) + (acc[1] + acc[5]) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
     for (x, y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
+}
+
+/// The AVX2 instruction set, when the processor has it (faer's `pulp` detection and safe
+/// wrappers, no `unsafe` here). Kernels written with it use separate multiplies and adds
+/// ([`Avx::mul`], [`Avx::add`]), the roundings of the scalar code; [`Avx::run`] compiles a
+/// kernel (and what it calls, all `#[inline(always)]`) for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub(crate) struct Avx(faer::traits::pulp::x86::V3);
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) type F64x4 = faer::traits::pulp::f64x4;
+
+#[cfg(target_arch = "x86_64")]
+impl Avx {
+    #[inline]
+    pub(crate) fn new() -> Option<Self> {
+        faer::traits::pulp::x86::V3::try_new().map(Avx)
+    }
+
+    #[inline(always)]
+    pub(crate) fn run<R>(self, f: impl FnOnce() -> R) -> R {
+        self.0.vectorize(f)
+    }
+
+    /// Four doubles from `x[at..at + 4]`.
+    #[inline(always)]
+    pub(crate) fn load(self, x: &[f64], at: usize) -> F64x4 {
+        let v: [f64; 4] = x[at..at + 4].try_into().expect("4 lanes");
+        faer::traits::pulp::cast(v)
+    }
+
+    #[inline(always)]
+    pub(crate) fn splat(self, v: f64) -> F64x4 {
+        use faer::traits::pulp::Simd;
+        self.0.splat_f64s(v)
+    }
+
+    #[inline(always)]
+    pub(crate) fn add(self, a: F64x4, b: F64x4) -> F64x4 {
+        use faer::traits::pulp::Simd;
+        self.0.add_f64s(a, b)
+    }
+
+    #[inline(always)]
+    pub(crate) fn sub(self, a: F64x4, b: F64x4) -> F64x4 {
+        use faer::traits::pulp::Simd;
+        self.0.sub_f64s(a, b)
+    }
+
+    #[inline(always)]
+    pub(crate) fn mul(self, a: F64x4, b: F64x4) -> F64x4 {
+        use faer::traits::pulp::Simd;
+        self.0.mul_f64s(a, b)
+    }
+
+    #[inline(always)]
+    pub(crate) fn lanes(self, a: F64x4) -> [f64; 4] {
+        faer::traits::pulp::cast(a)
+    }
+}
+
+/// [`dot_lanes`] with lanes 0–3 and 4–7 in two registers.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn dot_avx(avx: Avx, a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let blocks = n / 8;
+    let (mut lo, mut hi) = (avx.splat(0.0), avx.splat(0.0));
+    for i in 0..blocks {
+        let at = 8 * i;
+        lo = avx.add(lo, avx.mul(avx.load(a, at), avx.load(b, at)));
+        hi = avx.add(hi, avx.mul(avx.load(a, at + 4), avx.load(b, at + 4)));
+    }
+    // v = [acc0 + acc4, acc1 + acc5, acc2 + acc6, acc3 + acc7].
+    let v = avx.lanes(avx.add(lo, hi));
+    let mut s = (v[0] + v[1]) + (v[2] + v[3]);
+    for (x, y) in a[8 * blocks..].iter().zip(&b[8 * blocks..]) {
         s += x * y;
     }
     s
@@ -145,6 +244,25 @@ pub(super) fn tall_lstsq(a: &[&[f64]], y: &[f64], what: &str) -> Result<(Mat<f64
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`dot`] on the dispatched path equals the plain loop to the bit, for lengths around the
+    /// lane count and long ones, values of mixed sign and scale.
+    #[test]
+    fn dot_paths_agree_bit_for_bit() {
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((s % 7) as i32 - 3)
+        };
+        for n in (0..40).chain([255, 256, 257, 1000, 100_003]) {
+            let a: Vec<f64> = (0..n).map(|_| next()).collect();
+            let b: Vec<f64> = (0..n + 3).map(|_| next()).collect();
+            let want = dot_lanes(&a, &b);
+            assert_eq!(dot(&a, &b).to_bits(), want.to_bits(), "length {n}");
+        }
+    }
 
     /// Columns of a badly scaled, nearly collinear tall matrix and a noisy right-hand side.
     fn problem(rows: usize) -> (Vec<Vec<f64>>, Vec<f64>) {
