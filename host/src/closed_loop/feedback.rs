@@ -138,6 +138,15 @@ fn regress(x: &Shifted<'_>, target: &[f64]) -> Result<Option<(f64, Vec<f64>)>> {
 /// cache: one pass over the data instead of q. Columns shorter than `target` leave the rest
 /// of it unchanged.
 fn subtract_columns(target: &[f64], ks: &[f64], cols: &[&[f64]]) -> Vec<f64> {
+    crate::n4sid::linalg::with_avx(
+        #[inline(always)]
+        || subtract_columns_body(target, ks, cols),
+    )
+}
+
+/// [`subtract_columns`]' loop (compiled for AVX2 and for the baseline: the same bits).
+#[inline(always)]
+fn subtract_columns_body(target: &[f64], ks: &[f64], cols: &[&[f64]]) -> Vec<f64> {
     const BLOCK: usize = 512;
     let mut resid = target.to_vec();
     for (b, rb) in resid.chunks_mut(BLOCK).enumerate() {
