@@ -191,20 +191,24 @@ pub struct Args {
     pub json: bool,
 }
 
+/// The line that describes a log in the text reports (`frf`, `identify`).
+pub(super) fn log_line(l: &LogSummary) -> String {
+    format!(
+        "log {}: {} samples at {} Hz, inputs [{}], outputs [{}]",
+        l.path,
+        l.samples,
+        output::general(l.fs_hz, 3),
+        l.inputs.join(", "),
+        l.outputs.join(", ")
+    )
+}
+
 /// Human-readable rendering of a report.
 pub fn render_text(r: &FrfReport) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "ferrosid frf");
     for l in &r.logs {
-        let _ = writeln!(
-            s,
-            "log {}: {} samples at {} Hz, inputs [{}], outputs [{}]",
-            l.path,
-            l.samples,
-            output::general(l.fs_hz, 3),
-            l.inputs.join(", "),
-            l.outputs.join(", ")
-        );
+        let _ = writeln!(s, "{}", log_line(l));
         for w in &l.warnings {
             let _ = writeln!(s, "  warning: {w}");
         }

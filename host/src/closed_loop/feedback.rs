@@ -297,13 +297,8 @@ mod tests {
     /// relative), for lagged (ARX) and leading (future-input) columns of two series.
     #[test]
     fn shifted_gram_equals_direct_products() {
-        let mut s = 7u64;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.3
-        };
+        let mut uniform = crate::n4sid::linalg::test_uniform(7);
+        let mut next = || uniform() - 0.3;
         let a: Vec<f64> = (0..5_000).map(|_| next()).collect();
         let b: Vec<f64> = (0..5_000).map(|_| 3.0 * next()).collect();
         let (na, lags, rows) = (6, 5, 5_000 - 6 - 5);

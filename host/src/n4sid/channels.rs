@@ -99,6 +99,44 @@ pub struct ChannelSet<'a> {
     pub y_names: &'a [String],
 }
 
+/// The channel views and names of a [`Log`](crate::data::Log), which a [`ChannelSet`]
+/// borrows: `LogChannels::of(&log).set()` is the log as identification data.
+#[derive(Debug, Clone)]
+pub struct LogChannels<'a> {
+    source: &'a Path,
+    ts: f64,
+    u: Vec<&'a [f64]>,
+    y: Vec<&'a [f64]>,
+    u_names: Vec<String>,
+    y_names: Vec<String>,
+}
+
+impl<'a> LogChannels<'a> {
+    /// The inputs and outputs of `log`, named as in the log, with its path and sample time.
+    pub fn of(log: &'a crate::data::Log) -> Self {
+        LogChannels {
+            source: &log.path,
+            ts: log.ts,
+            u: log.inputs.iter().map(|c| c.data.as_slice()).collect(),
+            y: log.outputs.iter().map(|c| c.data.as_slice()).collect(),
+            u_names: log.inputs.iter().map(|c| c.name.clone()).collect(),
+            y_names: log.outputs.iter().map(|c| c.name.clone()).collect(),
+        }
+    }
+
+    /// The channels as identification data.
+    pub fn set(&self) -> ChannelSet<'_> {
+        ChannelSet {
+            source: self.source,
+            ts: self.ts,
+            u: &self.u,
+            y: &self.y,
+            u_names: &self.u_names,
+            y_names: &self.y_names,
+        }
+    }
+}
+
 /// The checked dimensions of one identification problem.
 pub(super) struct Problem {
     /// Samples per channel N.

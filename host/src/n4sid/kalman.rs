@@ -17,46 +17,18 @@ pub(super) struct Innovation {
     pub(super) cov: Mat<f64>,
 }
 
-/// Step 8 for the chosen fit (scaled units): the Kalman gain K and the innovation covariance,
-/// or `None` and the warning that says why there are none (no estimate possible, or A − KC
-/// not stable). `l` is the LQ factor, `w` = [u; y] the scaled channels (m inputs), `k` the
-/// block rows.
+/// Step 8 for the chosen fit (scaled units): the Kalman gain K and the innovation covariance
+/// from the oblique-projection states (see the module docs), or the reason there are none
+/// (past data rank deficient, no stabilising Riccati solution: [`kalman_filter_gain`]
+/// refuses an A − KC that is not stable). `l` is the LQ factor, `fit` gives Γ, A, B, C, D,
+/// `w` = [u; y] the scaled channels (m inputs), `k` the block rows.
 pub(super) fn innovation_model(
     l: &Mat<f64>,
     fit: &OrderFit,
     w: &[Vec<f64>],
     k: usize,
     m: usize,
-) -> Result<(Option<Innovation>, Option<String>)> {
-    match kalman_gain(l, fit, w, k, m) {
-        Ok((gain, cov)) => {
-            let pred = &fit.a - &gain * &fit.c;
-            let ok = eigenvalues(pred.as_ref())?.iter().all(|z| z.norm() < 1.0);
-            if ok {
-                Ok((Some(Innovation { gain, cov }), None))
-            } else {
-                Ok((
-                    None,
-                    Some(
-                        "Kalman gain dropped: A − KC is not stable (predictor would diverge)"
-                            .into(),
-                    ),
-                ))
-            }
-        }
-        Err(e) => Ok((None, Some(format!("Kalman gain not estimated: {e}")))),
-    }
-}
-
-/// Kalman gain from the oblique-projection states (see the module docs); scaled units.
-/// `fit` gives Γ, A, B, C, D; `w` = [u; y] (m inputs), `k` block rows.
-fn kalman_gain(
-    l: &Mat<f64>,
-    fit: &OrderFit,
-    w: &[Vec<f64>],
-    k: usize,
-    m: usize,
-) -> Result<(Mat<f64>, Mat<f64>)> {
+) -> Result<Innovation> {
     let (gamma, a, b, c, d) = (&fit.gamma, &fit.a, &fit.b, &fit.c, &fit.d);
     let p = w.len() - m;
     let q = m + p;
@@ -156,9 +128,11 @@ fn kalman_gain(
             states: &states,
             s0,
             count: cols - 1,
+            w,
+            k,
         };
-        if !residual_sums_siso(&block, &model, w, k, &mut sums) {
-            residual_sums(&block, &model, w, k, &mut sums);
+        if !residual_sums_siso(&block, &model, &mut sums) {
+            residual_sums(&block, &model, &mut sums);
         }
         s0 += cols - 1;
     }
@@ -183,7 +157,10 @@ fn kalman_gain(
     let s = Mat::from_fn(n, p, |i, j| sww[(i, j)] * inv);
     let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
     let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
-    Ok((kf.gain, kf.innovation_cov))
+    Ok(Innovation {
+        gain: kf.gain,
+        cov: kf.innovation_cov,
+    })
 }
 
 /// A, B, C, D in row-major vectors with the sizes n, m, p.
@@ -210,6 +187,9 @@ struct StateBlock<'a> {
     states: &'a Mat<f64>,
     s0: usize,
     count: usize,
+    /// The scaled channels [u; y] and the block rows k (x̂(k + s) pairs with time k + s).
+    w: &'a [Vec<f64>],
+    k: usize,
 }
 
 /// Columns per block of the state sequence in [`kalman_gain`] (8 padded rows: 128 KiB).
@@ -219,17 +199,11 @@ const STATE_BLOCK: usize = 2048;
 /// scaled channels `w` = [u; y]: for t = k + s, e = y(t) − C x̂ − D u(t) and
 /// ŵ = x̂(t+1) − A x̂ − B u(t), each row product summed by [`small_dot`]; blocks folded in
 /// the order of s give the sums of one pass over the whole sequence.
-fn residual_sums(
-    blk: &StateBlock<'_>,
-    model: &RowMajor,
-    w: &[Vec<f64>],
-    k: usize,
-    sums: &mut ResidualSums,
-) {
+fn residual_sums(blk: &StateBlock<'_>, model: &RowMajor, sums: &mut ResidualSums) {
     let (n, m, p) = (model.n, model.m, model.p);
     let (ar, br, cr, dr) = (&model.a, &model.b, &model.c, &model.d);
     let (qacc, sacc, racc) = (&mut sums.q, &mut sums.s, &mut sums.r);
-    let states = blk.states;
+    let (states, w, k) = (blk.states, blk.w, blk.k);
     let mut e = vec![0.0; p];
     let mut wv = vec![0.0; n];
     let mut ut = vec![0.0; m];
@@ -269,24 +243,18 @@ fn residual_sums(
 /// [`residual_sums`] for a SISO model of order 1..=7, with the sizes fixed at compile time:
 /// the same operations in the same order (so the same bits), without the loop overhead of
 /// the general sizes. `false` (nothing added) for other sizes.
-fn residual_sums_siso(
-    blk: &StateBlock<'_>,
-    model: &RowMajor,
-    w: &[Vec<f64>],
-    k: usize,
-    sums: &mut ResidualSums,
-) -> bool {
-    if (model.m, model.p) != (1, 1) || w.len() != 2 {
+fn residual_sums_siso(blk: &StateBlock<'_>, model: &RowMajor, sums: &mut ResidualSums) -> bool {
+    if (model.m, model.p) != (1, 1) || blk.w.len() != 2 {
         return false;
     }
     match model.n {
-        1 => residual_sums_fixed::<1>(blk, model, w, k, sums),
-        2 => residual_sums_fixed::<2>(blk, model, w, k, sums),
-        3 => residual_sums_fixed::<3>(blk, model, w, k, sums),
-        4 => residual_sums_fixed::<4>(blk, model, w, k, sums),
-        5 => residual_sums_fixed::<5>(blk, model, w, k, sums),
-        6 => residual_sums_fixed::<6>(blk, model, w, k, sums),
-        7 => residual_sums_fixed::<7>(blk, model, w, k, sums),
+        1 => residual_sums_fixed::<1>(blk, model, sums),
+        2 => residual_sums_fixed::<2>(blk, model, sums),
+        3 => residual_sums_fixed::<3>(blk, model, sums),
+        4 => residual_sums_fixed::<4>(blk, model, sums),
+        5 => residual_sums_fixed::<5>(blk, model, sums),
+        6 => residual_sums_fixed::<6>(blk, model, sums),
+        7 => residual_sums_fixed::<7>(blk, model, sums),
         _ => false,
     }
 }
@@ -296,8 +264,6 @@ fn residual_sums_siso(
 fn residual_sums_fixed<const N: usize>(
     blk: &StateBlock<'_>,
     model: &RowMajor,
-    w: &[Vec<f64>],
-    k: usize,
     sums: &mut ResidualSums,
 ) -> bool {
     let (Some((a, _)), Ok(b), Ok(c), &[d]) = (
@@ -308,7 +274,7 @@ fn residual_sums_fixed<const N: usize>(
     ) else {
         return false;
     };
-    let (states, s0, count) = (blk.states, blk.s0, blk.count);
+    let (states, s0, count, w, k) = (blk.states, blk.s0, blk.count, blk.w, blk.k);
     if states.nrows() < N
         || states.ncols() < count + 1
         || w[0].len() < k + s0 + count
@@ -525,9 +491,11 @@ mod tests {
                 states: &states,
                 s0: 0,
                 count: count - 1,
+                w: &w,
+                k,
             };
             let mut general = empty();
-            residual_sums(&whole, &model, &w, k, &mut general);
+            residual_sums(&whole, &model, &mut general);
             // The same sums folded over blocks (the last one partial), as `kalman_gain` does.
             let mut blocked = empty();
             let mut s0 = 0;
@@ -538,8 +506,10 @@ mod tests {
                     states: &part,
                     s0,
                     count: cols - 1,
+                    w: &w,
+                    k,
                 };
-                residual_sums(&blk, &model, &w, k, &mut blocked);
+                residual_sums(&blk, &model, &mut blocked);
                 s0 += cols - 1;
             }
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -547,7 +517,7 @@ mod tests {
             assert_eq!(bits(&blocked.s), bits(&general.s), "blocked S, order {n}");
             assert_eq!(bits(&blocked.r), bits(&general.r), "blocked R, order {n}");
             let mut fixed = empty();
-            match residual_sums_siso(&whole, &model, &w, k, &mut fixed).then_some(fixed) {
+            match residual_sums_siso(&whole, &model, &mut fixed).then_some(fixed) {
                 Some(fixed) => {
                     assert_eq!(bits(&fixed.q), bits(&general.q), "Q, order {n}");
                     assert_eq!(bits(&fixed.s), bits(&general.s), "S, order {n}");

@@ -85,12 +85,6 @@ impl Avx {
     }
 
     #[inline(always)]
-    pub(crate) fn sub(self, a: F64x4, b: F64x4) -> F64x4 {
-        use faer::traits::pulp::Simd;
-        self.0.sub_f64s(a, b)
-    }
-
-    #[inline(always)]
     pub(crate) fn mul(self, a: F64x4, b: F64x4) -> F64x4 {
         use faer::traits::pulp::Simd;
         self.0.mul_f64s(a, b)
@@ -263,6 +257,19 @@ pub(super) fn tall_lstsq(a: &[&[f64]], y: &[f64], what: &str) -> Result<(Mat<f64
     Ok((theta, r11))
 }
 
+/// Uniform numbers in [0, 1) from a 64-bit LCG (Knuth's MMIX constants, the top 53 bits),
+/// deterministic for the tests' noise and data.
+#[cfg(test)]
+pub(crate) fn test_uniform(seed: u64) -> impl FnMut() -> f64 {
+    let mut s = seed;
+    move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -288,13 +295,8 @@ mod tests {
 
     /// Columns of a badly scaled, nearly collinear tall matrix and a noisy right-hand side.
     fn problem(rows: usize) -> (Vec<Vec<f64>>, Vec<f64>) {
-        let mut s = 99u64;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
+        let mut uniform = test_uniform(99);
+        let mut next = || uniform() - 0.5;
         let base: Vec<f64> = (0..rows).map(|_| next()).collect();
         let cols: Vec<Vec<f64>> = (0..6)
             .map(|j| {
