@@ -109,6 +109,48 @@ pub(crate) fn with_avx<R>(f: impl FnOnce() -> R) -> R {
     f()
 }
 
+/// `[dot(a, &b[l0 + j..]) for j in 0..4]`: four dot products of `a` with windows of `b` that
+/// start one sample apart (`b` must hold `l0 + 3 + a.len()` samples), each the same sum in
+/// the same order as [`dot`] (the same bits); with AVX2 one pass loads `a` once for the four.
+pub(crate) fn dots_shifted4(a: &[f64], b: &[f64], l0: usize) -> [f64; 4] {
+    let n = a.len();
+    assert!(b.len() >= l0 + 3 + n, "dots_shifted4: window past the end");
+    #[cfg(target_arch = "x86_64")]
+    if let Some(avx) = Avx::new() {
+        return avx.run(
+            #[inline(always)]
+            || dots_shifted4_avx(avx, a, &b[l0..l0 + 3 + n]),
+        );
+    }
+    std::array::from_fn(|j| dot_lanes(a, &b[l0 + j..l0 + j + n]))
+}
+
+/// [`dots_shifted4`] on AVX2 (`b` starts at the first window and holds `a.len() + 3`).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn dots_shifted4_avx(avx: Avx, a: &[f64], b: &[f64]) -> [f64; 4] {
+    let n = a.len();
+    let blocks = n / 8;
+    let zero = avx.splat(0.0);
+    let (mut lo, mut hi) = ([zero; 4], [zero; 4]);
+    for i in 0..blocks {
+        let at = 8 * i;
+        let (xl, xh) = (avx.load(a, at), avx.load(a, at + 4));
+        for j in 0..4 {
+            lo[j] = avx.add(lo[j], avx.mul(xl, avx.load(b, at + j)));
+            hi[j] = avx.add(hi[j], avx.mul(xh, avx.load(b, at + j + 4)));
+        }
+    }
+    std::array::from_fn(|j| {
+        let v = avx.lanes(avx.add(lo[j], hi[j]));
+        let mut s = (v[0] + v[1]) + (v[2] + v[3]);
+        for (x, y) in a[8 * blocks..].iter().zip(&b[8 * blocks + j..]) {
+            s += x * y;
+        }
+        s
+    })
+}
+
 /// [`dot_lanes`] with lanes 0–3 and 4–7 in two registers.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
@@ -290,6 +332,23 @@ mod tests {
             let b: Vec<f64> = (0..n + 3).map(|_| next()).collect();
             let want = dot_lanes(&a, &b);
             assert_eq!(dot(&a, &b).to_bits(), want.to_bits(), "length {n}");
+        }
+    }
+
+    /// The four shifted dot products equal [`dot`] of each window to the bit.
+    #[test]
+    fn shifted_dots_equal_single_dots_bit_for_bit() {
+        let mut uniform = test_uniform(5);
+        for n in [0usize, 1, 7, 8, 9, 31, 1000, 4099] {
+            let a: Vec<f64> = (0..n).map(|_| uniform() - 0.5).collect();
+            let b: Vec<f64> = (0..n + 12).map(|_| 3.0 * uniform() - 1.0).collect();
+            for l0 in [0, 1, 5, 9] {
+                let got = dots_shifted4(&a, &b, l0);
+                for (j, g) in got.iter().enumerate() {
+                    let want = dot_lanes(&a, &b[l0 + j..l0 + j + n]);
+                    assert_eq!(g.to_bits(), want.to_bits(), "n {n}, lag {}", l0 + j);
+                }
+            }
         }
     }
 
