@@ -447,9 +447,10 @@ fn lag_group(a: &[f64], b: &[f64]) -> [f64; 8] {
             || {
                 let (mut lo, mut hi) = (avx.splat(-0.0), avx.splat(-0.0));
                 for (t, &bt) in b.iter().enumerate() {
+                    let w: &[f64; 8] = a[t..t + 8].try_into().expect("window of 8 samples");
                     let bv = avx.splat(bt);
-                    lo = avx.add(lo, avx.mul(avx.load(a, t), bv));
-                    hi = avx.add(hi, avx.mul(avx.load(a, t + 4), bv));
+                    lo = avx.add(lo, avx.mul(avx.load(w, 0), bv));
+                    hi = avx.add(hi, avx.mul(avx.load(w, 4), bv));
                 }
                 let (lo, hi) = (avx.lanes(lo), avx.lanes(hi));
                 [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]]

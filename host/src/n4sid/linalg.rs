@@ -129,16 +129,18 @@ pub(crate) fn dots_shifted4(a: &[f64], b: &[f64], l0: usize) -> [f64; 4] {
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn dots_shifted4_avx(avx: Avx, a: &[f64], b: &[f64]) -> [f64; 4] {
-    let n = a.len();
-    let blocks = n / 8;
+    let (ca, blocks) = (a.as_chunks::<8>().0, a.len() / 8);
     let zero = avx.splat(0.0);
     let (mut lo, mut hi) = ([zero; 4], [zero; 4]);
-    for i in 0..blocks {
-        let at = 8 * i;
-        let (xl, xh) = (avx.load(a, at), avx.load(a, at + 4));
+    for (i, x) in ca.iter().enumerate() {
+        // The 11 samples of `b` the four windows of this block reach.
+        let y: &[f64; 11] = b[8 * i..8 * i + 11]
+            .try_into()
+            .expect("b holds a.len() + 3");
+        let (xl, xh) = (avx.load(x, 0), avx.load(x, 4));
         for j in 0..4 {
-            lo[j] = avx.add(lo[j], avx.mul(xl, avx.load(b, at + j)));
-            hi[j] = avx.add(hi[j], avx.mul(xh, avx.load(b, at + j + 4)));
+            lo[j] = avx.add(lo[j], avx.mul(xl, avx.load(y, j)));
+            hi[j] = avx.add(hi[j], avx.mul(xh, avx.load(y, j + 4)));
         }
     }
     std::array::from_fn(|j| {
@@ -157,12 +159,12 @@ fn dots_shifted4_avx(avx: Avx, a: &[f64], b: &[f64]) -> [f64; 4] {
 fn dot_avx(avx: Avx, a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
-    let blocks = n / 8;
+    let (ca, cb) = (a.as_chunks::<8>().0, b.as_chunks::<8>().0);
+    let blocks = ca.len();
     let (mut lo, mut hi) = (avx.splat(0.0), avx.splat(0.0));
-    for i in 0..blocks {
-        let at = 8 * i;
-        lo = avx.add(lo, avx.mul(avx.load(a, at), avx.load(b, at)));
-        hi = avx.add(hi, avx.mul(avx.load(a, at + 4), avx.load(b, at + 4)));
+    for (x, y) in ca.iter().zip(cb) {
+        lo = avx.add(lo, avx.mul(avx.load(x, 0), avx.load(y, 0)));
+        hi = avx.add(hi, avx.mul(avx.load(x, 4), avx.load(y, 4)));
     }
     // v = [acc0 + acc4, acc1 + acc5, acc2 + acc6, acc3 + acc7].
     let v = avx.lanes(avx.add(lo, hi));
