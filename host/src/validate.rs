@@ -424,15 +424,7 @@ fn xcorr_lags(a: &[f64], b: &[f64], taus: std::ops::Range<usize>, norm: f64) -> 
         // Lag tau + j sums t = 0..n − tau − j; the first n − tau − (LAG_LANES − 1) terms are
         // common to the group, the rest are each lag's tail.
         let common = n - tau - (LAG_LANES - 1);
-        let mut acc = [-0.0f64; LAG_LANES];
-        for (t, &bt) in b[..common].iter().enumerate() {
-            let w: &[f64; LAG_LANES] = a[tau + t..tau + t + LAG_LANES]
-                .try_into()
-                .expect("window of LAG_LANES samples");
-            for j in 0..LAG_LANES {
-                acc[j] += w[j] * bt;
-            }
-        }
+        let mut acc = lag_group(&a[tau..], &b[..common]);
         for (j, s) in acc.iter_mut().enumerate() {
             for t in common..n - tau - j {
                 *s += a[t + tau + j] * b[t];
@@ -442,6 +434,37 @@ fn xcorr_lags(a: &[f64], b: &[f64], taus: std::ops::Range<usize>, norm: f64) -> 
         tau += LAG_LANES;
     }
     out
+}
+
+/// The common part of [`xcorr_lags`]' group: `acc[j] = Σ_t a[t + j]·b[t]` over the `t` of
+/// `b`, each sum from −0.0 in the order of `t`. With AVX2 the 8 lags are two registers (the
+/// same products and additions per lag: the same bits).
+fn lag_group(a: &[f64], b: &[f64]) -> [f64; 8] {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(avx) = crate::n4sid::linalg::Avx::new() {
+        return avx.run(
+            #[inline(always)]
+            || {
+                let (mut lo, mut hi) = (avx.splat(-0.0), avx.splat(-0.0));
+                for (t, &bt) in b.iter().enumerate() {
+                    let w: &[f64; 8] = a[t..t + 8].try_into().expect("window of 8 samples");
+                    let bv = avx.splat(bt);
+                    lo = avx.add(lo, avx.mul(avx.load(w, 0), bv));
+                    hi = avx.add(hi, avx.mul(avx.load(w, 4), bv));
+                }
+                let (lo, hi) = (avx.lanes(lo), avx.lanes(hi));
+                [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]]
+            },
+        );
+    }
+    let mut acc = [-0.0f64; 8];
+    for (t, &bt) in b.iter().enumerate() {
+        let w: &[f64; 8] = a[t..t + 8].try_into().expect("window of 8 samples");
+        for j in 0..8 {
+            acc[j] += w[j] * bt;
+        }
+    }
+    acc
 }
 
 /// Residual tests of a discrete `model` on data `u`, `y` up to lag `max_lag` (1..N/4).

@@ -300,15 +300,7 @@ pub fn render_text(r: &IdentifyReport) -> String {
 fn text_header(s: &mut String, r: &IdentifyReport) {
     let _ = writeln!(s, "ferrosid identify");
     for l in &r.logs {
-        let _ = writeln!(
-            s,
-            "log {}: {} samples at {} Hz, inputs [{}], outputs [{}]",
-            l.path,
-            l.samples,
-            general(l.fs_hz, 3),
-            l.inputs.join(", "),
-            l.outputs.join(", ")
-        );
+        let _ = writeln!(s, "{}", super::output::log_line(l));
     }
     let _ = writeln!(s, "\npreprocessing:");
     for p in r

@@ -20,8 +20,10 @@
 //! function of the input in the ARX residual, which correlates with future inputs as feedback
 //! does (the motor bench's two logs are flagged; README).
 use crate::error::{Error, Result};
+use crate::n4sid::linalg::dots_shifted4;
 use faer::Mat;
 use serde::Serialize;
+use std::collections::HashMap;
 
 /// Significance level α of the feedback test (probability of flagging an open-loop log).
 pub const FEEDBACK_SIGNIFICANCE: f64 = 0.01;
@@ -78,9 +80,45 @@ struct Shifted<'a> {
 }
 
 impl Shifted<'_> {
+    /// Column index of each (series, start).
+    fn index(&self) -> HashMap<(usize, usize), usize> {
+        self.cols.iter().enumerate().map(|(c, &k)| (k, c)).collect()
+    }
+
     fn col(&self, c: usize) -> &[f64] {
         let (s, start) = self.cols[c];
         &self.series[s][start..start + self.rows]
+    }
+
+    /// `dot(x, col(c))` for every column c, the same sums as [`crate::n4sid::dot`] (which
+    /// is symmetric to the bit: `dot(a, b) == dot(b, a)`), four at a time where four columns
+    /// are consecutive windows of one series ([`dots_shifted4`]: one pass over `x`).
+    fn dots_with(&self, x: &[f64], index: &HashMap<(usize, usize), usize>) -> Vec<f64> {
+        let q = self.cols.len();
+        let mut out = vec![f64::NAN; q];
+        let mut done = vec![false; q];
+        for c in 0..q {
+            if done[c] {
+                continue;
+            }
+            let (s, t) = self.cols[c];
+            let group: Option<Vec<usize>> =
+                (0..4).map(|j| index.get(&(s, t + j)).copied()).collect();
+            match group {
+                Some(g) if g.iter().all(|&c| !done[c]) => {
+                    let v = dots_shifted4(x, self.series[s], t);
+                    for (&cj, vj) in g.iter().zip(v) {
+                        out[cj] = vj;
+                        done[cj] = true;
+                    }
+                }
+                _ => {
+                    out[c] = crate::n4sid::dot(x, self.col(c));
+                    done[c] = true;
+                }
+            }
+        }
+        out
     }
 
     /// `XᵀX` from the shift structure: with `a⁺`, `b⁺` the columns one sample later in the same
@@ -89,8 +127,13 @@ impl Shifted<'_> {
     /// predictor of a SISO log that is 79 dot products instead of 820, and no `rows × q` copy.
     fn gram(&self) -> Mat<f64> {
         let q = self.cols.len();
-        let index: std::collections::HashMap<(usize, usize), usize> =
-            self.cols.iter().enumerate().map(|(c, &k)| (k, c)).collect();
+        let index = self.index();
+        // The full products: every pair with a column that has no successor, from that
+        // column's products with all columns.
+        let last: HashMap<usize, Vec<f64>> = (0..q)
+            .filter(|&c| !index.contains_key(&(self.cols[c].0, self.cols[c].1 + 1)))
+            .map(|c| (c, self.dots_with(self.col(c), &index)))
+            .collect();
         let mut pairs: Vec<(usize, usize)> =
             (0..q).flat_map(|a| (a..q).map(move |b| (a, b))).collect();
         // Successor pairs have a larger start sum: visit those first.
@@ -104,7 +147,11 @@ impl Shifted<'_> {
                     let (xa, xb) = (self.series[sa], self.series[sb]);
                     g[(a1, b1)] + xa[ta] * xb[tb] - xa[ta + self.rows] * xb[tb + self.rows]
                 }
-                _ => crate::n4sid::dot(self.col(a), self.col(b)),
+                _ => match (last.get(&a), last.get(&b)) {
+                    (Some(da), _) => da[b],
+                    (None, Some(db)) => db[a],
+                    (None, None) => crate::n4sid::dot(self.col(a), self.col(b)),
+                },
             };
             g[(a, b)] = v;
             g[(b, a)] = v;
@@ -124,7 +171,8 @@ fn regress(x: &Shifted<'_>, target: &[f64]) -> Result<Option<(f64, Vec<f64>)>> {
         return Ok(None);
     }
     let gram = Mat::from_fn(q, q, |a, b| gram[(a, b)] / (norms[a] * norms[b]));
-    let rhs = Mat::from_fn(q, 1, |c, _| crate::n4sid::dot(x.col(c), target) / norms[c]);
+    let xt = x.dots_with(target, &x.index());
+    let rhs = Mat::from_fn(q, 1, |c, _| xt[c] / norms[c]);
     let beta = crate::lti::dense::solve_square(gram.as_ref(), rhs.as_ref(), "feedback test")?;
     let explained: f64 = (0..q).map(|c| beta[(c, 0)] * rhs[(c, 0)]).sum();
     let ks: Vec<f64> = (0..q).map(|c| beta[(c, 0)] / norms[c]).collect();
@@ -138,6 +186,15 @@ fn regress(x: &Shifted<'_>, target: &[f64]) -> Result<Option<(f64, Vec<f64>)>> {
 /// cache: one pass over the data instead of q. Columns shorter than `target` leave the rest
 /// of it unchanged.
 fn subtract_columns(target: &[f64], ks: &[f64], cols: &[&[f64]]) -> Vec<f64> {
+    crate::n4sid::linalg::with_avx(
+        #[inline(always)]
+        || subtract_columns_body(target, ks, cols),
+    )
+}
+
+/// [`subtract_columns`]' loop (compiled for AVX2 and for the baseline: the same bits).
+#[inline(always)]
+fn subtract_columns_body(target: &[f64], ks: &[f64], cols: &[&[f64]]) -> Vec<f64> {
     const BLOCK: usize = 512;
     let mut resid = target.to_vec();
     for (b, rb) in resid.chunks_mut(BLOCK).enumerate() {
@@ -288,13 +345,8 @@ mod tests {
     /// relative), for lagged (ARX) and leading (future-input) columns of two series.
     #[test]
     fn shifted_gram_equals_direct_products() {
-        let mut s = 7u64;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.3
-        };
+        let mut uniform = crate::n4sid::linalg::test_uniform(7);
+        let mut next = || uniform() - 0.3;
         let a: Vec<f64> = (0..5_000).map(|_| next()).collect();
         let b: Vec<f64> = (0..5_000).map(|_| 3.0 * next()).collect();
         let (na, lags, rows) = (6, 5, 5_000 - 6 - 5);
@@ -308,6 +360,13 @@ mod tests {
         };
         let g = x.gram();
         let q = x.cols.len();
+        // The grouped products equal one dot product per column to the bit.
+        let target: Vec<f64> = (0..rows).map(|i| (i as f64 * 0.01).cos()).collect();
+        let grouped = x.dots_with(&target, &x.index());
+        for (c, v) in grouped.iter().enumerate() {
+            let want = crate::n4sid::dot(x.col(c), &target);
+            assert_eq!(v.to_bits(), want.to_bits(), "column {c}");
+        }
         for i in 0..q {
             for j in 0..q {
                 let direct: f64 = x.col(i).iter().zip(x.col(j)).map(|(u, v)| u * v).sum();

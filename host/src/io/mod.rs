@@ -306,9 +306,10 @@ pub(crate) fn sample_time(
                 }
             }
             // Robust interval: the median (a dropped sample or a glitch does not move it).
+            // The element at n/2 in total order, as a sort would put it (selection, O(n)).
             let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-            dts.sort_by(f64::total_cmp);
-            let median = dts[dts.len() / 2];
+            let mid = dts.len() / 2;
+            let median = *dts.select_nth_unstable_by(mid, f64::total_cmp).1;
             let mean = (t[n - 1] - t[0]) / (n - 1) as f64;
             if !(median.is_finite() && median > 0.0 && mean.is_finite() && mean > 0.0) {
                 return Err(whole(format!(

@@ -2,7 +2,7 @@
 //! correlation matrix (Cholesky) or a Householder QR.
 // `!(x > y)` comparisons are deliberate: they are also true when x is NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
-use super::linalg::dot;
+use super::linalg::{dot, dots_shifted4};
 use super::options::Factorization;
 use crate::error::{Error, Result};
 use faer::Mat;
@@ -47,22 +47,35 @@ pub(super) fn hankel_correlation(w: &[Vec<f64>], k: usize, rows: &[(usize, usize
     let dim = nb * q;
     let mut s = Mat::<f64>::zeros(dim, dim);
     // First block row: lags l = 0..2i, the q·q·2i products of J terms (most of the work of
-    // this step), split between two threads; each product is the same wherever it runs.
-    let first_row: Vec<(usize, usize, usize)> = (0..q)
-        .flat_map(|a| (0..q).flat_map(move |b| (0..nb).map(move |l| (a, b, l))))
+    // this step), four consecutive lags per pass over the data ([`dots_shifted4`]), the
+    // passes split between two threads; each product is the same wherever it runs.
+    let groups: Vec<(usize, usize, usize)> = (0..q)
+        .flat_map(|a| (0..q).flat_map(move |b| (0..nb).step_by(4).map(move |l| (a, b, l))))
         .collect();
-    let product = |&(a, b, l): &(usize, usize, usize)| dot(&w[a][..jcols], &w[b][l..l + jcols]);
-    // Below about a million multiply-adds a thread costs more than it saves.
-    let split = if first_row.len() * jcols < 1 << 20 {
-        first_row.len()
-    } else {
-        first_row.len() / 2
+    let product = |&(a, b, l): &(usize, usize, usize)| -> [f64; 4] {
+        if l + 4 <= nb {
+            dots_shifted4(&w[a][..jcols], &w[b], l)
+        } else {
+            std::array::from_fn(|j| {
+                if l + j < nb {
+                    dot(&w[a][..jcols], &w[b][l + j..l + j + jcols])
+                } else {
+                    0.0
+                }
+            })
+        }
     };
-    let (head, tail) = first_row.split_at(split);
-    let values: Vec<f64> = std::thread::scope(|scope| {
+    // Below about a million multiply-adds a thread costs more than it saves.
+    let split = if groups.len() * 4 * jcols < 1 << 20 {
+        groups.len()
+    } else {
+        groups.len() / 2
+    };
+    let (head, tail) = groups.split_at(split);
+    let values: Vec<[f64; 4]> = std::thread::scope(|scope| {
         let tail = (!tail.is_empty())
-            .then(|| scope.spawn(|| tail.iter().map(product).collect::<Vec<f64>>()));
-        let mut values: Vec<f64> = head.iter().map(product).collect();
+            .then(|| scope.spawn(|| tail.iter().map(product).collect::<Vec<_>>()));
+        let mut values: Vec<[f64; 4]> = head.iter().map(product).collect();
         if let Some(tail) = tail {
             values.extend(
                 tail.join()
@@ -71,8 +84,10 @@ pub(super) fn hankel_correlation(w: &[Vec<f64>], k: usize, rows: &[(usize, usize
         }
         values
     });
-    for (&(a, b, l), v) in first_row.iter().zip(values) {
-        s[(a, l * q + b)] = v;
+    for (&(a, b, l), v) in groups.iter().zip(values) {
+        for (j, vj) in v.into_iter().enumerate().take(nb - l) {
+            s[(a, (l + j) * q + b)] = vj;
+        }
     }
     for j in 0..nb - 1 {
         for l in j..nb - 1 {

@@ -17,46 +17,18 @@ pub(super) struct Innovation {
     pub(super) cov: Mat<f64>,
 }
 
-/// Step 8 for the chosen fit (scaled units): the Kalman gain K and the innovation covariance,
-/// or `None` and the warning that says why there are none (no estimate possible, or A − KC
-/// not stable). `l` is the LQ factor, `w` = [u; y] the scaled channels (m inputs), `k` the
-/// block rows.
+/// Step 8 for the chosen fit (scaled units): the Kalman gain K and the innovation covariance
+/// from the oblique-projection states (see the module docs), or the reason there are none
+/// (past data rank deficient, no stabilising Riccati solution: [`kalman_filter_gain`]
+/// refuses an A − KC that is not stable). `l` is the LQ factor, `fit` gives Γ, A, B, C, D,
+/// `w` = [u; y] the scaled channels (m inputs), `k` the block rows.
 pub(super) fn innovation_model(
     l: &Mat<f64>,
     fit: &OrderFit,
     w: &[Vec<f64>],
     k: usize,
     m: usize,
-) -> Result<(Option<Innovation>, Option<String>)> {
-    match kalman_gain(l, fit, w, k, m) {
-        Ok((gain, cov)) => {
-            let pred = &fit.a - &gain * &fit.c;
-            let ok = eigenvalues(pred.as_ref())?.iter().all(|z| z.norm() < 1.0);
-            if ok {
-                Ok((Some(Innovation { gain, cov }), None))
-            } else {
-                Ok((
-                    None,
-                    Some(
-                        "Kalman gain dropped: A − KC is not stable (predictor would diverge)"
-                            .into(),
-                    ),
-                ))
-            }
-        }
-        Err(e) => Ok((None, Some(format!("Kalman gain not estimated: {e}")))),
-    }
-}
-
-/// Kalman gain from the oblique-projection states (see the module docs); scaled units.
-/// `fit` gives Γ, A, B, C, D; `w` = [u; y] (m inputs), `k` block rows.
-fn kalman_gain(
-    l: &Mat<f64>,
-    fit: &OrderFit,
-    w: &[Vec<f64>],
-    k: usize,
-    m: usize,
-) -> Result<(Mat<f64>, Mat<f64>)> {
+) -> Result<Innovation> {
     let (gamma, a, b, c, d) = (&fit.gamma, &fit.a, &fit.b, &fit.c, &fit.d);
     let p = w.len() - m;
     let q = m + p;
@@ -85,39 +57,34 @@ fn kalman_gain(
                                           // Γ⁺ by least squares: F = Γ⁺·proj (n × wp).
     let f = lstsq(gamma.as_ref(), proj.as_ref(), "Γ⁺")?;
     // x̂(k + s) = F·w_p(s) for s in 0..count: F split per channel times that channel's
-    // Hankel view (k × count, element (j, s) = w[a][s + j]) — one GEMM per channel.
+    // Hankel view (k × columns, element (j, s) = w[a][s + j]) — one GEMM per channel, on
+    // blocks of STATE_BLOCK columns (a block overlaps the next by one column, x̂(t+1)), each
+    // folded into the residual sums before the next is computed: the state sequence is never
+    // stored whole (8 × 100k doubles on the peer log, 1,600 fresh pages), and each column is
+    // the same GEMM of the same views as over the whole sequence.
     let count = len - k + 1;
     // The rows are padded with zero rows to a multiple of 8: the GEMM kernel works on whole
     // 8-row panels of the destination and of the left factor and computes on the padding
     // below row n as well, and the padding of a `Mat` is not initialised; freed integers left
     // there (line numbers, indices) read as subnormal numbers, each of which costs a microcode
-    // assist: measured 170 ms instead of 10 ms for this product on the peer log. The first n
-    // rows are computed exactly as before (same views, same kernel).
-    let mut states = Mat::<f64>::zeros(n.next_multiple_of(8), count);
-    for (a_, wa) in w.iter().enumerate() {
-        // Padded to 8 rows with zeros as `states` (the kernel loads whole 8-row panels of it).
-        let fa = Mat::from_fn(n.next_multiple_of(8), k, |i, j| {
-            let col = if a_ < m {
-                j * m + a_
-            } else {
-                k * m + j * p + (a_ - m)
-            };
-            if i < n {
-                f[(i, col)]
-            } else {
-                0.0
-            }
-        });
-        let hankel = MatRef::from_column_major_slice_with_stride(&wa[..count + k - 1], k, count, 1);
-        faer::linalg::matmul::matmul(
-            states.as_mut().subrows_mut(0, n),
-            faer::Accum::Add,
-            fa.as_ref().subrows(0, n),
-            hankel,
-            1.0,
-            faer::Par::Seq,
-        );
-    }
+    // assist: measured 170 ms instead of 10 ms for this product on the peer log.
+    let rows8 = n.next_multiple_of(8);
+    let fas: Vec<Mat<f64>> = (0..w.len())
+        .map(|a_| {
+            Mat::from_fn(rows8, k, |i, j| {
+                let col = if a_ < m {
+                    j * m + a_
+                } else {
+                    k * m + j * p + (a_ - m)
+                };
+                if i < n {
+                    f[(i, col)]
+                } else {
+                    0.0
+                }
+            })
+        })
+        .collect();
     // Residuals for t = k .. len−2 (x̂(t+1) needed): e = y − C x̂ − D u, ŵ = x̂⁺ − A x̂ − B u,
     // accumulated into Σŵŵᵀ, Σŵeᵀ, Σeeᵀ without storing them.
     let nres = count - 1;
@@ -135,8 +102,40 @@ fn kalman_gain(
         m,
         p,
     };
-    let sums = residual_sums_siso(&states, &model, w, k, nres)
-        .unwrap_or_else(|| residual_sums(&states, &model, w, k, nres));
+    let mut sums = ResidualSums {
+        q: vec![0.0; n * n],
+        s: vec![0.0; n * p],
+        r: vec![0.0; p * p],
+    };
+    let mut states = Mat::<f64>::zeros(rows8, STATE_BLOCK.min(nres + 1));
+    let mut s0 = 0;
+    while s0 < nres {
+        let cols = (nres - s0).min(STATE_BLOCK - 1) + 1;
+        states.fill(0.0);
+        for (fa, wa) in fas.iter().zip(w) {
+            let hankel =
+                MatRef::from_column_major_slice_with_stride(&wa[s0..s0 + cols + k - 1], k, cols, 1);
+            faer::linalg::matmul::matmul(
+                states.as_mut().subrows_mut(0, n).subcols_mut(0, cols),
+                faer::Accum::Add,
+                fa.as_ref().subrows(0, n),
+                hankel,
+                1.0,
+                faer::Par::Seq,
+            );
+        }
+        let block = StateBlock {
+            states: &states,
+            s0,
+            count: cols - 1,
+            w,
+            k,
+        };
+        if !residual_sums_siso(&block, &model, &mut sums) {
+            residual_sums(&block, &model, &mut sums);
+        }
+        s0 += cols - 1;
+    }
     let mut qww = Mat::<f64>::zeros(n, n);
     let mut sww = Mat::<f64>::zeros(n, p);
     let mut see = Mat::<f64>::zeros(p, p);
@@ -158,7 +157,10 @@ fn kalman_gain(
     let s = Mat::from_fn(n, p, |i, j| sww[(i, j)] * inv);
     let r = Mat::from_fn(p, p, |i, j| see[(i, j)] * inv);
     let kf = kalman_filter_gain(a.as_ref(), c.as_ref(), q.as_ref(), s.as_ref(), r.as_ref())?;
-    Ok((kf.gain, kf.innovation_cov))
+    Ok(Innovation {
+        gain: kf.gain,
+        cov: kf.innovation_cov,
+    })
 }
 
 /// A, B, C, D in row-major vectors with the sizes n, m, p.
@@ -179,25 +181,34 @@ struct ResidualSums {
     r: Vec<f64>,
 }
 
-/// The residual sums over the state sequence `states` (its first n rows; n × (nres + 1),
-/// column s = x̂(k + s)) and
-/// the scaled channels `w` = [u; y]: for t = k + s, e = y(t) − C x̂ − D u(t) and
-/// ŵ = x̂(t+1) − A x̂ − B u(t), each row product summed by [`small_dot`].
-fn residual_sums(
-    states: &Mat<f64>,
-    model: &RowMajor,
-    w: &[Vec<f64>],
+/// Columns of the state sequence: column c of `states` (its first n rows) is x̂(k + s0 + c),
+/// for c in 0..=count (the residuals of s = s0..s0 + count need x̂ one step further).
+struct StateBlock<'a> {
+    states: &'a Mat<f64>,
+    s0: usize,
+    count: usize,
+    /// The scaled channels [u; y] and the block rows k (x̂(k + s) pairs with time k + s).
+    w: &'a [Vec<f64>],
     k: usize,
-    nres: usize,
-) -> ResidualSums {
+}
+
+/// Columns per block of the state sequence in [`kalman_gain`] (8 padded rows: 128 KiB).
+const STATE_BLOCK: usize = 2048;
+
+/// Adds to `sums` the residual sums over the block of the state sequence `blk` and the
+/// scaled channels `w` = [u; y]: for t = k + s, e = y(t) − C x̂ − D u(t) and
+/// ŵ = x̂(t+1) − A x̂ − B u(t), each row product summed by [`small_dot`]; blocks folded in
+/// the order of s give the sums of one pass over the whole sequence.
+fn residual_sums(blk: &StateBlock<'_>, model: &RowMajor, sums: &mut ResidualSums) {
     let (n, m, p) = (model.n, model.m, model.p);
     let (ar, br, cr, dr) = (&model.a, &model.b, &model.c, &model.d);
-    let (mut qacc, mut sacc, mut racc) = (vec![0.0; n * n], vec![0.0; n * p], vec![0.0; p * p]);
+    let (qacc, sacc, racc) = (&mut sums.q, &mut sums.s, &mut sums.r);
+    let (states, w, k) = (blk.states, blk.w, blk.k);
     let mut e = vec![0.0; p];
     let mut wv = vec![0.0; n];
     let mut ut = vec![0.0; m];
-    for s_ in 0..nres {
-        let t = k + s_;
+    for s_ in 0..blk.count {
+        let t = k + blk.s0 + s_;
         let xs = &states.col_as_slice(s_)[..n];
         let xs1 = &states.col_as_slice(s_ + 1)[..n];
         for (j, v) in ut.iter_mut().enumerate() {
@@ -227,62 +238,56 @@ fn residual_sums(
             }
         }
     }
-    ResidualSums {
-        q: qacc,
-        s: sacc,
-        r: racc,
-    }
 }
 
 /// [`residual_sums`] for a SISO model of order 1..=7, with the sizes fixed at compile time:
 /// the same operations in the same order (so the same bits), without the loop overhead of
-/// the general sizes. `None` for other sizes.
-fn residual_sums_siso(
-    states: &Mat<f64>,
-    model: &RowMajor,
-    w: &[Vec<f64>],
-    k: usize,
-    nres: usize,
-) -> Option<ResidualSums> {
-    if (model.m, model.p) != (1, 1) || w.len() != 2 {
-        return None;
+/// the general sizes. `false` (nothing added) for other sizes.
+fn residual_sums_siso(blk: &StateBlock<'_>, model: &RowMajor, sums: &mut ResidualSums) -> bool {
+    if (model.m, model.p) != (1, 1) || blk.w.len() != 2 {
+        return false;
     }
     match model.n {
-        1 => residual_sums_fixed::<1>(states, model, w, k, nres),
-        2 => residual_sums_fixed::<2>(states, model, w, k, nres),
-        3 => residual_sums_fixed::<3>(states, model, w, k, nres),
-        4 => residual_sums_fixed::<4>(states, model, w, k, nres),
-        5 => residual_sums_fixed::<5>(states, model, w, k, nres),
-        6 => residual_sums_fixed::<6>(states, model, w, k, nres),
-        7 => residual_sums_fixed::<7>(states, model, w, k, nres),
-        _ => None,
+        1 => residual_sums_fixed::<1>(blk, model, sums),
+        2 => residual_sums_fixed::<2>(blk, model, sums),
+        3 => residual_sums_fixed::<3>(blk, model, sums),
+        4 => residual_sums_fixed::<4>(blk, model, sums),
+        5 => residual_sums_fixed::<5>(blk, model, sums),
+        6 => residual_sums_fixed::<6>(blk, model, sums),
+        7 => residual_sums_fixed::<7>(blk, model, sums),
+        _ => false,
     }
 }
 
 /// [`residual_sums_siso`] for order `N` (below the 8 lanes of [`dot`], so every row product
 /// is the in-order sum from 0.0 of [`small_dot`]).
 fn residual_sums_fixed<const N: usize>(
-    states: &Mat<f64>,
+    blk: &StateBlock<'_>,
     model: &RowMajor,
-    w: &[Vec<f64>],
-    k: usize,
-    nres: usize,
-) -> Option<ResidualSums> {
+    sums: &mut ResidualSums,
+) -> bool {
     let (Some((a, _)), Ok(b), Ok(c), &[d]) = (
         model.a.as_chunks::<N>().0.split_first_chunk::<N>(),
         <[f64; N]>::try_from(model.b.as_slice()),
         <[f64; N]>::try_from(model.c.as_slice()),
         model.d.as_slice(),
     ) else {
-        return None;
+        return false;
     };
-    if states.nrows() < N || states.ncols() < nres + 1 || w[0].len() < k + nres {
-        return None;
+    let (states, s0, count, w, k) = (blk.states, blk.s0, blk.count, blk.w, blk.k);
+    if states.nrows() < N
+        || states.ncols() < count + 1
+        || w[0].len() < k + s0 + count
+        || sums.q.len() != N * N
+        || sums.s.len() != N
+        || sums.r.len() != 1
+    {
+        return false;
     }
-    let (u, y) = (&w[0][k..k + nres], &w[1][k..k + nres]);
-    let mut q = [[0.0; N]; N];
-    let mut sv = [0.0; N];
-    let mut r = 0.0;
+    let (u, y) = (&w[0][k + s0..k + s0 + count], &w[1][k + s0..k + s0 + count]);
+    let mut q: [[f64; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| sums.q[i * N + j]));
+    let mut sv: [f64; N] = std::array::from_fn(|i| sums.s[i]);
+    let mut r = sums.r[0];
     let col = |s_: usize| -> [f64; N] {
         <[f64; N]>::try_from(&states.col_as_slice(s_)[..N]).expect("N states per column")
     };
@@ -311,11 +316,10 @@ fn residual_sums_fixed<const N: usize>(
         }
         r += e * e;
     }
-    Some(ResidualSums {
-        q: q.iter().flatten().copied().collect(),
-        s: sv.to_vec(),
-        r: vec![r],
-    })
+    sums.q = q.iter().flatten().copied().collect();
+    sums.s = sv.to_vec();
+    sums.r = vec![r];
+    true
 }
 
 /// [`dot`] for the short vectors of the residual loop, inlined: [`dot`] sums vectors shorter
@@ -478,10 +482,43 @@ mod tests {
                 m: 1,
                 p: 1,
             };
-            let general = residual_sums(&states, &model, &w, k, count - 1);
-            match residual_sums_siso(&states, &model, &w, k, count - 1) {
+            let empty = || ResidualSums {
+                q: vec![0.0; n * n],
+                s: vec![0.0; n],
+                r: vec![0.0],
+            };
+            let whole = StateBlock {
+                states: &states,
+                s0: 0,
+                count: count - 1,
+                w: &w,
+                k,
+            };
+            let mut general = empty();
+            residual_sums(&whole, &model, &mut general);
+            // The same sums folded over blocks (the last one partial), as `kalman_gain` does.
+            let mut blocked = empty();
+            let mut s0 = 0;
+            while s0 < count - 1 {
+                let cols = (count - 1 - s0).min(999) + 1;
+                let part = Mat::from_fn(states.nrows(), cols, |i, j| states[(i, s0 + j)]);
+                let blk = StateBlock {
+                    states: &part,
+                    s0,
+                    count: cols - 1,
+                    w: &w,
+                    k,
+                };
+                residual_sums(&blk, &model, &mut blocked);
+                s0 += cols - 1;
+            }
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&blocked.q), bits(&general.q), "blocked Q, order {n}");
+            assert_eq!(bits(&blocked.s), bits(&general.s), "blocked S, order {n}");
+            assert_eq!(bits(&blocked.r), bits(&general.r), "blocked R, order {n}");
+            let mut fixed = empty();
+            match residual_sums_siso(&whole, &model, &mut fixed).then_some(fixed) {
                 Some(fixed) => {
-                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                     assert_eq!(bits(&fixed.q), bits(&general.q), "Q, order {n}");
                     assert_eq!(bits(&fixed.s), bits(&general.s), "S, order {n}");
                     assert_eq!(bits(&fixed.r), bits(&general.r), "R, order {n}");

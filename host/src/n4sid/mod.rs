@@ -67,7 +67,7 @@ pub mod output_error;
 pub mod result;
 pub mod stability;
 
-pub use channels::ChannelSet;
+pub use channels::{ChannelSet, LogChannels};
 pub use kalman::{kalman_filter_gain, KalmanFilter};
 pub(crate) use linalg::dot;
 pub use options::{Factorization, N4sidOptions, OrderSelection, Weighting, MAX_BLOCK_ROWS};
@@ -82,19 +82,7 @@ use std::path::Path;
 
 /// Identifies a model from a [`Log`] (inputs → outputs); errors name `log.path` and the channel.
 pub fn n4sid(log: &Log, opts: &N4sidOptions) -> Result<N4sidResult> {
-    let u: Vec<&[f64]> = log.inputs.iter().map(|c| c.data.as_slice()).collect();
-    let y: Vec<&[f64]> = log.outputs.iter().map(|c| c.data.as_slice()).collect();
-    let un: Vec<String> = log.inputs.iter().map(|c| c.name.clone()).collect();
-    let yn: Vec<String> = log.outputs.iter().map(|c| c.name.clone()).collect();
-    let data = ChannelSet {
-        source: &log.path,
-        ts: log.ts,
-        u: &u,
-        y: &y,
-        u_names: &un,
-        y_names: &yn,
-    };
-    identify(&data, opts)
+    identify(&LogChannels::of(log).set(), opts)
 }
 
 /// Identifies a model from in-memory channels: `u[j]` input channel j, `y[i]` output channel i,
@@ -176,9 +164,13 @@ pub fn identify(data: &ChannelSet<'_>, opts: &N4sidOptions) -> Result<N4sidResul
 
     // 8. Kalman gain.
     let kalman = if opts.estimate_kalman_gain {
-        let (kalman, warning) = kalman::innovation_model(&l, &fit, w, k, m)?;
-        warnings.extend(warning);
-        kalman
+        match kalman::innovation_model(&l, &fit, w, k, m) {
+            Ok(inn) => Some(inn),
+            Err(e) => {
+                warnings.push(format!("Kalman gain not estimated: {e}"));
+                None
+            }
+        }
     } else {
         None
     };

@@ -203,17 +203,28 @@ fn output_error_fit(
     let (a_s, rho) = (&stable.a, stable.rho);
     let (n, p, m) = (a_s.nrows(), c_s.nrows(), us.len());
     let len = us[0].len();
-    let ybig: Vec<f64> = ys.iter().flat_map(|y| y.iter().copied()).collect();
+    // The outputs stacked (one output: the channel itself, not a copy).
+    let ybig: std::borrow::Cow<'_, [f64]> = match ys {
+        [y] => std::borrow::Cow::Borrowed(y.as_slice()),
+        _ => std::borrow::Cow::Owned(ys.iter().flat_map(|y| y.iter().copied()).collect()),
+    };
     // θ, the output-error residual y − Φθ and, when D is estimated and tested, its largest
     // |D|/SE; for D estimated or fixed to zero. The least squares runs on the R factor of
     // [Φ y], folded in row blocks (the regressors are tall: len·p rows, a few columns).
     let solve = |with_d: bool| -> Result<(Mat<f64>, Vec<f64>, Option<f64>)> {
-        let (buf, rows, cols) = oe_regressors(a_s, c_s, us, len, opts.estimate_x0, with_d);
-        let columns: Vec<&[f64]> = if rows == 0 {
+        // With one output the D regressors are the input channels themselves: used in place
+        // instead of copied into the buffer (the same columns, in the same order).
+        let d_in_place = with_d && p == 1;
+        let (buf, rows, cols) =
+            oe_regressors(a_s, c_s, us, len, opts.estimate_x0, with_d && !d_in_place);
+        let mut columns: Vec<&[f64]> = if rows == 0 {
             Vec::new()
         } else {
             buf.chunks_exact(rows).take(cols).collect()
         };
+        if d_in_place {
+            columns.extend(us.iter().map(Vec::as_slice));
+        }
         let (theta, r11) = tall_lstsq(&columns, &ybig, "B/D least squares").map_err(|e| {
             if rho >= 1.0 && opts.stability_margin.is_none() {
                 Error::Numerical(format!(
@@ -223,7 +234,7 @@ fn output_error_fit(
                 e
             }
         })?;
-        let mut resid = ybig.clone();
+        let mut resid = ybig.to_vec();
         for (k, col) in columns.iter().enumerate() {
             let th = theta[(k, 0)];
             resid

@@ -310,13 +310,8 @@ mod tests {
     fn horizon_estimate_equals_full_least_squares() {
         let m = stable_model();
         let len = 20_000;
-        let mut s = 12345u64;
-        let mut noise = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
+        let mut uniform = crate::n4sid::linalg::test_uniform(12345);
+        let mut noise = || uniform() - 0.5;
         let u: Vec<f64> = (0..len).map(|_| noise()).collect();
         let x0 = [2.0, -1.0, 0.5];
         let y_clean = m.simulate(&[u.as_slice()], Some(&x0)).expect("sim");
