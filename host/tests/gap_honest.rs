@@ -8,7 +8,8 @@
 //!   model falls back to the nominal and never ends worse than it;
 //! * distortion on the non-excited lines of an odd multisine with detection lines: a cubic
 //!   puts power on odd lines, a square on even lines, a linear plant on neither;
-//! * a position-output axis (integrator in the nominal) is diagnosed without error.
+//! * a position-output axis (integrator in the nominal) is diagnosed without error;
+//! * a quantizing sensor on periodic logs reports the logged step, not the period average's.
 use ferrosid::data::Log;
 use ferrosid::gap::benchmark::{filtered_noise, multisine};
 use ferrosid::gap::evidence::distortion;
@@ -277,4 +278,50 @@ fn a_position_output_axis_with_an_integrator_is_diagnosed() {
     assert!(r.gap_before < 3.0 * floor, "{} vs {floor}", r.gap_before);
     // The warm-up follows the 0.02 s pole (5τ = 100 samples), not the integrator.
     assert!((95..=105).contains(&w), "warm-up {w}");
+}
+
+/// A quantizing sensor (noise before the quantizer) on periodic logs: the fits use the period
+/// average, whose values sit on a lattice `periods` times finer than the sensor's; the step
+/// must come from the logged values (it came out at step/m on m averaged periods before).
+#[test]
+fn quantization_step_of_periodic_logs_is_the_logged_one() {
+    let mut rng = Rng::new(77);
+    let (p, periods) = (2048, 7);
+    let sys = mode(20.0, 0.3);
+    let u_low = periodic(p, periods, 1.0, &mut rng);
+    let u_high = periodic(p, periods, 1.5, &mut rng);
+    let u_val = periodic(p, periods, 1.2, &mut rng);
+    let step = 0.05 * std_dev(&sys.simulate_siso(&u_low, None).unwrap());
+    // Noise of 0.2 steps before the quantizer (a plain lattice in the logged values).
+    let quantized = |u: &[f64], rng: &mut Rng| -> Vec<f64> {
+        let clean = sys.simulate_siso(u, None).unwrap();
+        clean
+            .iter()
+            .map(|v| step * ((v + 0.2 * step * rng.normal()) / step).round())
+            .collect()
+    };
+    let train = vec![
+        log("low.csv", u_low.clone(), quantized(&u_low, &mut rng)),
+        log("high.csv", u_high.clone(), quantized(&u_high, &mut rng)),
+    ];
+    let vlog = log("val.csv", u_val.clone(), quantized(&u_val, &mut rng));
+    let d = diagnose(&sys, &train, &vlog, &GapOptions::default()).unwrap();
+    let r = &d.report;
+    assert!(
+        r.notes
+            .iter()
+            .any(|n| n.contains("the fits use the average of")),
+        "{:?}",
+        r.notes
+    );
+    let lattice = r
+        .evidence
+        .lattice
+        .as_ref()
+        .unwrap_or_else(|| panic!("no lattice: {}", r.to_text()));
+    assert!(
+        (lattice.step - step).abs() < 0.02 * step,
+        "lattice step {} vs the sensor's {step}",
+        lattice.step
+    );
 }

@@ -328,6 +328,9 @@ fn run_selection(
             noise_floor: noise_floor.available().then_some(noise_floor.nrmse),
             drift_window: s.drift_window,
             min_excess_closed: opts.min_excess_closed,
+            // The lattice of a quantizing sensor is read off the logged values: the period
+            // average of periodic logs sits on a lattice m times finer.
+            raw_outputs: logs.ty.clone(),
             ..SelectOptions::default()
         },
     )
