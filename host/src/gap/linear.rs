@@ -164,15 +164,7 @@ pub fn period_average(
     warmup: usize,
 ) -> Option<(Vec<f64>, Vec<f64>, usize, usize)> {
     let p = noise::detect_period(u)?;
-    let total = u.len() / p;
-    let mut skip = warmup.div_ceil(p);
-    if total >= 3 {
-        skip = skip.max(1);
-    }
-    let m = total.checked_sub(skip)?;
-    if m < 2 {
-        return None;
-    }
+    let (skip, m) = noise::whole_periods(u.len(), p, warmup)?;
     let avg = |x: &[f64]| -> Vec<f64> {
         let mut a = vec![0.0; p];
         for q in skip..skip + m {

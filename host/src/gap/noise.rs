@@ -126,18 +126,23 @@ pub fn detect_period(u: &[f64]) -> Option<usize> {
     None
 }
 
-/// Period-to-period scatter of `y` with period `p` after `warmup` samples: (σ², periods used),
-/// `None` when fewer than two whole periods remain.
-pub fn periodic_scatter(y: &[f64], p: usize, warmup: usize) -> Option<(f64, usize)> {
-    let total = y.len() / p;
+/// The whole periods of length `p` a log of `len` samples averages over after `warmup`:
+/// (periods skipped — the warm-up's, and at least the first when three or more fit —, periods
+/// used), `None` when fewer than two remain.
+pub fn whole_periods(len: usize, p: usize, warmup: usize) -> Option<(usize, usize)> {
+    let total = len / p;
     let mut skip = warmup.div_ceil(p);
     if total >= 3 {
         skip = skip.max(1);
     }
     let m = total.checked_sub(skip)?;
-    if m < 2 {
-        return None;
-    }
+    (m >= 2).then_some((skip, m))
+}
+
+/// Period-to-period scatter of `y` with period `p` after `warmup` samples: (σ², periods used),
+/// `None` when fewer than two whole periods remain.
+pub fn periodic_scatter(y: &[f64], p: usize, warmup: usize) -> Option<(f64, usize)> {
+    let (skip, m) = whole_periods(y.len(), p, warmup)?;
     let seg = &y[skip * p..(skip + m) * p];
     let mut avg = vec![0.0; p];
     for q in 0..m {

@@ -165,22 +165,23 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
-    let scored: usize = td
-        .base
-        .y
-        .iter()
-        .map(|y| y.len().saturating_sub(td.base.warmup))
-        .sum();
+    let scored = td.base.scored_samples();
+    // Variable projection: residues, feedthrough and offset by least squares on the drive's
+    // output (exact when the linear part's input does not depend on them).
+    let project = |model: &mut AugmentedModel| -> Option<()> {
+        let mut w = Vec::with_capacity(td.u.len());
+        for u in &td.u {
+            w.push(model.drive_input(u).ok()?);
+        }
+        model
+            .linear
+            .fit_linear_params_with_input(&td.base, &w, None)?;
+        Some(())
+    };
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
         if projectable {
-            let mut w = Vec::with_capacity(td.u.len());
-            for u in &td.u {
-                w.push(model.drive_input(u).ok()?);
-            }
-            model
-                .linear
-                .fit_linear_params_with_input(&td.base, &w, None)?;
+            project(&mut model)?;
         }
         let mut r = Vec::with_capacity(scored);
         for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
@@ -197,13 +198,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
     let (theta, _) = levenberg_marquardt_steps(residuals, &theta0, &steps, max_iter, 1e-6);
     let mut model = build(&theta)?;
     if projectable {
-        let mut w = Vec::with_capacity(td.u.len());
-        for u in &td.u {
-            w.push(model.drive_input(u).ok()?);
-        }
-        model
-            .linear
-            .fit_linear_params_with_input(&td.base, &w, None)?;
+        project(&mut model)?;
     }
     let train_cost = model.cost(&td.base, &td.u);
     train_cost

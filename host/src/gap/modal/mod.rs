@@ -78,6 +78,14 @@ impl FitSet {
         })
     }
 
+    /// Scored samples over all logs (each log's length less the warm-up).
+    pub fn scored_samples(&self) -> usize {
+        self.y
+            .iter()
+            .map(|y| y.len().saturating_sub(self.warmup))
+            .sum()
+    }
+
     /// Same outputs, weights and warm-up with a new input per log.
     pub fn with_input(&self, w: Vec<Vec<f64>>) -> Self {
         Self {

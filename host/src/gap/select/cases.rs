@@ -158,18 +158,9 @@ pub(super) fn describe(s: &Selection) -> String {
     )
 }
 
-/// CPU seconds of this thread (user + system), from /proc; 0 where unavailable.
-pub(super) fn cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/thread-self/stat")
-        .ok()
-        .and_then(|s| {
-            let rest = s.rsplit(')').next()?.to_string();
-            let f: Vec<&str> = rest.split_whitespace().collect();
-            let ut: f64 = f.get(11)?.parse().ok()?;
-            let st: f64 = f.get(12)?.parse().ok()?;
-            Some((ut + st) / 100.0)
-        })
-        .unwrap_or(0.0)
+/// CPU seconds of this thread (see [`super::thread_cpu_seconds`]).
+fn cpu_seconds() -> f64 {
+    super::thread_cpu_seconds()
 }
 
 // The checked cases, shared by the checks below and the study (`n` samples per log).

@@ -192,6 +192,11 @@ fn profile_seconds() -> f64 {
     if std::env::var_os("GAP_PROFILE").is_none() {
         return 0.0;
     }
+    thread_cpu_seconds()
+}
+
+/// CPU seconds of this thread (user + system), from /proc; 0 where unavailable.
+fn thread_cpu_seconds() -> f64 {
     std::fs::read_to_string("/proc/thread-self/stat")
         .ok()
         .and_then(|s| {

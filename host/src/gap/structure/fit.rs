@@ -349,12 +349,7 @@ fn joint_fit_two_mass_opt(
         m.set_effects_in_selection_order(&list);
         Some(m)
     };
-    let scored: usize = td
-        .base
-        .y
-        .iter()
-        .map(|y| y.len().saturating_sub(td.base.warmup))
-        .sum();
+    let scored = td.base.scored_samples();
     let residuals = |th: &[f64]| -> Option<Vec<f64>> {
         let mut model = build(th)?;
         let (_, sims) = fit_offset_sims(td, &mut model)?;
