@@ -9,7 +9,7 @@ use ferrosid::spectral::{Detrend, PeriodicAveraging, Welch, Window, DEFAULT_COHE
 use num_complex::Complex64;
 use serde::Deserialize;
 
-use crate::scipy_spectra::ScipySpectra;
+use crate::scipy_spectra::WithSpectra;
 
 /// (frequency, magnitude) of the largest |H| and of the smallest |H| below it, in a band.
 fn pair_in(freq: &[f64], h: &[Complex64], lo: f64, hi: f64) -> ((f64, f64), (f64, f64)) {
@@ -131,14 +131,12 @@ struct Pair {
     input_col: usize,
     output_col: usize,
     n: usize,
-    #[serde(flatten)]
-    scipy: ScipySpectra,
 }
 
 #[derive(Deserialize)]
 struct DaisyRef {
     nperseg: usize,
-    pairs: Vec<Pair>,
+    pairs: Vec<WithSpectra<Pair>>,
 }
 
 #[test]

@@ -7,7 +7,7 @@ use ferrosid::spectral::{Detrend, Welch, Window};
 use num_complex::Complex64;
 use serde::Deserialize;
 
-use crate::scipy_spectra::ScipySpectra;
+use crate::scipy_spectra::WithSpectra;
 
 #[derive(Deserialize)]
 struct Case {
@@ -15,8 +15,6 @@ struct Case {
     noverlap: Option<usize>,
     window: String,
     detrend: String,
-    #[serde(flatten)]
-    scipy: ScipySpectra,
 }
 
 #[derive(Deserialize)]
@@ -25,7 +23,7 @@ struct Fixture {
     fs: f64,
     u: Vec<f64>,
     y: Vec<f64>,
-    cases: Vec<Case>,
+    cases: Vec<WithSpectra<Case>>,
 }
 
 fn load() -> Fixture {
