@@ -575,13 +575,8 @@ mod tests {
     /// the group size (short data, partial groups, lags up to the length).
     #[test]
     fn grouped_lags_equal_one_sum_per_lag() {
-        let mut s = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = crate::n4sid::linalg::XorShift(0x9e37_79b9_7f4a_7c15);
+        let mut next = || rng.centred();
         for n in [1usize, 7, 8, 9, 16, 17, 100, 1000] {
             let a: Vec<f64> = (0..n).map(|_| next() * 1e3).collect();
             let b: Vec<f64> = (0..n).map(|_| next()).collect();

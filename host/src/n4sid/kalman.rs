@@ -460,13 +460,8 @@ mod tests {
     /// takes; other sizes are refused (and left to the general loop).
     #[test]
     fn fixed_siso_sums_equal_general_loop_bit_for_bit() {
-        let mut s = 0x5851_f42d_4c95_7f2du64;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = crate::n4sid::linalg::XorShift(0x5851_f42d_4c95_7f2d);
+        let mut next = || rng.centred();
         let (k, len) = (5, 3000);
         let w: Vec<Vec<f64>> = (0..2).map(|_| (0..len).map(|_| next()).collect()).collect();
         for n in 1..=8usize {

@@ -20,7 +20,7 @@
 //!    weighed against its stiction variant as the singles are; no pair is sought once the
 //!    single is within [`PAIR_FLOOR_FACTOR`] of the noise floor. A backward step then drops
 //!    each effect of that pair in turn: when the pair does not beat a reduced model by the
-//!    same rule, the dropped effect was a passenger (a Coulomb level of 1e-4 of its single fit
+//!    same rule, the dropped effect was a passenger (a Coulomb level 1/140 of its single fit's
 //!    "closing" a gap that the partner's longer fit closed) and the reduced model is the
 //!    single;
 //! 4. a lattice in the measured outputs ([`lattice_evidence`]) decides quantization by itself:
