@@ -28,8 +28,8 @@ pub use super::linear::{
     default_warmup, modal_stand_in, period_average, INTEGRATOR_STAND_IN, REFIT_SCREEN_SAMPLES,
 };
 pub use super::verdict::{
-    effective_samples, nested_likelihood_ratio, Decision, VerdictRule, MAX_CORRELATION_LAG,
-    NESTED_LR_THRESHOLD,
+    effective_samples, nested_likelihood_ratio, pooled_likelihood_ratio, Decision, LogFit,
+    VerdictRule, MAX_CORRELATION_LAG, NESTED_LR_THRESHOLD,
 };
 
 /// Fewest samples per log the diagnosis accepts.
