@@ -41,9 +41,12 @@
 //! An effect is *same-family* when one of the diagnosis's candidates has the same law at the same
 //! place: Karnopp friction (including Coulomb) on the driven body — the candidate `stiction` is
 //! a Karnopp law too, so Karnopp with a stick band counts as same-family although it is
-//! integrated here in continuous time with exact stick events —, drive play, dead band and
-//! saturation on the held command, an actuator mode of the candidate's form, quantization.
-//! Every other effect is *cross-family*: Stribeck, LuGre and Dahl friction, load-side friction,
+//! integrated here in continuous time with exact stick events —, Stribeck friction on the
+//! driven body (the candidate `stiction` carries the same stick band and Stribeck curve
+//! coulomb + (stat − coulomb)·exp(−(|v|/v_s)²) since session 12; the law's small viscous term is
+//! linear), drive play, dead band and saturation on the held command, an actuator mode of the
+//! candidate's form, quantization. Every other effect is *cross-family*: LuGre and Dahl
+//! friction, load-side friction,
 //! shaft backlash, slew-rate limit, state limit, sensor clipping, fractional (non-integer-sample)
 //! delays at either end, sensor-side modes. A pair is cross-family when either effect is.
 use crate::excite::{band_noise, log_multisine, odd_multisine, std_dev};
@@ -454,7 +457,11 @@ pub fn resolve(setup: &Setup, specs: &[Spec], y_sd: f64) -> (Effects, Vec<TruthE
                 };
                 fx.friction = Some((law, body));
                 let place = if body == Body::Motor { "motor" } else { "load" };
-                let cross = kind != FrictionKind::Karnopp || body == Body::Load;
+                // Karnopp and Stribeck laws on the driven body are the stiction candidate's (a stick band
+                // and, since session 12, the same Stribeck curve); LuGre, Dahl and load-side
+                // friction are not.
+                let cross = !matches!(kind, FrictionKind::Karnopp | FrictionKind::Stribeck)
+                    || body == Body::Load;
                 let law_s = format!("{kind:?}");
                 if ratio >= 1.3 {
                     te(

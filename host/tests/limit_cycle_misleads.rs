@@ -33,6 +33,7 @@ fn stiction_hunting_is_missed_by_the_describing_function_and_found_by_simulation
         effect: Effect::Stiction {
             level: 0.5,
             breakaway: 1.0,
+            stribeck_velocity: 0.0,
         },
         place: Place::Motor,
     })

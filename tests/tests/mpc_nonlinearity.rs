@@ -149,6 +149,7 @@ fn effects_that_need_the_subsampled_plant_are_refused() {
             Some(&Effect::Stiction {
                 level: 0.01,
                 breakaway: 0.02,
+                stribeck_velocity: 0.0,
             }),
             R,
             SAMPLES,

@@ -151,6 +151,11 @@ pub fn parse_verdict(
             EffectKind::Stiction => Effect::Stiction {
                 level: p("level")?,
                 breakaway: p("breakaway")?,
+                // Optional: written only for a Stribeck curve (0: a Karnopp switch).
+                stribeck_velocity: match ve.params.get("stribeck_velocity") {
+                    Some(_) => p("stribeck_velocity")?,
+                    None => 0.0,
+                },
             },
             EffectKind::Backlash => Effect::Backlash { gap: p("gap")? },
             EffectKind::Deadzone => Effect::Deadzone { width: p("width")? },

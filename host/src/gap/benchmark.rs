@@ -104,6 +104,7 @@ pub fn cases() -> Vec<Case> {
                     Some(Effect::Stiction {
                         level: a * pick([0.25, 0.4]),
                         breakaway: a * pick([0.25, 0.4]) * pick([2.0, 1.6]),
+                        stribeck_velocity: 0.0,
                     }),
                     0.0,
                 ),

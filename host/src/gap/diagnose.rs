@@ -29,7 +29,7 @@ pub use super::linear::{
 };
 pub use super::verdict::{
     effective_samples, nested_likelihood_ratio, pooled_likelihood_ratio, Decision, LogFit,
-    VerdictRule, MAX_CORRELATION_LAG, NESTED_LR_THRESHOLD,
+    VerdictRule, MAX_CORRELATION_LAG, NESTED_LR_THRESHOLD, NESTED_LR_THRESHOLD_2,
 };
 
 /// Fewest samples per log the diagnosis accepts.

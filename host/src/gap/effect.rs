@@ -129,12 +129,17 @@ pub enum Effect {
         /// Sliding friction, input units.
         level: f64,
     },
-    /// Sliding friction `level` and static (breakaway) friction, input units.
+    /// Sliding friction `level` and static (breakaway) friction, input units; with a Stribeck
+    /// velocity > 0 the sliding force decays from the breakaway to the level over it
+    /// ([`StickSlip::with_stribeck_velocity`]), else it drops to the level at once (Karnopp).
     Stiction {
         /// Sliding friction, input units.
         level: f64,
         /// Breakaway (static) friction, input units, >= level.
         breakaway: f64,
+        /// Stribeck velocity in the velocity units the friction sees (the output's, per second
+        /// for a position output); 0: none (a Karnopp switch).
+        stribeck_velocity: f64,
     },
     /// Total play `gap` in input units.
     Backlash {
@@ -208,8 +213,16 @@ impl Effect {
     pub fn params(&self) -> Vec<(&'static str, f64)> {
         match *self {
             Effect::CoulombFriction { level } => vec![("level", level)],
-            Effect::Stiction { level, breakaway } => {
-                vec![("level", level), ("breakaway", breakaway)]
+            Effect::Stiction {
+                level,
+                breakaway,
+                stribeck_velocity,
+            } => {
+                let mut v = vec![("level", level), ("breakaway", breakaway)];
+                if stribeck_velocity > 0.0 {
+                    v.push(("stribeck_velocity", stribeck_velocity));
+                }
+                v
             }
             Effect::Backlash { gap } => vec![("gap", gap)],
             Effect::Deadzone { width } => vec![("width", width)],
@@ -237,8 +250,15 @@ impl Effect {
         }
         match *self {
             Effect::CoulombFriction { level } if level <= 0.0 => bad("level must be > 0"),
-            Effect::Stiction { level, breakaway } if level <= 0.0 || breakaway < level => {
-                bad("need 0 < level <= breakaway")
+            Effect::Stiction {
+                level,
+                breakaway,
+                stribeck_velocity,
+            } if level <= 0.0
+                || breakaway < level
+                || !(stribeck_velocity >= 0.0 && stribeck_velocity.is_finite()) =>
+            {
+                bad("need 0 < level <= breakaway and stribeck_velocity >= 0")
             }
             Effect::Backlash { gap } if gap <= 0.0 => bad("gap must be > 0"),
             Effect::Deadzone { width } if width <= 0.0 => bad("width must be > 0"),
@@ -372,10 +392,18 @@ impl Play {
 ///
 /// With `breakaway == level` this is Coulomb friction with sticking, free of the chatter of an
 /// explicit sign(v) law.
+///
+/// With a Stribeck velocity v_s > 0 ([`Self::with_stribeck_velocity`]) the sliding force
+/// follows the Stribeck curve F(s) = level + (breakaway − level)·exp(−(s/v_s)²) of the speed s
+/// at the end of the step instead of the constant level (Armstrong-Hélouvry's static + Coulomb
+/// + Stribeck law); s is taken under the sliding level, s = |v_trial| − |g|·level (the largest
+/// end speed, so one evaluation per step), and a curve that would reverse the velocity within
+/// the step holds the mass instead. v_s → 0 is the Karnopp law above.
 #[derive(Debug, Clone, Copy)]
 pub struct StickSlip {
     level: f64,
     breakaway: f64,
+    stribeck_velocity: f64,
     stuck: bool,
 }
 
@@ -385,7 +413,30 @@ impl StickSlip {
         Self {
             level,
             breakaway: breakaway.max(level),
+            stribeck_velocity: 0.0,
             stuck: true,
+        }
+    }
+    /// The same law with the sliding force on a Stribeck curve of velocity `v_s` (velocity
+    /// units of the `v_trial` given to [`Self::force`]); `v_s` <= 0 or not finite: none.
+    pub fn with_stribeck_velocity(mut self, v_s: f64) -> Self {
+        self.stribeck_velocity = if v_s.is_finite() && v_s > 0.0 {
+            v_s
+        } else {
+            0.0
+        };
+        self
+    }
+    /// The law of a friction effect (Coulomb friction or stiction), starting at rest.
+    pub fn of(effect: &Effect) -> Option<Self> {
+        match *effect {
+            Effect::CoulombFriction { level } => Some(Self::new(level, level)),
+            Effect::Stiction {
+                level,
+                breakaway,
+                stribeck_velocity,
+            } => Some(Self::new(level, breakaway).with_stribeck_velocity(stribeck_velocity)),
+            _ => None,
         }
     }
     /// Friction force for this step (see the type docs). Returns 0 when `g` is 0 or either
@@ -403,11 +454,19 @@ impl StickSlip {
         };
         if hold.abs() <= limit {
             self.stuck = true;
-            hold
-        } else {
-            self.stuck = false;
-            self.level * hold.signum()
+            return hold;
         }
+        self.stuck = false;
+        if self.stribeck_velocity > 0.0 {
+            let s = (g * (hold.abs() - self.level)).abs() / self.stribeck_velocity;
+            let f = self.level + (self.breakaway - self.level) * (-s * s).exp();
+            if f >= hold.abs() {
+                self.stuck = true;
+                return hold;
+            }
+            return f * hold.signum();
+        }
+        self.level * hold.signum()
     }
     /// Whether the mass is currently held at rest.
     pub fn is_stuck(&self) -> bool {
@@ -536,6 +595,63 @@ mod tests {
         // Need 0.5 <= level: sticks.
         assert!((f.force(0.05, g) - 0.5).abs() < 1e-12);
         assert!(f.is_stuck());
+    }
+
+    /// The Stribeck curve against its closed form: breaking loose at the breakaway, sliding at
+    /// level + (breakaway − level)·exp(−(s/v_s)²) of the end speed s = |g|·(|hold| − level), held
+    /// when the curve would reverse the velocity within the step; v_s = 0 is the Karnopp law.
+    #[test]
+    fn stribeck_curve_decays_from_the_breakaway_to_the_level() {
+        let (level, breakaway, vs, g) = (1.0, 2.0, 0.5, 0.1);
+        let curve = |hold: f64| {
+            let s = g * (hold - level) / vs;
+            level + (breakaway - level) * (-s * s).exp()
+        };
+        let mut f = StickSlip::new(level, breakaway).with_stribeck_velocity(vs);
+        // At rest, a need of 1.9 < breakaway holds.
+        assert!((f.force(0.19, g) - 1.9).abs() < 1e-12 && f.is_stuck());
+        // A need of 2.5 breaks loose; the force is the curve at the end speed, below the need.
+        let f1 = f.force(0.25, g);
+        assert!((f1 - curve(2.5)).abs() < 1e-12 && !f.is_stuck(), "{f1}");
+        assert!(f1 > level && f1 < breakaway);
+        // Fast: the curve has decayed to the level.
+        let f2 = f.force(100.0, g);
+        assert!((f2 - level).abs() < 1e-9 && (f2 - curve(1000.0)).abs() < 1e-12);
+        // Sliding slowly with a need of 1.05 > level but below the curve (1.99...): held.
+        assert!(curve(1.05) > 1.05);
+        assert!((f.force(-0.105, g) + 1.05).abs() < 1e-12 && f.is_stuck());
+        // No (or an invalid) Stribeck velocity: the Karnopp law.
+        for v in [0.0, -1.0, f64::NAN] {
+            let mut k = StickSlip::new(level, breakaway).with_stribeck_velocity(v);
+            let mut r = StickSlip::new(level, breakaway);
+            for x in [0.15, 0.25, -0.15, 0.05, 3.0] {
+                assert_eq!(k.force(x, g), r.force(x, g));
+            }
+        }
+        // The law of an effect.
+        let e = Effect::Stiction {
+            level,
+            breakaway,
+            stribeck_velocity: vs,
+        };
+        let mut from_effect = StickSlip::of(&e).unwrap();
+        assert_eq!(from_effect.force(0.25, g), curve(2.5));
+        assert!(StickSlip::of(&Effect::Backlash { gap: 1.0 }).is_none());
+        assert_eq!(
+            e.params(),
+            vec![
+                ("level", 1.0),
+                ("breakaway", 2.0),
+                ("stribeck_velocity", 0.5)
+            ]
+        );
+        assert!(Effect::Stiction {
+            level,
+            breakaway,
+            stribeck_velocity: f64::NAN
+        }
+        .validate()
+        .is_err());
     }
 
     #[test]

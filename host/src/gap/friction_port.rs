@@ -30,8 +30,7 @@ impl AugmentedModel {
     pub fn friction_loop_body(
         &self,
         u: &[f64],
-        level: f64,
-        breakaway: f64,
+        law: StickSlip,
         m: usize,
         b: usize,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
@@ -44,7 +43,7 @@ impl AugmentedModel {
         let kb = body_gain(lin, b);
         let g = kb * beta;
         let cb = sub.cb();
-        let mut fr = StickSlip::new(level, breakaway);
+        let mut fr = law;
         let mut x = lin.zero_state();
         let mut xf = 0.0;
         let mut y = Vec::with_capacity(u.len());

@@ -371,17 +371,26 @@ pub fn simulate(
     let bf: Vec<f64> = (0..n).map(|i| sys2.b[(i, 1)]).collect();
     let vi = phys.velocity_state;
     // Friction on the driven mass, in physical force units.
-    let mut friction = match effect {
-        Some(Effect::CoulombFriction { level }) => {
-            let f = level * phys.force_per_input;
-            Some(StickSlip::new(f, f))
-        }
-        Some(Effect::Stiction { level, breakaway }) => Some(StickSlip::new(
-            level * phys.force_per_input,
-            breakaway * phys.force_per_input,
-        )),
-        _ => None,
-    };
+    let mut friction =
+        match effect {
+            Some(Effect::CoulombFriction { level }) => {
+                let f = level * phys.force_per_input;
+                Some(StickSlip::new(f, f))
+            }
+            Some(Effect::Stiction {
+                stribeck_velocity, ..
+            }) if *stribeck_velocity > 0.0 => return Err(Error::InvalidArgument(
+                "the same-law plant simulator has no Stribeck curve (stribeck_velocity must be 0)"
+                    .into(),
+            )),
+            Some(Effect::Stiction {
+                level, breakaway, ..
+            }) => Some(StickSlip::new(
+                level * phys.force_per_input,
+                breakaway * phys.force_per_input,
+            )),
+            _ => None,
+        };
     // Command-path nonlinearity at the sample rate (digital command, then DAC hold).
     let mut play = match effect {
         Some(Effect::Backlash { gap }) => Some(Play::new(*gap)),
@@ -571,6 +580,7 @@ mod tests {
         let fr = Effect::Stiction {
             level: 0.02,
             breakaway: 0.05,
+            stribeck_velocity: 0.0,
         };
         // 0.04 < breakaway: never moves.
         let y = simulate(&p, Some(&fr), &vec![0.04; 2000], &settings()).unwrap();

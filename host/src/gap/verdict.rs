@@ -108,6 +108,11 @@ impl VerdictRule {
 /// breakaway parameter) at p = 0.001. See [`nested_likelihood_ratio`].
 pub const NESTED_LR_THRESHOLD: f64 = 10.83;
 
+/// [`NESTED_LR_THRESHOLD`] for two extra parameters (stiction with a Stribeck curve over
+/// Coulomb friction: breakaway and Stribeck velocity): the χ² quantile with two degrees of
+/// freedom at p = 0.001.
+pub const NESTED_LR_THRESHOLD_2: f64 = 13.82;
+
 /// Longest lag of the residual autocorrelation used by [`effective_samples`], samples.
 pub const MAX_CORRELATION_LAG: usize = 2000;
 

@@ -91,7 +91,15 @@ impl Nonlinearity {
             (Effect::CoulombFriction { level }, Place::Motor) => {
                 (DescribingFunction::Relay { level }, Site::Velocity)
             }
-            (Effect::Stiction { level, breakaway }, Place::Motor) => (
+            // A Stribeck curve (stribeck_velocity > 0) is dropped here: the describing function
+            // and the loop simulation use the Karnopp law at the fitted level and breakaway,
+            // which under-states the friction for velocity amplitudes near v_s.
+            (
+                Effect::Stiction {
+                    level, breakaway, ..
+                },
+                Place::Motor,
+            ) => (
                 DescribingFunction::Stiction { level, breakaway },
                 Site::Velocity,
             ),

@@ -139,12 +139,12 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
     let body = model
         .motor_friction()
         .and_then(|lb| Some((lb, model.body_mode()?)));
-    let cost = if let Some(((level, breakaway), b)) = body {
+    let cost = if let Some((law, b)) = body {
         let mut wd = Vec::with_capacity(td.u.len());
         let mut f = Vec::with_capacity(td.u.len());
         for u in &td.u {
             let d = model.drive_input(u).ok()?;
-            f.push(model.friction_loop_body(&d, level, breakaway, m, b)?.1);
+            f.push(model.friction_loop_body(&d, law, m, b)?.1);
             wd.push(d);
         }
         fit_linear_params_body(&mut model.linear, &td.base, &wd, &f, b, mask.as_deref())?;
@@ -154,7 +154,7 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
         for u in &td.u {
             let wd = model.drive_input(u).ok()?;
             w.push(match model.motor_friction() {
-                Some((level, breakaway)) => model.friction_loop_m(&wd, level, breakaway, m).1,
+                Some(law) => model.friction_loop_m(&wd, law, m).1,
                 None => wd,
             });
         }
@@ -171,9 +171,9 @@ pub fn eval_model(td: &TrainData, mut model: AugmentedModel, m: usize) -> Option
     let mut c = 0.0;
     for ((u, y), &wt) in td.u.iter().zip(&td.base.y).zip(&td.base.weight) {
         let yh = match model.motor_friction() {
-            Some((level, breakaway)) if m != FRICTION_SUBSTEPS => {
+            Some(law) if m != FRICTION_SUBSTEPS => {
                 let wd = model.drive_input(u).ok()?;
-                let mut yh = model.friction_loop_m(&wd, level, breakaway, m).0;
+                let mut yh = model.friction_loop_m(&wd, law, m).0;
                 for p in &effects {
                     if p.place == Place::Sensor {
                         sensor_transform(&p.effect, &mut yh);

@@ -8,13 +8,13 @@ use crate::gap::effect::{Effect, EffectKind};
 use crate::gap::optim::levenberg_marquardt_steps;
 use crate::gap::place::Place;
 
-/// Unconstrained coordinates of an effect's parameters and back (see [`joint_fit`]).
+/// Unconstrained coordinates of an effect's parameters and back (see [`joint_fit`]). Stiction
+/// has a third coordinate, ln v_s, only when it carries a Stribeck curve (a Karnopp stiction
+/// stays one).
 pub(super) fn effect_to_coords(e: &Effect, ts: f64) -> Vec<f64> {
     match *e {
         Effect::CoulombFriction { level } => vec![level.ln()],
-        Effect::Stiction { level, breakaway } => {
-            vec![level.ln(), (breakaway / level - 1.0).max(1e-4).ln()]
-        }
+        Effect::Stiction { .. } => stiction_coords(e),
         Effect::Backlash { gap } => vec![gap.ln()],
         Effect::Deadzone { width } => vec![width.ln()],
         Effect::Saturation { limit } => vec![limit.ln()],
@@ -29,10 +29,7 @@ pub(super) fn effect_to_coords(e: &Effect, ts: f64) -> Vec<f64> {
 pub(super) fn effect_from_coords(kind: EffectKind, c: &[f64], ts: f64) -> Option<Effect> {
     let e = match kind {
         EffectKind::CoulombFriction => Effect::CoulombFriction { level: c[0].exp() },
-        EffectKind::Stiction => Effect::Stiction {
-            level: c[0].exp(),
-            breakaway: c[0].exp() * (1.0 + c[1].exp()),
-        },
+        EffectKind::Stiction => stiction_from_coords(c)?,
         EffectKind::Backlash => Effect::Backlash { gap: c[0].exp() },
         EffectKind::Deadzone => Effect::Deadzone { width: c[0].exp() },
         EffectKind::Saturation => Effect::Saturation { limit: c[0].exp() },
@@ -61,6 +58,34 @@ pub(super) fn effect_from_coords(kind: EffectKind, c: &[f64], ts: f64) -> Option
         EffectKind::CurrentLimit => Effect::CurrentLimit { limit: c[0].exp() },
     };
     e.validate().ok().map(|_| e)
+}
+
+/// Coordinates of a stiction effect: ln level, ln(breakaway/level − 1) and, with a Stribeck
+/// curve, ln v_s. Empty for another effect.
+pub(crate) fn stiction_coords(e: &Effect) -> Vec<f64> {
+    let Effect::Stiction {
+        level,
+        breakaway,
+        stribeck_velocity,
+    } = *e
+    else {
+        return Vec::new();
+    };
+    let mut c = vec![level.ln(), (breakaway / level - 1.0).max(1e-4).ln()];
+    if stribeck_velocity > 0.0 {
+        c.push(stribeck_velocity.ln());
+    }
+    c
+}
+
+/// The stiction of [`stiction_coords`] (two or three coordinates).
+pub(crate) fn stiction_from_coords(c: &[f64]) -> Option<Effect> {
+    let (level, excess) = (c.first()?.exp(), c.get(1)?.exp());
+    Some(Effect::Stiction {
+        level,
+        breakaway: level * (1.0 + excess),
+        stribeck_velocity: c.get(2).map_or(0.0, |v| v.exp()),
+    })
 }
 
 /// Forward-difference step for an effect coordinate: 1e-3 (log units, or samples for the

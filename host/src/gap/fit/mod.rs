@@ -35,9 +35,8 @@ mod tests;
 
 pub use eval::{eval_model, Fitted, TrainData};
 pub use joint::joint_fit;
-pub use model::{
-    friction_levels, input_transform, sensor_transform, AugmentedModel, VelocitySource,
-};
+pub(crate) use joint::{stiction_coords, stiction_from_coords};
+pub use model::{friction_law, input_transform, sensor_transform, AugmentedModel, VelocitySource};
 pub use placed::{fit_candidate, fit_placed, null_effect, FitHints, GRID_STARTS};
 pub use resonance::RELABEL_COST_TOL;
 

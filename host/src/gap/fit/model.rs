@@ -97,13 +97,9 @@ fn is_motor_friction(pe: &PlacedEffect) -> bool {
         )
 }
 
-/// (level, breakaway) of a friction effect.
-pub fn friction_levels(e: &Effect) -> Option<(f64, f64)> {
-    match *e {
-        Effect::CoulombFriction { level } => Some((level, level)),
-        Effect::Stiction { level, breakaway } => Some((level, breakaway)),
-        _ => None,
-    }
+/// The stick-slip law of a friction effect, at rest ([`StickSlip::of`]).
+pub fn friction_law(e: &Effect) -> Option<StickSlip> {
+    StickSlip::of(e)
 }
 
 impl AugmentedModel {
@@ -243,12 +239,12 @@ impl AugmentedModel {
         Ok(w)
     }
 
-    /// Motor friction (level, breakaway) acting on the modal linear part, if any.
-    pub fn motor_friction(&self) -> Option<(f64, f64)> {
+    /// The law of the motor friction acting on the modal linear part, if any.
+    pub fn motor_friction(&self) -> Option<StickSlip> {
         self.effects()
             .iter()
             .find(|p| is_motor_friction(p))
-            .and_then(|p| friction_levels(&p.effect))
+            .and_then(|p| friction_law(&p.effect))
     }
 
     /// Free-run output and the signal that entered the linear part.
@@ -257,8 +253,8 @@ impl AugmentedModel {
         let w = self.drive_input(u)?;
         let (mut y, w) = if let Some(tm) = &self.two_mass {
             (tm.simulate(&w, &effects)?, w)
-        } else if let Some((level, breakaway)) = self.motor_friction() {
-            self.friction_loop(&w, level, breakaway)
+        } else if let Some(law) = self.motor_friction() {
+            self.friction_loop(&w, law)
         } else {
             (self.linear.simulate(&w), w)
         };
@@ -271,22 +267,16 @@ impl AugmentedModel {
     }
     /// Closed loop of the linear part with stick-slip friction at its input, integrated in
     /// [`FRICTION_SUBSTEPS`] sub-steps per sample (see [`Self::friction_loop_m`]).
-    fn friction_loop(&self, u: &[f64], level: f64, breakaway: f64) -> (Vec<f64>, Vec<f64>) {
-        self.friction_loop_m(u, level, breakaway, FRICTION_SUBSTEPS)
+    fn friction_loop(&self, u: &[f64], law: StickSlip) -> (Vec<f64>, Vec<f64>) {
+        self.friction_loop_m(u, law, FRICTION_SUBSTEPS)
     }
 
     /// Closed loop of the linear part with stick-slip friction at its input, in `m` sub-steps
     /// per sample (one when the model has a real pole <= 0, which has no real sub-step).
     /// Returns the output and the per-sample mean of the input that entered the linear part.
-    pub fn friction_loop_m(
-        &self,
-        u: &[f64],
-        level: f64,
-        breakaway: f64,
-        m: usize,
-    ) -> (Vec<f64>, Vec<f64>) {
+    pub fn friction_loop_m(&self, u: &[f64], law: StickSlip, m: usize) -> (Vec<f64>, Vec<f64>) {
         if let Some(b) = self.body_mode() {
-            if let Some((y, f)) = self.friction_loop_body(u, level, breakaway, m, b) {
+            if let Some((y, f)) = self.friction_loop_body(u, law, m, b) {
                 // The linear part's input is u; the force acts behind it (see
                 // FrictionPort::SlowestMode), so `w` here is u − f only as a summary.
                 let w = u.iter().zip(&f).map(|(a, b)| a - b).collect();
@@ -296,9 +286,9 @@ impl AugmentedModel {
         let lin = &self.linear;
         let (sub, m) = match lin.substepper(m.max(1)) {
             Some(s) => (s, m.max(1)),
-            None => return self.friction_loop_sample_rate(u, level, breakaway),
+            None => return self.friction_loop_sample_rate(u, law),
         };
-        let mut fr = StickSlip::new(level, breakaway);
+        let mut fr = law;
         let cb = sub.cb();
         let rate = self.velocity == VelocitySource::OutputDerivative;
         let g = if rate { sub.rate_gain() } else { cb };
@@ -337,15 +327,10 @@ impl AugmentedModel {
     }
 
     /// Sample-rate version of [`Self::friction_loop_m`] for models without a sub-step.
-    fn friction_loop_sample_rate(
-        &self,
-        u: &[f64],
-        level: f64,
-        breakaway: f64,
-    ) -> (Vec<f64>, Vec<f64>) {
+    fn friction_loop_sample_rate(&self, u: &[f64], law: StickSlip) -> (Vec<f64>, Vec<f64>) {
         let lin = &self.linear;
         let ts = lin.ts;
-        let mut fr = StickSlip::new(level, breakaway);
+        let mut fr = law;
         let cb = lin.cb();
         let g = match self.velocity {
             VelocitySource::Output => cb,

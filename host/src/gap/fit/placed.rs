@@ -206,6 +206,7 @@ pub fn null_effect(kind: EffectKind, place: Place, td: &TrainData) -> Option<Eff
         EffectKind::Stiction => Effect::Stiction {
             level: tiny,
             breakaway: tiny,
+            stribeck_velocity: 0.0,
         },
         EffectKind::Backlash => Effect::Backlash { gap: tiny },
         EffectKind::Deadzone => Effect::Deadzone { width: tiny },
@@ -312,6 +313,7 @@ pub(super) fn stiction_start(td: &TrainData, c: &Fitted, breakaway: Option<f64>)
         l[idx].effect = Effect::Stiction {
             level,
             breakaway: level * ratio,
+            stribeck_velocity: 0.0,
         };
         m.set_effects_in_selection_order(&l);
         let cost = m.cost(&td.base, &td.u);

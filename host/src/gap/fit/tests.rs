@@ -1,7 +1,7 @@
 //! Friction loops checked against the plant simulator.
 use super::*;
 use crate::gap::benchmark::filtered_noise;
-use crate::gap::effect::Effect;
+use crate::gap::effect::{Effect, StickSlip};
 use crate::gap::friction_port::fit_linear_params_body;
 use crate::gap::modal::{FitSet, ModalModel};
 use crate::gap::place::PlacedEffect;
@@ -40,7 +40,11 @@ fn check_friction_at(
         seed: 0,
     };
     let y_lin = simulate(&plant, None, &u, &s).unwrap();
-    let effect = Effect::Stiction { level, breakaway };
+    let effect = Effect::Stiction {
+        level,
+        breakaway,
+        stribeck_velocity: 0.0,
+    };
     let y_true = simulate(&plant, Some(&effect), &u, &s).unwrap();
     let mut m = AugmentedModel::linear(exact_modal(&plant, ts, &u, &y_lin))
         .with_added(PlacedEffect::at_default(effect));
@@ -130,7 +134,9 @@ fn slowest_mode_projection_recovers_its_own_residues() {
     assert_eq!(b, 1);
     let mut rng = Rng::new(3);
     let u = filtered_noise(4000, ts, 50.0, 1.0, &mut rng);
-    let (y, f) = m.friction_loop_body(&u, 0.2, 0.2, 1, b).unwrap();
+    let (y, f) = m
+        .friction_loop_body(&u, StickSlip::new(0.2, 0.2), 1, b)
+        .unwrap();
     let set = FitSet::new(vec![u.clone()], vec![y], 10).unwrap();
     let mut fitted = lin.clone();
     fitted.residues = vec![0.0, 0.0];

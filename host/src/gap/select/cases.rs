@@ -244,6 +244,7 @@ pub(super) fn stiction_case(n: usize) -> Case {
     let e = Effect::Stiction {
         level: 0.2,
         breakaway: 0.4,
+        stribeck_velocity: 0.0,
     };
     make_case(dc, 1.0, 100.0, n, 26, &|u, k| {
         simulate(&dc, Some(&e), u, &settings(ns, k)).unwrap()
@@ -313,6 +314,7 @@ fn study() {
             Effect::Stiction {
                 level: 0.01,
                 breakaway: 0.018,
+                stribeck_velocity: 0.0,
             },
         ),
         ("coulomb", Effect::CoulombFriction { level: 0.015 }),

@@ -64,7 +64,10 @@ fn stiction_with_a_stick_band_is_told_from_coulomb_friction() {
     let s = run(&stiction_case(N));
     let (e, place) = only(&s);
     assert_eq!(place, Place::Motor);
-    let Effect::Stiction { level, breakaway } = e else {
+    let Effect::Stiction {
+        level, breakaway, ..
+    } = e
+    else {
         panic!("{e}")
     };
     assert!(rel(level, 0.2) < 0.1 && rel(breakaway, 0.4) < 0.25, "{e}");

@@ -43,6 +43,7 @@ use num_complex::Complex64;
 mod dwell;
 mod lattice;
 mod nested;
+mod stribeck;
 
 #[cfg(test)]
 mod cases;
@@ -210,7 +211,7 @@ fn thread_cpu_seconds() -> f64 {
 }
 
 /// Validation data of the selection: input, output, warm-up, drift window.
-type Val<'a> = (&'a [f64], &'a [f64], usize, Option<usize>);
+pub(super) type Val<'a> = (&'a [f64], &'a [f64], usize, Option<usize>);
 
 fn score(f: Fitted, val: Val, gap_linear: f64) -> Scored {
     let (val_u, val_y, warmup, drift) = val;
@@ -234,7 +235,7 @@ fn score(f: Fitted, val: Val, gap_linear: f64) -> Scored {
     }
 }
 
-fn kind_of(s: &Scored) -> Option<EffectKind> {
+pub(super) fn kind_of(s: &Scored) -> Option<EffectKind> {
     s.effects.first().map(|p| p.effect.kind())
 }
 
@@ -372,6 +373,10 @@ pub fn select_effects(
     {
         // The forward step below the margin found no pair that reaches it: nothing selected.
         selected_models.clear();
+    }
+    // The selected friction on a Stribeck curve when the training logs ask for one.
+    if let Some(last) = selected_models.last_mut() {
+        stribeck::refine_stribeck(last, td, val, gap_linear, &mut notes);
     }
     // 4. Lattice evidence decides quantization.
     let model = lattice_decides(

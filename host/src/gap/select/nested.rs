@@ -76,7 +76,9 @@ pub(super) fn resolve_nested(
         .find(|p| p.effect.kind() == EffectKind::Stiction && p.place == place)
         .map(|p| p.effect);
     let ratio = match stiction {
-        Some(Effect::Stiction { level, breakaway }) => (breakaway / level, level),
+        Some(Effect::Stiction {
+            level, breakaway, ..
+        }) => (breakaway / level, level),
         _ => (1.0, f64::NAN),
     };
     let lr = nested_likelihood_ratio(
@@ -266,6 +268,7 @@ mod tests {
         let stiction = with(Effect::Stiction {
             level: 0.2,
             breakaway: 0.4,
+            stribeck_velocity: 0.0,
         });
         let coulomb = with(Effect::CoulombFriction { level: 0.2 });
         let mut rng = Rng::new(5);
@@ -361,6 +364,7 @@ mod tests {
         m.effect = Some(Effect::Stiction {
             level: 0.2,
             breakaway: 0.22,
+            stribeck_velocity: 0.0,
         });
         singles[1] = scored(m, 0.0056);
         singles.swap(0, 1);

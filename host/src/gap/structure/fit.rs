@@ -282,9 +282,7 @@ fn coords(e: &Effect) -> Option<Vec<f64>> {
     Some(match *e {
         Effect::Backlash { gap } => vec![gap.ln()],
         Effect::CoulombFriction { level } => vec![level.ln()],
-        Effect::Stiction { level, breakaway } => {
-            vec![level.ln(), (breakaway / level - 1.0).max(1e-4).ln()]
-        }
+        Effect::Stiction { .. } => crate::gap::fit::stiction_coords(e),
         Effect::Deadzone { width } => vec![width.ln()],
         Effect::Saturation { limit } => vec![limit.ln()],
         _ => return None,
@@ -295,10 +293,7 @@ fn from_coords(e: &Effect, c: &[f64]) -> Effect {
     match *e {
         Effect::Backlash { .. } => Effect::Backlash { gap: c[0].exp() },
         Effect::CoulombFriction { .. } => Effect::CoulombFriction { level: c[0].exp() },
-        Effect::Stiction { .. } => Effect::Stiction {
-            level: c[0].exp(),
-            breakaway: c[0].exp() * (1.0 + c[1].exp()),
-        },
+        Effect::Stiction { .. } => crate::gap::fit::stiction_from_coords(c).unwrap_or(*e),
         Effect::Deadzone { .. } => Effect::Deadzone { width: c[0].exp() },
         Effect::Saturation { .. } => Effect::Saturation { limit: c[0].exp() },
         other => other,

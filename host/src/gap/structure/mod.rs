@@ -27,7 +27,7 @@
 //! the [`StickSlip`] law on the motor or load speed after each sub-step.
 use crate::error::{Error, Result};
 use crate::gap::effect::{Effect, StickSlip};
-use crate::gap::fit::friction_levels;
+use crate::gap::fit::friction_law;
 use crate::gap::modal::ModalModel;
 use crate::gap::place::{Place, PlacedEffect};
 use crate::lti::StateSpace;
@@ -191,13 +191,13 @@ impl TwoMassModel {
             match (p.place, p.effect) {
                 (Place::Drivetrain, Effect::Backlash { gap }) => half = 0.5 * gap,
                 (Place::Motor | Place::Load, e) if e.kind().is_friction() => {
-                    if let Some((l, b)) = friction_levels(&e) {
+                    if let Some(law) = friction_law(&e) {
                         let (vi, col) = if p.place == Place::Motor {
                             (1, 1)
                         } else {
                             (2, 2)
                         };
-                        fric = Some((StickSlip::new(l, b), vi, col));
+                        fric = Some((law, vi, col));
                     }
                 }
                 _ => {}
