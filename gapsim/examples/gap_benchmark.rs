@@ -3,7 +3,7 @@
 //! `cargo run --release -p ferrosid-gapsim --example gap_benchmark -- [--family same|indep|all]
 //! [--filter TEXT] [--seed-offset K] [--n SAMPLES] [--verbose] [--jobs J]`
 //!
-//! `--family` (default `all`): the first family (`ferrosid::gap::benchmark`, same equations as
+//! `--family` (default `all`): the first family (`ferrosid_sim::benchmark`, same equations as
 //! the candidates), the independent one (this crate's simulator) or both; `--filter` keeps cases
 //! whose id contains TEXT; `--seed-offset` adds K to every seed (fresh nominal mismatch,
 //! excitation and noise: a held-out draw); `--n` samples per log (default 16384); `--verbose`

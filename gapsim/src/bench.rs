@@ -1,6 +1,6 @@
 //! Runs the cases of both families through the diagnosis and scores them.
 //!
-//! Family `same`: the cases of `ferrosid::gap::benchmark` (ids prefixed `same/`), truth from its
+//! Family `same`: the cases of `ferrosid_sim::benchmark` (ids prefixed `same/`), truth from its
 //! generator, places by effect kind (friction → `motor`, quantization → `sensor`, everything
 //! else → `drive`), all not cross-family. Its noise floor is approximated as
 //! 0.01·RMS(low-run output)/SD(validation output) (that generator adds noise of 1 % of the
@@ -17,8 +17,8 @@ use std::sync::Mutex;
 /// A case of either family.
 #[derive(Debug, Clone)]
 pub enum AnyCase {
-    /// From `ferrosid::gap::benchmark`.
-    Same(ferrosid::gap::benchmark::Case),
+    /// From `ferrosid_sim::benchmark`.
+    Same(ferrosid_sim::benchmark::Case),
     /// From this crate.
     Indep(cases::Case),
 }
@@ -52,7 +52,7 @@ pub fn all_cases(family: &str) -> Vec<AnyCase> {
     let mut v = Vec::new();
     if family == "same" || family == "all" {
         v.extend(
-            ferrosid::gap::benchmark::cases()
+            ferrosid_sim::benchmark::cases()
                 .into_iter()
                 .map(AnyCase::Same),
         );
@@ -89,7 +89,7 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
         f64,
     );
     let generated: Result<Gen, String> = match case {
-        AnyCase::Same(c) => ferrosid::gap::benchmark::generate(c, n)
+        AnyCase::Same(c) => ferrosid_sim::benchmark::generate(c, n)
             .map(|d| {
                 let truth: Vec<TruthEffect> = d
                     .truth

@@ -1,7 +1,7 @@
 //! An independent second simulator for the ferrosid gap benchmark, and the two-family benchmark
 //! harness.
 //!
-//! The first family (`ferrosid::gap::benchmark`) generates every effect with the same equations
+//! The first family (`ferrosid_sim::benchmark`) generates every effect with the same equations
 //! and in the same place as the candidate models the diagnosis fits. This crate generates logs
 //! from separately written physics: its own adaptive Dormand–Prince 5(4) integrator with event
 //! location ([`ode`]), its own effect laws (Karnopp, Stribeck, LuGre and Dahl friction on the

@@ -1,5 +1,5 @@
 //! The four continuous-time plants of the independent benchmark family, by their physical
-//! parameters (SI units), with nominal numbers of their own (not those of `ferrosid::gap::plant`).
+//! parameters (SI units), with nominal numbers of their own (not those of `ferrosid_sim::plant`).
 //!
 //! | plant | input | output | states |
 //! |---|---|---|---|

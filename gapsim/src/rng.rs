@@ -1,6 +1,6 @@
 //! The simulator's own random numbers: xoshiro256** (Blackman & Vigna) seeded through SplitMix64,
 //! Gaussian deviates by the Marsaglia polar method. Written here so the second benchmark family
-//! shares no code with `ferrosid::gap::rng`.
+//! shares no code with `ferrosid_sim::rng` (the first family's generator).
 
 /// A seeded xoshiro256** generator.
 #[derive(Debug, Clone)]

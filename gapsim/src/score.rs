@@ -41,7 +41,7 @@ pub const BASE_VOCABULARY: [&str; 8] = [
 /// Which benchmark family a case belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Family {
-    /// `ferrosid::gap::benchmark` (same equations as the candidates).
+    /// `ferrosid_sim::benchmark` (same equations as the candidates).
     Same,
     /// This crate's simulator.
     Indep,

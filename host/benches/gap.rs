@@ -18,11 +18,11 @@
 //! Run: `cargo bench -p ferrosid --bench gap` (one thread: the diagnosis is sequential).
 use criterion::{criterion_group, BenchmarkId, Criterion};
 use ferrosid::data::Log;
-use ferrosid::gap::benchmark::{cases, filtered_noise, generate, multisine, TS};
 use ferrosid::gap::effect::saturation;
-use ferrosid::gap::plant::{simulate, Plant, SimSettings};
-use ferrosid::gap::rng::Rng;
 use ferrosid::gap::{diagnose, Effect, GapOptions};
+use ferrosid_sim::benchmark::{cases, filtered_noise, generate, multisine, TS};
+use ferrosid_sim::plant::{simulate, Plant, SimSettings};
+use ferrosid_sim::rng::Rng;
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Duration;

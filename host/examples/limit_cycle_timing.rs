@@ -1,6 +1,6 @@
 //! How long the limit-cycle receipt takes on the bundled example's loop: the two-mass actuator
-//! of `examples/` (true plant `gap::plant::Plant::two_mass()`), PI with roll-off tuned like
-//! `examples/pipeline.toml` (8 Hz target, roll-off at 4 × crossover, M_s 1.6, 1 ms), with the
+//! of `examples/` (true plant `ferrosid_sim::plant::Plant::two_mass()`), PI with roll-off tuned
+//! like `examples/pipeline.toml` (8 Hz target, roll-off at 4 × crossover, M_s 1.6, 1 ms), with the
 //! example's Coulomb friction (0.008 N·m at the motor) and, for comparison, 0.02 N·m of drive
 //! backlash; plus the friction loop of host/tests/limit_cycle_loops.rs.
 //!
@@ -10,10 +10,10 @@
 use ferrosid::gap::effect::Effect;
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::gap::place::{Place, PlacedEffect};
-use ferrosid::gap::plant::Plant;
 use ferrosid::limit_cycle::*;
 use ferrosid::lti::{poly_mul, StateSpace, TransferFunction};
 use ferrosid::robust::pid::{tune_pid, PidTuningSpec};
+use ferrosid_sim::plant::Plant;
 use std::time::Instant;
 
 fn median_ms(mut f: impl FnMut()) -> f64 {

@@ -8,6 +8,11 @@
 //! Units: time in seconds, frequency in Hz unless a name says `_rad_s`. All numerics are f64.
 #![forbid(unsafe_code)]
 
+// The unit tests compile the dev crate ferrosid-sim's simulator files into this crate
+// (`gap::simulator`); those files name the library `ferrosid::`, as they do in their own crate.
+#[cfg(test)]
+extern crate self as ferrosid;
+
 #[cfg(feature = "cli")]
 pub mod cli;
 pub mod closed_loop;

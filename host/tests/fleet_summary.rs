@@ -47,7 +47,7 @@ fn mean_std(v: &[f64]) -> (f64, f64) {
 fn fleet_resonance_spread_matches_the_generated_fleet() {
     let dir = fleet_dir();
     if !dir.join("units.json").is_file() {
-        panic!("examples/fleet is missing: regenerate with `cargo run --release -p ferrosid --example make_example_fleet`");
+        panic!("examples/fleet is missing: regenerate with `cargo run --release -p ferrosid-sim --example make_example_fleet`");
     }
     let truth: Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("units.json")).expect("units"))

@@ -1,5 +1,5 @@
-//! The labelled gap benchmark on a fixed subset of its cases (see `ferrosid::gap::benchmark`;
-//! all 54 cases run with `cargo run --release -p ferrosid --example gap_benchmark_same`).
+//! The labelled gap benchmark on a fixed subset of its cases (see `ferrosid_sim::benchmark`;
+//! all 54 cases run with `cargo run --release -p ferrosid-sim --example gap_benchmark_same`).
 //!
 //! Each case's logs come from the plant simulator with a withheld effect; the diagnosis sees
 //! only the logs and the mismatched nominal model. The label is the independent reference.
@@ -10,8 +10,8 @@
 //! asserts the targets on that subset: at least 85 % correct verdicts, the median
 //! parameter error of each effect within 20 %, and the gap ordering of every case (the linear
 //! re-fit no worse than the nominal sim, the reported model no worse than the linear re-fit).
-use ferrosid::gap::benchmark::{cases, run_case, Case, Outcome};
 use ferrosid::gap::GapOptions;
+use ferrosid_sim::benchmark::{cases, run_case, Case, Outcome};
 
 const N: usize = 16_384;
 

@@ -3,8 +3,8 @@
 //! documented schema; bad input must give the documented exit codes with the file named.
 mod cli_support;
 use cli_support::{ferrosid, s, scratch, write_csv};
-use ferrosid::gap::benchmark::{cases, generate, CaseData, TS};
 use ferrosid::lti::StateSpaceData;
+use ferrosid_sim::benchmark::{cases, generate, CaseData, TS};
 use std::path::{Path, PathBuf};
 
 struct Files {

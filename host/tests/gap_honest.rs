@@ -11,11 +11,11 @@
 //! * a position-output axis (integrator in the nominal) is diagnosed without error;
 //! * a quantizing sensor on periodic logs reports the logged step, not the period average's.
 use ferrosid::data::Log;
-use ferrosid::gap::benchmark::{filtered_noise, multisine};
 use ferrosid::gap::evidence::distortion;
-use ferrosid::gap::rng::Rng;
 use ferrosid::gap::{diagnose, GapOptions};
 use ferrosid::lti::{StateSpace, TransferFunction};
+use ferrosid_sim::benchmark::{filtered_noise, multisine};
+use ferrosid_sim::rng::Rng;
 
 const TS: f64 = 1e-3;
 

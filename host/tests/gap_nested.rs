@@ -2,7 +2,7 @@
 //! sample count of a residual against the closed-form integrated autocorrelation time of an
 //! AR(1) sequence, τ = (1 + φ)/(1 − φ).
 use ferrosid::gap::diagnose::effective_samples;
-use ferrosid::gap::rng::Rng;
+use ferrosid_sim::rng::Rng;
 
 fn ar1(n: usize, phi: f64, seed: u64) -> Vec<f64> {
     let mut rng = Rng::new(seed);

@@ -5,12 +5,12 @@
 //! saturation: large inputs), which must show up as amplitude dependence; for saturation the
 //! linear re-fit's residual must concentrate where |u| is largest.
 use ferrosid::data::Log;
-use ferrosid::gap::benchmark::{filtered_noise, multisine};
 use ferrosid::gap::effect::Effect;
-use ferrosid::gap::plant::{simulate, Plant, SimSettings};
-use ferrosid::gap::rng::Rng;
 use ferrosid::gap::{diagnose, Diagnosis, GapOptions};
 use ferrosid::lti::StateSpace;
+use ferrosid_sim::benchmark::{filtered_noise, multisine};
+use ferrosid_sim::plant::{simulate, Plant, SimSettings};
+use ferrosid_sim::rng::Rng;
 
 const TS: f64 = 1e-3;
 const N: usize = 8192;

@@ -368,3 +368,56 @@ fn an_upward_arrow_and_a_cycle_are_reported() {
         .iter()
         .any(|m| m.contains("`preprocess` and `spectral` import each other")));
 }
+
+/// The dev crate `ferrosid-sim` (the same-law plant simulator, the gap benchmark harness and the
+/// seeded RNG) is not in the library (issue 11): `host/src` holds none of its files, only
+/// `gap/simulator.rs` includes them (`#[path]`), that module is declared `#[cfg(test)]`, and
+/// the crate is a dev-dependency of `ferrosid`, never a dependency.
+#[test]
+fn the_simulator_is_not_in_the_library() {
+    let src = src_dir();
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    for f in &files {
+        let rel = f
+            .strip_prefix(&src)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        assert!(
+            !["gap/plant.rs", "gap/benchmark.rs", "gap/rng.rs"].contains(&rel.as_str()),
+            "{rel} is back in the library (it lives in sim/src)"
+        );
+        let text = std::fs::read_to_string(f).expect("read");
+        if rel != "gap/simulator.rs" {
+            assert!(
+                !text.contains("sim/src/") || !text.contains("#[path"),
+                "{rel} includes the simulator's files; only gap/simulator.rs may (test builds)"
+            );
+        }
+    }
+    let gap_mod = std::fs::read_to_string(src.join("gap/mod.rs")).expect("read gap/mod.rs");
+    let lines: Vec<&str> = gap_mod.lines().map(str::trim).collect();
+    let at = lines
+        .iter()
+        .position(|l| l.ends_with("mod simulator;"))
+        .expect("gap/mod.rs declares the test-only `simulator` module");
+    assert!(
+        at > 0 && lines[at - 1] == "#[cfg(test)]",
+        "gap::simulator must be `#[cfg(test)]`"
+    );
+    let manifest =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml"))
+            .expect("read host/Cargo.toml");
+    let mut section = "";
+    for line in manifest.lines().map(str::trim) {
+        if line.starts_with('[') {
+            section = line;
+        } else if line.starts_with("ferrosid-sim") {
+            assert_eq!(
+                section, "[dev-dependencies]",
+                "ferrosid-sim must stay a dev-dependency of ferrosid"
+            );
+        }
+    }
+}

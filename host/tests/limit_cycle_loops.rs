@@ -6,7 +6,7 @@
 //!   G(s) = 200·ω_a²/((0.2 s + 1)(s² + 1.4 ω_a s + ω_a²)), ω_a = 2π·40 rad/s (rad/s per N·m),
 //!   PI tuned by `tune_pid` for 5 Hz crossover; Coulomb friction 0.008 N·m on the output
 //!   speed. The actuator lag takes G/(1 + CG) through −180° near 40 Hz: a friction chatter.
-//! * **dead-zone loop** — the positioning axis of `gap::plant` (2 kg, 10 N·s/m, output mm),
+//! * **dead-zone loop** — the positioning axis of `ferrosid_sim::plant` (2 kg, 10 N·s/m, mm out),
 //!   a PID with strong integral action (kp 0.5, ki 10, kd 0.05, τ_f 2 ms): the loop gain
 //!   passes −180° below crossover with |L| > 1 (conditionally stable), so a 0.5 N dead zone
 //!   oscillates.
@@ -22,11 +22,11 @@ use ferrosid::compensation::{design_from, DesignOptions};
 use ferrosid::gap::effect::Effect;
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::gap::place::{Place, PlacedEffect};
-use ferrosid::gap::plant::Plant;
 use ferrosid::limit_cycle::*;
 use ferrosid::lti::{poly_mul, TransferFunction};
 use ferrosid::robust::pid::Pid;
 use ferrosid::robust::receipts::ReceiptKind;
+use ferrosid_sim::plant::Plant;
 use limit_cycle_support::{speed_plant_with_actuator_lag, tuned, unity_p, verdict};
 use std::f64::consts::PI;
 

@@ -4,16 +4,16 @@
 //! sinusoidal velocity the Karnopp law only slides, so its describing function is the Coulomb
 //! relay at the sliding level, and −1/N never meets the linear part of this loop.
 //!
-//! Loop: the positioning axis of `gap::plant` (2 kg, 10 N·s/m, output mm), PID kp 0.3 N/mm,
-//! ki 5 N/(mm·s), kd 0.03 N·s/mm, τ_f 2 ms, 1 ms sample time; stiction sliding 0.5 N,
+//! Loop: the positioning axis of `ferrosid_sim::plant` (2 kg, 10 N·s/m, output mm), PID kp
+//! 0.3 N/mm, ki 5 N/(mm·s), kd 0.03 N·s/mm, τ_f 2 ms, 1 ms sample time; stiction sliding 0.5 N,
 //! breakaway 1.0 N. Measured: hunting at 1.15 Hz, velocity first harmonic 10.9 mm/s.
 mod limit_cycle_support;
 use ferrosid::gap::effect::Effect;
 use ferrosid::gap::fit::VelocitySource;
 use ferrosid::gap::place::{Place, PlacedEffect};
-use ferrosid::gap::plant::Plant;
 use ferrosid::limit_cycle::*;
 use ferrosid::robust::pid::Pid;
+use ferrosid_sim::plant::Plant;
 use limit_cycle_support::unity_p;
 
 #[test]

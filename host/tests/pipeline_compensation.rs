@@ -33,7 +33,7 @@ fn the_bundled_example_runs_the_whole_chain() {
     };
     let d = run.compensation.decision().expect("the stage decided");
     // The example's logs carry Coulomb friction of 0.008 N·m at the motor
-    // (host/examples/make_example_data.rs): the diagnosis must name it, fit its level within
+    // (sim/examples/make_example_data.rs): the diagnosis must name it, fit its level within
     // 5 %, and the chain must compensate it.
     assert_eq!(report.verdict, "coulomb_friction", "{:?}", report.notes);
     let level = report.verdict_effects[0].params["level"];
@@ -133,7 +133,7 @@ fn switched_off_never_compensates() {
 /// Writes a benchmark case's logs (low, high, validation) as CSV files and a pipeline file
 /// for them into `dir`; returns the pipeline file.
 fn case_pipeline(dir: &Path, id: &str, n: usize, extra: &str) -> PathBuf {
-    use ferrosid::gap::benchmark::{cases, generate};
+    use ferrosid_sim::benchmark::{cases, generate};
     let case = cases()
         .into_iter()
         .find(|c| c.id == id)

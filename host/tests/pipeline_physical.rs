@@ -3,7 +3,7 @@
 //! with intervals in the run, receipts.json, the report and the printed summary; bad sections
 //! are refused naming the key and its line.
 //!
-//! Truth (host/examples/make_example_data.rs): Jm = 2e-4 kg·m², Jl = 6e-4 kg·m², k = 15 N·m/rad,
+//! Truth (sim/examples/make_example_data.rs): Jm = 2e-4 kg·m², Jl = 6e-4 kg·m², k = 15 N·m/rad,
 //! shaft damping c = 4.7e-3 N·m·s/rad, viscous friction 2e-3 at the motor and 3e-3 at the
 //! load, Coulomb friction 0.008 N·m at the motor. The structure has viscous friction at the
 //! motor only, so `b` absorbs the load-side friction (and part of the Coulomb friction) and

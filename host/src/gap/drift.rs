@@ -98,7 +98,7 @@ pub fn validation_nrmse(
 mod tests {
     use super::*;
 
-    use crate::gap::rng::lcg_noise;
+    use crate::gap::simulator::lcg_noise;
 
     /// A position output y = sin at 5 Hz (1 kHz) against a model that adds drift (a ramp, a
     /// 0.02 Hz sine, a random walk) plus an in-band error of amplitude 0.01 at 20 Hz: the

@@ -1,7 +1,7 @@
 //! The unmodelled effects the gap diagnosis knows, and the primitives that realise them.
 //!
-//! Where each effect sits (the same convention for the benchmark simulator in
-//! [`crate::gap::plant`] and for the augmented models fitted by the diagnosis):
+//! Where each effect sits (the same convention for the benchmark simulator, `ferrosid_sim::plant`
+//! in the dev crate `sim/`, and for the augmented models fitted by the diagnosis):
 //!
 //! | effect | parameters (units) | location |
 //! |---|---|---|

@@ -2,7 +2,6 @@
 //! unmodelled effect explains it, and how far the gap shrinks once the effect is added.
 //!
 //! Entry point: [`diagnose`] (command line: `ferrosid gap`, [`crate::cli::gap`]).
-pub mod benchmark;
 pub mod diagnose;
 pub mod drift;
 pub mod effect;
@@ -17,12 +16,12 @@ pub mod modal;
 pub mod noise;
 pub use crate::optim;
 pub mod place;
-pub mod plant;
 pub mod reading;
 pub mod report;
-pub mod rng;
 pub mod select;
 pub mod simfile;
+#[cfg(test)]
+pub mod simulator;
 pub mod state_limit;
 pub mod structure;
 pub mod verdict;

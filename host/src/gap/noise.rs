@@ -272,7 +272,7 @@ pub fn noise_floor(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::rng::Rng;
+    use crate::gap::simulator::rng::Rng;
 
     fn multisine_period(p: usize, rng: &mut Rng) -> Vec<f64> {
         let mut v = vec![0.0; p];

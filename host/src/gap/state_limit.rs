@@ -61,7 +61,7 @@ mod tests {
     fn state_clamp_is_a_velocity_limit_and_saturation_at_p_zero() {
         let (m, c, ts, vmax): (f64, f64, f64, f64) = (2.5, 15.0, 1e-3, 0.001);
         let a = (-c / m * ts).exp();
-        let mut rng = crate::gap::rng::Rng::new(3);
+        let mut rng = crate::gap::simulator::rng::Rng::new(3);
         let u: Vec<f64> = (0..4000).map(|_| 0.2 * rng.normal()).collect();
         let mut v: f64 = 0.0;
         let mut direct = Vec::new();
@@ -100,7 +100,7 @@ mod tests {
     #[test]
     fn rate_clamp_is_a_current_limit_of_a_fast_armature_motor() {
         let (k, r, j, ts, imax): (f64, f64, f64, f64, f64) = (0.05, 1.0, 1e-5, 1e-3, 1.0);
-        let mut rng = crate::gap::rng::Rng::new(7);
+        let mut rng = crate::gap::simulator::rng::Rng::new(7);
         let v: Vec<f64> = (0..6000).map(|_| 4.0 * rng.normal()).collect();
         let err = |drag: f64| -> f64 {
             let b = drag * k * k / r;

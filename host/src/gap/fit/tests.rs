@@ -1,12 +1,12 @@
 //! Friction loops checked against the plant simulator.
 use super::*;
-use crate::gap::benchmark::filtered_noise;
 use crate::gap::effect::{Effect, StickSlip};
 use crate::gap::friction_port::fit_linear_params_body;
 use crate::gap::modal::{FitSet, ModalModel};
 use crate::gap::place::PlacedEffect;
-use crate::gap::plant::{simulate, Plant, SimSettings};
-use crate::gap::rng::Rng;
+use crate::gap::simulator::benchmark::filtered_noise;
+use crate::gap::simulator::plant::{simulate, Plant, SimSettings};
+use crate::gap::simulator::rng::Rng;
 
 /// The exact ZOH model of a plant's linear part as a modal model with fitted residues.
 fn exact_modal(plant: &Plant, ts: f64, u: &[f64], y_lin: &[f64]) -> ModalModel {

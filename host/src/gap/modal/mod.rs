@@ -375,7 +375,7 @@ impl ModalModel {
 mod tests {
     use super::*;
 
-    use crate::gap::rng::lcg_noise;
+    use crate::gap::simulator::lcg_noise;
 
     /// Direct-form recursion of the same transfer function, independent of the modal code.
     fn second_order_direct(u: &[f64], a1: f64, a2: f64, b1: f64, b2: f64) -> Vec<f64> {

@@ -1,12 +1,12 @@
 //! End-to-end checks of the selection on simulated axes (same-law simulator
-//! [`crate::gap::plant`], with the drivetrain play integrated by a different scheme): the
-//! case builders shared by the checks and the study.
+//! [`crate::gap::simulator::plant`], with the drivetrain play integrated by a different scheme):
+//! the case builders shared by the checks and the study.
 use super::*;
-use crate::gap::benchmark::{filtered_noise, multisine};
 use crate::gap::effect::{quantize, saturation};
 use crate::gap::modal::FitSet;
-use crate::gap::plant::{simulate, Plant, SimSettings};
-use crate::gap::rng::Rng;
+use crate::gap::simulator::benchmark::{filtered_noise, multisine};
+use crate::gap::simulator::plant::{simulate, Plant, SimSettings};
+use crate::gap::simulator::rng::Rng;
 use crate::lti::StateSpace;
 
 pub(super) const TS: f64 = 1e-3;
@@ -278,10 +278,10 @@ fn more_cases() {
 #[ignore]
 fn study() {
     use crate::gap::effect::Effect;
-    use crate::gap::plant::simulate_drivetrain_backlash;
+    use crate::gap::simulator::plant::simulate_drivetrain_backlash;
     let n = 16384;
     let tm = Plant::two_mass();
-    let crate::gap::plant::Plant::TwoMass(tmp) = tm else {
+    let crate::gap::simulator::plant::Plant::TwoMass(tmp) = tm else {
         unreachable!()
     };
     let ns = 0.01 * y_rms(&tm, 0.05, 120.0);

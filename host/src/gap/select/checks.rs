@@ -4,7 +4,7 @@ use super::cases::{
     small_quantization_case, stiction_case, y_rms, Case,
 };
 use super::*;
-use crate::gap::plant::{simulate, simulate_drivetrain_backlash, Plant};
+use crate::gap::simulator::plant::{simulate, simulate_drivetrain_backlash, Plant};
 
 const N: usize = 16384;
 

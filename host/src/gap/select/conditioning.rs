@@ -2,8 +2,8 @@
 //! with 3e-9 relative differences between file formats).
 use super::cases::{make_case, run, settings, y_rms, Case};
 use super::*;
-use crate::gap::plant::{simulate, Plant};
-use crate::gap::rng::Rng;
+use crate::gap::simulator::plant::{simulate, Plant};
+use crate::gap::simulator::rng::Rng;
 
 fn axis_case() -> Case {
     let ax = Plant::axis();

@@ -114,7 +114,7 @@ mod tests {
     use super::*;
 
     fn noise(n: usize, seed: u64) -> Vec<f64> {
-        let mut rng = crate::gap::rng::Rng::new(seed);
+        let mut rng = crate::gap::simulator::rng::Rng::new(seed);
         (0..n).map(|_| rng.normal()).collect()
     }
 

@@ -234,11 +234,11 @@ fn coulomb_variant(td: &TrainData, pair: &Scored, fp: PlacedEffect, level: f64) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::benchmark::filtered_noise;
     use crate::gap::fit::{AugmentedModel, VelocitySource};
     use crate::gap::modal::ModalModel;
     use crate::gap::place::{Place, PlacedEffect};
-    use crate::gap::rng::Rng;
+    use crate::gap::simulator::benchmark::filtered_noise;
+    use crate::gap::simulator::rng::Rng;
     use num_complex::Complex64;
 
     fn scored(model: AugmentedModel, gap: f64) -> Scored {

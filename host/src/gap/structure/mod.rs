@@ -506,7 +506,7 @@ pub use fit::{
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::plant::{Plant, TwoMass};
+    use crate::gap::simulator::plant::{Plant, TwoMass};
 
     #[test]
     fn maps_the_benchmark_two_mass_back_to_its_parameters() {
@@ -545,7 +545,7 @@ mod tests {
 #[cfg(test)]
 mod against_the_plant {
     use super::*;
-    use crate::gap::plant::{simulate_drivetrain_backlash, Plant, SimSettings};
+    use crate::gap::simulator::plant::{simulate_drivetrain_backlash, Plant, SimSettings};
 
     /// The piecewise-linear two-mass model with play against the benchmark plant's
     /// Heun-integrated drivetrain (8 sub-steps, a different scheme): within 1 % NRMSE for no
@@ -555,8 +555,8 @@ mod against_the_plant {
         let Plant::TwoMass(p) = Plant::two_mass() else {
             unreachable!()
         };
-        let mut rng = crate::gap::rng::Rng::new(3);
-        let u = crate::gap::benchmark::filtered_noise(8000, 1e-3, 120.0, 0.15, &mut rng);
+        let mut rng = crate::gap::simulator::rng::Rng::new(3);
+        let u = crate::gap::simulator::benchmark::filtered_noise(8000, 1e-3, 120.0, 0.15, &mut rng);
         let m = TwoMassModel {
             ts: 1e-3,
             jm: p.jm,

@@ -1,14 +1,14 @@
 //! Runs the labelled sim-to-real gap benchmark (the same-law family only; both families: the
 //! `gap_benchmark` example of ferrosid-gapsim) and prints the markdown summary for README.md.
 //!
-//! `cargo run --release -p ferrosid --example gap_benchmark_same [-- --n SAMPLES] [--filter TEXT]
-//! [--seed-offset K] [--verbose]`
+//! `cargo run --release -p ferrosid-sim --example gap_benchmark_same [-- --n SAMPLES]
+//! [--filter TEXT] [--seed-offset K] [--verbose]`
 //! (default 16384 samples per log; `--filter` keeps cases whose id contains TEXT;
 //! `--seed-offset` adds K to every case's seed — a fresh draw of nominal mismatch, excitation and
 //! noise for the same effects, i.e. a held-out set for a diagnosis developed on the default
 //! seeds; `--verbose` prints every report).
-use ferrosid::gap::benchmark::{cases, markdown, run_case};
 use ferrosid::gap::GapOptions;
+use ferrosid_sim::benchmark::{cases, markdown, run_case};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

@@ -1,8 +1,8 @@
 //! Writes the small example fleet in `examples/fleet/` (repository root): six two-mass
 //! actuators with spread parameters, each logged at two excitation amplitudes, simulated with
-//! the project's plant simulator ([`ferrosid::gap::plant::simulate`]).
+//! the project's plant simulator ([`ferrosid_sim::plant::simulate`]).
 //!
-//! `cargo run --release -p ferrosid --example make_example_fleet [-- OUT_DIR]`
+//! `cargo run --release -p ferrosid-sim --example make_example_fleet [-- OUT_DIR]`
 //!
 //! Per unit `SN000k/`: `low.csv` and `high.csv`, 3000 samples at 1 kHz (no time column; the
 //! pipeline template gives `fs`), columns `u` (torque command in mN·m, integer: a 1 mN·m DAC
@@ -22,8 +22,8 @@
 //! spread uniformly by ±15 %, ±10 % and ±20 %. Everything is seeded: running this again writes
 //! byte-identical files.
 use ferrosid::gap::effect::Effect;
-use ferrosid::gap::plant::{simulate, Plant, SimSettings, TwoMass};
-use ferrosid::gap::rng::Rng;
+use ferrosid_sim::plant::{simulate, Plant, SimSettings, TwoMass};
+use ferrosid_sim::rng::Rng;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -40,8 +40,8 @@ fn main() {
         .nth(1)
         .map(PathBuf::from)
         .unwrap_or_else(|| {
-            let host = Path::new(env!("CARGO_MANIFEST_DIR"));
-            host.parent().unwrap_or(host).join("examples/fleet")
+            let sim = Path::new(env!("CARGO_MANIFEST_DIR"));
+            sim.parent().unwrap_or(sim).join("examples/fleet")
         });
     if let Err(e) = run(&out) {
         eprintln!("error: {e}");

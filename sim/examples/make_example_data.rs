@@ -1,7 +1,7 @@
 //! Writes the bundled example logs in `examples/data/` (repository root) with the project's own
-//! plant simulator ([`ferrosid::gap::plant::simulate`]).
+//! plant simulator ([`ferrosid_sim::plant::simulate`]).
 //!
-//! `cargo run --release -p ferrosid --example make_example_data [-- OUT_DIR]`
+//! `cargo run --release -p ferrosid-sim --example make_example_data [-- OUT_DIR]`
 //! (default `OUT_DIR`: `examples/data` relative to the workspace root).
 //!
 //! The plant is the two-mass actuator [`Plant::two_mass`] (torque in N·m → motor speed in
@@ -24,8 +24,8 @@
 //!   `ferrosid gap`), continuous time, with the CAD values k = 16.5 N·m/rad (+10 %) and
 //!   jl = 5.7e-4 kg·m² (−5 %), other parameters as above, and no Coulomb friction.
 use ferrosid::gap::effect::Effect;
-use ferrosid::gap::plant::{simulate, Plant, SimSettings, TwoMass};
-use ferrosid::gap::rng::Rng;
+use ferrosid_sim::plant::{simulate, Plant, SimSettings, TwoMass};
+use ferrosid_sim::rng::Rng;
 use num_complex::Complex64;
 use realfft::RealFftPlanner;
 use std::fmt::Write as _;
@@ -45,8 +45,8 @@ fn main() {
         .nth(1)
         .map(PathBuf::from)
         .unwrap_or_else(|| {
-            let host = Path::new(env!("CARGO_MANIFEST_DIR"));
-            host.parent().unwrap_or(host).join("examples/data")
+            let sim = Path::new(env!("CARGO_MANIFEST_DIR"));
+            sim.parent().unwrap_or(sim).join("examples/data")
         });
     if let Err(e) = run(&out) {
         eprintln!("error: {e}");
