@@ -435,6 +435,26 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
     table(&mut s, "Per true effect (name@place)", outcomes, |o| {
         format!("{} {}", o.family.name(), o.label)
     });
+    // The table pools every parameter error, including those a wrong verdict's candidates
+    // carry (the scoring takes them from the candidates when the verdict lacks the effect);
+    // the worst on right verdicts is the error of what the diagnosis reports.
+    let worst_right = outcomes
+        .iter()
+        .filter(|o| o.verdict_right)
+        .flat_map(|o| {
+            o.param_errors
+                .iter()
+                .map(move |(n, e)| (*e, o.id.as_str(), n))
+        })
+        .filter(|p| p.0.is_finite())
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some((e, id, name)) = worst_right {
+        let _ = writeln!(
+            s,
+            "\nWorst parameter error on right verdicts: {:.1} % ({id}, {name}).",
+            100.0 * e
+        );
+    }
     let timing: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
     let _ = writeln!(
         s,
@@ -504,4 +524,29 @@ pub fn markdown(outcomes: &[Outcome]) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The summary's worst error on right verdicts leaves out a wrong verdict's candidates,
+    /// which the pooled table column keeps.
+    #[test]
+    fn worst_error_on_right_verdicts_skips_wrong_ones() {
+        let mut right = failed(Family::Indep, "indep/a/x/0", "a", &[], "");
+        right.verdict_right = true;
+        right.param_errors = vec![("stiction.breakaway".into(), 0.1)];
+        let mut wrong = failed(Family::Indep, "indep/a/y/0", "a", &[], "");
+        wrong.param_errors = vec![("time_delay.seconds".into(), 0.8)];
+        let outcomes = [right, wrong];
+        assert_eq!(aggregate(&outcomes).param_worst, 0.8);
+        let md = markdown(&outcomes);
+        assert!(
+            md.contains(
+                "Worst parameter error on right verdicts: 10.0 % (indep/a/x/0, stiction.breakaway)."
+            ),
+            "{md}"
+        );
+    }
 }
