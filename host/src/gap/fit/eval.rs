@@ -212,7 +212,8 @@ pub(super) fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
-pub(super) fn keep_best(best: &mut Option<Fitted>, cand: Option<Fitted>) {
+/// Keeps `cand` in `best` when it has the lower training cost.
+pub(crate) fn keep_best(best: &mut Option<Fitted>, cand: Option<Fitted>) {
     if let Some(c) = cand {
         if best.as_ref().is_none_or(|b| c.train_cost < b.train_cost) {
             *best = Some(c);

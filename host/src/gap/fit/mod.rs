@@ -33,10 +33,11 @@ mod search;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use eval::keep_best;
 pub use eval::{eval_model, Fitted, TrainData};
 pub use joint::joint_fit;
 pub(crate) use joint::{stiction_coords, stiction_from_coords};
-pub use model::{friction_law, input_transform, sensor_transform, AugmentedModel, VelocitySource};
+pub use model::{input_transform, sensor_transform, AugmentedModel, VelocitySource};
 pub use placed::{fit_candidate, fit_placed, null_effect, FitHints, GRID_STARTS};
 pub use resonance::RELABEL_COST_TOL;
 

@@ -97,11 +97,6 @@ fn is_motor_friction(pe: &PlacedEffect) -> bool {
         )
 }
 
-/// The stick-slip law of a friction effect, at rest ([`StickSlip::of`]).
-pub fn friction_law(e: &Effect) -> Option<StickSlip> {
-    StickSlip::of(e)
-}
-
 impl AugmentedModel {
     /// The linear model alone.
     pub fn linear(linear: ModalModel) -> Self {
@@ -244,7 +239,7 @@ impl AugmentedModel {
         self.effects()
             .iter()
             .find(|p| is_motor_friction(p))
-            .and_then(|p| friction_law(&p.effect))
+            .and_then(|p| StickSlip::of(&p.effect))
     }
 
     /// Free-run output and the signal that entered the linear part.

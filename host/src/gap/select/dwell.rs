@@ -37,6 +37,21 @@ pub const MIN_DWELLS: usize = 5;
 /// least 5 % of the input RMS. The breakaway estimate is the 90th percentile over dwells of the
 /// largest |input| held at rest (the last two samples of each dwell left out). `None` with fewer than [`MIN_DWELLS`] dwells or under 1 % of the
 /// samples in dwells.
+/// The velocity the friction of `velocity` sees in an output log: the output itself, or its
+/// first difference over the sample time `ts` (0 at the first sample) for a position output.
+pub fn velocity_signal(y: &[f64], ts: f64, velocity: VelocitySource) -> Vec<f64> {
+    match velocity {
+        VelocitySource::Output => y.to_vec(),
+        VelocitySource::OutputDerivative => {
+            let mut v = vec![0.0; y.len()];
+            for k in 1..y.len() {
+                v[k] = (y[k] - y[k - 1]) / ts;
+            }
+            v
+        }
+    }
+}
+
 pub fn dwell_evidence(
     u: &[Vec<f64>],
     y: &[Vec<f64>],
@@ -44,19 +59,10 @@ pub fn dwell_evidence(
     velocity: VelocitySource,
     warmup: usize,
 ) -> Option<DwellEvidence> {
-    let mut vel: Vec<Vec<f64>> = Vec::new();
-    for yl in y {
-        vel.push(match velocity {
-            VelocitySource::Output => yl.clone(),
-            VelocitySource::OutputDerivative => {
-                let mut v = vec![0.0; yl.len()];
-                for k in 1..yl.len() {
-                    v[k] = (yl[k] - yl[k - 1]) / ts;
-                }
-                v
-            }
-        });
-    }
+    let vel: Vec<Vec<f64>> = y
+        .iter()
+        .map(|yl| velocity_signal(yl, ts, velocity))
+        .collect();
     let all: Vec<f64> = vel
         .iter()
         .flat_map(|v| v.iter().skip(warmup.max(1)).copied())

@@ -14,11 +14,12 @@
 //! selected model's. It is tried on the selected model, after the effects are chosen: offered
 //! as a single, the more flexible friction also soaks up part of another effect (a drivetrain
 //! backlash) and hides the pair.
+use super::dwell::velocity_signal;
 use super::nested::{EVIDENCE_TOLERANCE, MIN_STICK_BAND};
 use super::{score, Scored, Val};
 use crate::gap::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD, NESTED_LR_THRESHOLD_2};
 use crate::gap::effect::{Effect, EffectKind};
-use crate::gap::fit::{joint_fit, Fitted, TrainData, VelocitySource, JOINT_MAX_ITER};
+use crate::gap::fit::{joint_fit, keep_best, Fitted, TrainData, VelocitySource, JOINT_MAX_ITER};
 
 /// Stribeck velocities of the starts, relative to the RMS of the velocity the friction sees.
 pub const STRIBECK_VELOCITY_STARTS: [f64; 3] = [0.1, 0.3, 1.0];
@@ -32,19 +33,20 @@ pub const STRIBECK_RATIO_STARTS: [f64; 3] = [1.5, 2.0, 3.0];
 fn velocity_rms(td: &TrainData, velocity: VelocitySource) -> f64 {
     let (mut ss, mut n) = (0.0, 0usize);
     for y in &td.base.y {
-        let y = y.get(td.base.warmup..).unwrap_or(&[]);
+        let v = velocity_signal(y, td.ts, velocity);
         match velocity {
+            // The first difference needs the sample before: from the warm-up's last on.
             VelocitySource::OutputDerivative => {
-                for w in y.windows(2) {
-                    let v = (w[1] - w[0]) / td.ts;
-                    ss += v * v;
+                for x in v.get(td.base.warmup + 1..).unwrap_or(&[]) {
+                    ss += x * x;
                     n += 1;
                 }
             }
             VelocitySource::Output => {
-                let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
-                ss += y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>();
-                n += y.len();
+                let v = v.get(td.base.warmup..).unwrap_or(&[]);
+                let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+                ss += v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>();
+                n += v.len();
             }
         }
     }
@@ -95,12 +97,13 @@ pub(super) fn stribeck_variant(
             let mut m = from.model.clone();
             m.set_effects_in_selection_order(&l);
             let cost = m.cost(&td.base, &td.u);
-            if cost.is_finite() && best.as_ref().is_none_or(|b| cost < b.train_cost) {
-                best = Some(Fitted {
+            keep_best(
+                &mut best,
+                cost.is_finite().then_some(Fitted {
                     model: m,
                     train_cost: cost,
-                });
-            }
+                }),
+            );
         }
     }
     let start = best?;
@@ -108,18 +111,11 @@ pub(super) fn stribeck_variant(
         Some(j) if j.train_cost < start.train_cost => j,
         _ => start,
     };
-    let band = fitted
-        .model
-        .effects_in_selection_order()
-        .iter()
-        .any(|p| match p.effect {
-            Effect::Stiction {
-                level,
-                breakaway,
-                stribeck_velocity,
-            } => stribeck_velocity > 0.0 && breakaway >= MIN_STICK_BAND * level,
-            _ => false,
-        });
+    let band = matches!(
+        fitted.model.effects_in_selection_order().get(idx).map(|p| p.effect),
+        Some(Effect::Stiction { level, breakaway, stribeck_velocity })
+            if stribeck_velocity > 0.0 && breakaway >= MIN_STICK_BAND * level
+    );
     if !band {
         return None;
     }

@@ -27,7 +27,6 @@
 //! the [`StickSlip`] law on the motor or load speed after each sub-step.
 use crate::error::{Error, Result};
 use crate::gap::effect::{Effect, StickSlip};
-use crate::gap::fit::friction_law;
 use crate::gap::modal::ModalModel;
 use crate::gap::place::{Place, PlacedEffect};
 use crate::lti::StateSpace;
@@ -191,7 +190,7 @@ impl TwoMassModel {
             match (p.place, p.effect) {
                 (Place::Drivetrain, Effect::Backlash { gap }) => half = 0.5 * gap,
                 (Place::Motor | Place::Load, e) if e.kind().is_friction() => {
-                    if let Some(law) = friction_law(&e) {
+                    if let Some(law) = StickSlip::of(&e) {
                         let (vi, col) = if p.place == Place::Motor {
                             (1, 1)
                         } else {
