@@ -15,7 +15,9 @@
 //!
 //! After the criterion groups, each case is also timed in CPU seconds (user + system of this
 //! process, or of the CLI child), which a loaded machine inflates less than wall time.
-//! Run: `cargo bench -p ferrosid --bench gap` (one thread: the diagnosis is sequential).
+//! Run: `cargo bench -p ferrosid --bench gap` (one thread: the diagnosis is sequential);
+//! `-- --cpu-only` skips criterion; `-- --pair-once` runs one diagnosis of the pair case only
+//! (for `perf stat`, valgrind or `GAP_PROFILE=1`).
 use criterion::{criterion_group, BenchmarkId, Criterion};
 use ferrosid::data::Log;
 use ferrosid::gap::effect::saturation;
@@ -285,6 +287,13 @@ fn cpu_time() {
 criterion_group!(benches, bench);
 
 fn main() {
+    if std::env::args().any(|a| a == "--pair-once") {
+        // One diagnosis of the pair case and nothing else (for perf, valgrind, GAP_PROFILE).
+        let pair = pair_case(16_384);
+        let t = cpu_of(1, || drop(std::hint::black_box(run_case(&pair))));
+        println!("pair case once: CPU {:.3} s", t.unwrap_or(f64::NAN));
+        return;
+    }
     let quick = std::env::args().any(|a| a == "--cpu-only");
     if !quick {
         benches();

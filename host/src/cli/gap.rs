@@ -182,7 +182,8 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     if let Some(op) = &op {
         eprintln!(
             "note: {} carries an operating point (u0 = {:?}, y0 = {:?}, {}); the logs are compared \
-             as deviations from it and as read, and the reading that explains more is reported",
+             as deviations from it and, unless its offsets are negligible, as read, and the \
+             reading that explains more is reported",
             args.sim.display(),
             op.u0,
             op.y0,

@@ -8,7 +8,7 @@ use crate::gap::effect::{
     StickSlip,
 };
 use crate::gap::friction_port::{slowest_mode, FrictionPort};
-use crate::gap::modal::{FitSet, ModalModel};
+use crate::gap::modal::{FitSet, ModalModel, SubStep};
 use crate::gap::place::{Place, PlacedEffect};
 use crate::gap::state_limit::{limited_mode, rate_clamp, state_clamp};
 use crate::gap::structure::TwoMassModel;
@@ -283,42 +283,38 @@ impl AugmentedModel {
             Some(s) => (s, m.max(1)),
             None => return self.friction_loop_sample_rate(u, law),
         };
-        let mut fr = law;
         let cb = sub.cb();
         let rate = self.velocity == VelocitySource::OutputDerivative;
         let g = if rate { sub.rate_gain() } else { cb };
-        let mut x = lin.zero_state();
-        let mut y = Vec::with_capacity(u.len());
-        let mut w = Vec::with_capacity(u.len());
-        // State part of the output, carried from sub-step to sub-step: C·x' = C·A_h·x + cb·w.
-        let mut yo = 0.0;
-        for &uk in u {
-            let y0 = yo;
-            let mut wsum = 0.0;
-            let mut w_first = uk;
-            for j in 0..m {
-                let next = sub.free_next_output(&x);
-                // The velocity is the modelled output itself, offset included: an offset that
-                // only shifted the friction's velocity would let a fit bias the mass into
-                // never crossing zero speed (friction reduced to a constant force).
-                let v_free = if rate {
-                    sub.free_next_rate(&x)
-                } else {
-                    next + lin.offset
-                };
-                let f = fr.force(v_free + g * uk, g);
-                let wj = uk - f;
-                if j == 0 {
-                    w_first = wj;
+        let run = FrictionRun {
+            law,
+            m,
+            rate,
+            g,
+            cb,
+            d: lin.d,
+            offset: lin.offset,
+        };
+        // The usual mode counts with the state on the stack (the same bits as the general
+        // stepper, see SubStep).
+        macro_rules! fixed {
+            ($(($nr:literal, $np:literal))*) => {
+                match (lin.real.len(), lin.pairs.len()) {
+                    $(($nr, $np) => {
+                        if let Some(f) = sub.fixed::<$nr, $np>() {
+                            return run.on(&f, u);
+                        }
+                    })*
+                    _ => {}
                 }
-                wsum += wj;
-                sub.step(&mut x, wj);
-                yo = next + cb * wj;
-            }
-            y.push(y0 + lin.d * w_first + lin.offset);
-            w.push(wsum / m as f64);
+            };
         }
-        (y, w)
+        fixed!(
+            (1, 0)(2, 0)(3, 0)(4, 0)(5, 0)(6, 0)(0, 1)(1, 1)(2, 1)(3, 1)(4, 1)(0, 2)(1, 2)(2, 2)(
+                3, 2
+            )(4, 2)(0, 3)(1, 3)(2, 3)(0, 4)
+        );
+        run.on(&sub, u)
     }
 
     /// Sample-rate version of [`Self::friction_loop_m`] for models without a sub-step.
@@ -365,5 +361,61 @@ impl AugmentedModel {
         } else {
             f64::INFINITY
         }
+    }
+}
+
+/// The settings of one friction loop on a sub-stepped linear part (see
+/// [`AugmentedModel::friction_loop_m`]).
+struct FrictionRun {
+    law: StickSlip,
+    /// Sub-steps per sample.
+    m: usize,
+    /// Whether the velocity is the output's derivative (else the output).
+    rate: bool,
+    /// The velocity's change per unit of held input over one sub-step.
+    g: f64,
+    /// C·B_h.
+    cb: f64,
+    d: f64,
+    offset: f64,
+}
+
+impl FrictionRun {
+    /// The loop on `sub`: the output and the per-sample mean of the linear part's input.
+    fn on<S: SubStep>(&self, sub: &S, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let (m, g, cb) = (self.m, self.g, self.cb);
+        let mut fr = self.law;
+        let mut x = sub.zero_state();
+        let mut y = Vec::with_capacity(u.len());
+        let mut w = Vec::with_capacity(u.len());
+        // State part of the output, carried from sub-step to sub-step: C·x' = C·A_h·x + cb·w.
+        let mut yo = 0.0;
+        for &uk in u {
+            let y0 = yo;
+            let mut wsum = 0.0;
+            let mut w_first = uk;
+            for j in 0..m {
+                let next = sub.free_next_output(&x);
+                // The velocity is the modelled output itself, offset included: an offset that
+                // only shifted the friction's velocity would let a fit bias the mass into
+                // never crossing zero speed (friction reduced to a constant force).
+                let v_free = if self.rate {
+                    sub.free_next_rate(&x)
+                } else {
+                    next + self.offset
+                };
+                let f = fr.force(v_free + g * uk, g);
+                let wj = uk - f;
+                if j == 0 {
+                    w_first = wj;
+                }
+                wsum += wj;
+                sub.step(&mut x, wj);
+                yo = next + cb * wj;
+            }
+            y.push(y0 + self.d * w_first + self.offset);
+            w.push(wsum / m as f64);
+        }
+        (y, w)
     }
 }

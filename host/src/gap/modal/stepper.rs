@@ -149,6 +149,133 @@ impl SubStepper {
     }
 }
 
+/// The sub-step operations a hot loop needs, implemented by [`SubStepper`] (any state count)
+/// and by [`FixedSubStepper`] (the mode counts known at compile time, the state on the stack)
+/// with the same arithmetic in the same order, so both give the same bits.
+pub trait SubStep {
+    /// The state vector.
+    type State: Clone;
+    /// The zero state.
+    fn zero_state(&self) -> Self::State;
+    /// x ← A_h·x + B_h·w.
+    fn step(&self, x: &mut Self::State, w: f64);
+    /// C·A_h·x.
+    fn free_next_output(&self, x: &Self::State) -> f64;
+    /// C·A_c·A_h·x.
+    fn free_next_rate(&self, x: &Self::State) -> f64;
+}
+
+impl SubStep for SubStepper {
+    type State = Vec<f64>;
+    fn zero_state(&self) -> Vec<f64> {
+        vec![0.0; self.c.len()]
+    }
+    #[inline]
+    fn step(&self, x: &mut Vec<f64>, w: f64) {
+        SubStepper::step(self, x, w)
+    }
+    #[inline]
+    fn free_next_output(&self, x: &Vec<f64>) -> f64 {
+        SubStepper::free_next_output(self, x)
+    }
+    #[inline]
+    fn free_next_rate(&self, x: &Vec<f64>) -> f64 {
+        SubStepper::free_next_rate(self, x)
+    }
+}
+
+/// The state of a [`FixedSubStepper`]: the real modes, then each pair.
+#[derive(Debug, Clone, Copy)]
+pub struct FixedState<const NR: usize, const NP: usize> {
+    real: [f64; NR],
+    pairs: [[f64; 2]; NP],
+}
+
+/// A [`SubStepper`] of `NR` real modes and `NP` pairs (see [`SubStep`]).
+#[derive(Debug, Clone)]
+pub struct FixedSubStepper<const NR: usize, const NP: usize> {
+    real: [f64; NR],
+    real_b: [f64; NR],
+    rot: [(f64, f64); NP],
+    rot_b: [(f64, f64); NP],
+    c_real: [f64; NR],
+    c_pairs: [[f64; 2]; NP],
+    dc_real: [f64; NR],
+    dc_pairs: [[f64; 2]; NP],
+}
+
+impl SubStepper {
+    /// This stepper with its mode counts fixed at compile time, or `None` when it has not
+    /// exactly `NR` real modes and `NP` pairs.
+    pub fn fixed<const NR: usize, const NP: usize>(&self) -> Option<FixedSubStepper<NR, NP>> {
+        if self.real.len() != NR || self.rot.len() != NP || self.c.len() != NR + 2 * NP {
+            return None;
+        }
+        let pair = |v: &[f64], j: usize| [v[NR + 2 * j], v[NR + 2 * j + 1]];
+        Some(FixedSubStepper {
+            real: std::array::from_fn(|i| self.real[i]),
+            real_b: std::array::from_fn(|i| self.real_b[i]),
+            rot: std::array::from_fn(|j| self.rot[j]),
+            rot_b: std::array::from_fn(|j| self.rot_b[j]),
+            c_real: std::array::from_fn(|i| self.c[i]),
+            c_pairs: std::array::from_fn(|j| pair(&self.c, j)),
+            dc_real: std::array::from_fn(|i| self.dc[i]),
+            dc_pairs: std::array::from_fn(|j| pair(&self.dc, j)),
+        })
+    }
+}
+
+impl<const NR: usize, const NP: usize> FixedSubStepper<NR, NP> {
+    /// Σ_real k·p·x + Σ_pairs k₁·(A x)₁ + k₂·(A x)₂ in [`SubStepper`]'s order.
+    #[inline(always)]
+    fn weighted_next(
+        &self,
+        k_real: &[f64; NR],
+        k_pairs: &[[f64; 2]; NP],
+        x: &FixedState<NR, NP>,
+    ) -> f64 {
+        let mut acc = 0.0;
+        for i in 0..NR {
+            acc += k_real[i] * self.real[i] * x.real[i];
+        }
+        for j in 0..NP {
+            let (rc, rs) = self.rot[j];
+            let [x1, x2] = x.pairs[j];
+            acc += k_pairs[j][0] * (rc * x1 - rs * x2) + k_pairs[j][1] * (rs * x1 + rc * x2);
+        }
+        acc
+    }
+}
+
+impl<const NR: usize, const NP: usize> SubStep for FixedSubStepper<NR, NP> {
+    type State = FixedState<NR, NP>;
+    fn zero_state(&self) -> Self::State {
+        FixedState {
+            real: [0.0; NR],
+            pairs: [[0.0; 2]; NP],
+        }
+    }
+    #[inline(always)]
+    fn step(&self, x: &mut Self::State, w: f64) {
+        for i in 0..NR {
+            x.real[i] = self.real[i] * x.real[i] + self.real_b[i] * w;
+        }
+        for j in 0..NP {
+            let ((rc, rs), (br, bi)) = (self.rot[j], self.rot_b[j]);
+            let [x1, x2] = x.pairs[j];
+            x.pairs[j] = [rc * x1 - rs * x2 + br * w, rs * x1 + rc * x2 + bi * w];
+        }
+    }
+    #[inline(always)]
+    fn free_next_output(&self, x: &Self::State) -> f64 {
+        self.weighted_next(&self.c_real, &self.c_pairs, x)
+    }
+    #[inline(always)]
+    fn free_next_rate(&self, x: &Self::State) -> f64 {
+        self.weighted_next(&self.dc_real, &self.dc_pairs, x)
+    }
+}
+
 impl ModalModel {
     /// The [`SubStepper`] with `m` sub-steps per sample, or `None` when a real pole is <= 0
     /// (no real ZOH sub-step exists) or `m == 0`.

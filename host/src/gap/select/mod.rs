@@ -196,6 +196,14 @@ fn profile_seconds() -> f64 {
     thread_cpu_seconds()
 }
 
+/// Prints `what` with the CPU seconds since `t0` (a [`profile_seconds`] reading) when
+/// `GAP_PROFILE` is set.
+fn profile_since(what: &str, t0: f64) {
+    if std::env::var_os("GAP_PROFILE").is_some() {
+        eprintln!("profile: {what} {:.3} s (cpu)", profile_seconds() - t0);
+    }
+}
+
 /// CPU seconds of this thread (user + system), from /proc; 0 where unavailable.
 fn thread_cpu_seconds() -> f64 {
     std::fs::read_to_string("/proc/thread-self/stat")
@@ -303,6 +311,7 @@ pub fn select_effects(
         &mut notes,
     );
     // Nested: stiction vs Coulomb friction at the same place.
+    let t0 = profile_seconds();
     resolve_nested(
         &mut singles,
         td,
@@ -311,6 +320,7 @@ pub fn select_effects(
         opts.noise_floor,
         &mut notes,
     );
+    profile_since("nested singles", t0);
     // 2. Best single (a forward step below the margin when it reaches half of it: kept only
     // if a pair on top of it reaches the margin, see below).
     let mut selected_models: Vec<Scored> = Vec::new();
@@ -376,7 +386,9 @@ pub fn select_effects(
     }
     // The selected friction on a Stribeck curve when the training logs ask for one.
     if let Some(last) = selected_models.last_mut() {
+        let t0 = profile_seconds();
         stribeck::refine_stribeck(last, td, val, gap_linear, &mut notes);
+        profile_since("stribeck", t0);
     }
     // 4. Lattice evidence decides quantization.
     let model = lattice_decides(
@@ -457,9 +469,7 @@ fn fit_singles(
         };
         let t0 = profile_seconds();
         let fc = fit_placed(*c, td, &use_bases, hint, sim_poles, hints);
-        if std::env::var_os("GAP_PROFILE").is_some() {
-            eprintln!("profile: {c} {:.3} s (cpu)", profile_seconds() - t0);
-        }
+        profile_since(&c.to_string(), t0);
         match fc {
             Some(f) => {
                 if c.kind == EffectKind::CoulombFriction && c.place == Place::Motor {
@@ -633,7 +643,9 @@ impl PairContext<'_> {
         notes: &mut Vec<String>,
     ) -> (Scored, Vec<Scored>, Option<Scored>) {
         let opts = self.opts;
+        let t0 = profile_seconds();
         let first = self.polish(first);
+        profile_since("polish", t0);
         let mut pairs = self.pairs_on(&first);
         pairs.sort_by(|a, b| a.gap.total_cmp(&b.gap));
         let Some(p) = pairs.first().cloned() else {
@@ -646,7 +658,10 @@ impl PairContext<'_> {
             && closed >= opts.min_excess_closed
             && (!tentative || p.improvement >= opts.margin)
         {
-            if let Some(r) = self.passenger_free(&p) {
+            let t0 = profile_seconds();
+            let passenger = self.passenger_free(&p);
+            profile_since("passenger check", t0);
+            if let Some(r) = passenger {
                 notes.push(format!(
                     "pair {} ({:.4}) without its {} scores {:.4}: the pair adds no effect, \
                      kept as the single {}",
@@ -666,7 +681,9 @@ impl PairContext<'_> {
                 let first = if r.gap < first.gap { r } else { first };
                 return (first, pairs, None);
             }
+            let t0 = profile_seconds();
             let p = pair_nested_variant(p, self, &first.model, dwell, notes);
+            profile_since("pair nested variant", t0);
             return (first, pairs, Some(p));
         }
         notes.push(format!(
@@ -737,11 +754,10 @@ impl PairContext<'_> {
                 self.sim_poles,
                 self.hints,
             );
-            if std::env::var_os("GAP_PROFILE").is_some() {
-                eprintln!("profile: pair + {c} {:.3} s (cpu)", profile_seconds() - t0);
-            }
+            profile_since(&format!("pair + {c}"), t0);
             // A pair inside the two-mass structure: a second joint refinement (its cost is
             // narrow in the gap and the first stops short when the drive effect moves too).
+            let t0 = profile_seconds();
             let fc = match fc {
                 Some(f) if c.place.needs_two_mass() => match joint_fit(self.td, &f, JOINT_MAX_ITER)
                 {
@@ -750,6 +766,9 @@ impl PairContext<'_> {
                 },
                 other => other,
             };
+            if c.place.needs_two_mass() {
+                profile_since(&format!("pair + {c} second refinement"), t0);
+            }
             if let Some(f) = fc {
                 pairs.push(score(f, self.val, self.gap_linear));
             }
