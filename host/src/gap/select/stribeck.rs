@@ -19,7 +19,10 @@ use super::nested::{EVIDENCE_TOLERANCE, MIN_STICK_BAND};
 use super::{score, Scored, Val};
 use crate::gap::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD, NESTED_LR_THRESHOLD_2};
 use crate::gap::effect::{Effect, EffectKind};
-use crate::gap::fit::{joint_fit, keep_best, Fitted, TrainData, VelocitySource, JOINT_MAX_ITER};
+use crate::gap::fit::{
+    joint_fit, keep_best, AugmentedModel, Fitted, TrainData, VelocitySource, COARSE_SAMPLES,
+    JOINT_MAX_ITER,
+};
 
 /// Stribeck velocities of the starts, relative to the RMS of the velocity the friction sees.
 pub const STRIBECK_VELOCITY_STARTS: [f64; 3] = [0.1, 0.3, 1.0];
@@ -107,16 +110,12 @@ pub(super) fn stribeck_variant(
         }
     }
     let start = best?;
+    screen(td, &from.model, &start, idx, threshold)?;
     let fitted = match joint_fit(td, &start, JOINT_MAX_ITER) {
         Some(j) if j.train_cost < start.train_cost => j,
         _ => start,
     };
-    let band = matches!(
-        fitted.model.effects_in_selection_order().get(idx).map(|p| p.effect),
-        Some(Effect::Stiction { level, breakaway, stribeck_velocity })
-            if stribeck_velocity > 0.0 && breakaway >= MIN_STICK_BAND * level
-    );
-    if !band {
+    if !stick_band(&fitted.model, idx) {
         return None;
     }
     let lr = nested_likelihood_ratio(
@@ -130,6 +129,62 @@ pub(super) fn stribeck_variant(
     .ok()?;
     let v = score(fitted, val, gap_linear);
     (lr > threshold && v.gap <= from.gap * (1.0 + EVIDENCE_TOLERANCE)).then_some((v, lr))
+}
+
+/// Share of the likelihood-ratio threshold, per share of the scored samples, the variant must
+/// reach on the coarse data to be refined on all of it ([`screen`]).
+pub const SCREEN_SHARE: f64 = 1.0;
+
+/// The coarse screen of [`stribeck_variant`]: the variant refined from `start` on the first
+/// [`COARSE_SAMPLES`] scored samples of each training log, its stick band and its likelihood
+/// ratio there over `from` (as fitted on all the data, so the screen leans towards the
+/// variant). A variant the logs ask for gains in proportion to the samples, so on a quarter of
+/// them it reaches about a quarter of its full ratio; one below [`SCREEN_SHARE`] times
+/// `threshold` times the coarse share of the samples, or without a stick band there, is dropped
+/// before the full refinement, which costs four times more.
+/// `Some(())` lets the variant through (also when the logs are no longer than the coarse copy:
+/// the screen would be the fit itself).
+fn screen(
+    td: &TrainData,
+    from: &AugmentedModel,
+    start: &Fitted,
+    idx: usize,
+    threshold: f64,
+) -> Option<()> {
+    let coarse = td.coarse(COARSE_SAMPLES);
+    let scored = |t: &TrainData| t.base.scored_samples() as f64;
+    let share = scored(&coarse) / scored(td).max(1.0);
+    if share >= 1.0 {
+        return Some(());
+    }
+    let start_c = Fitted {
+        train_cost: start.model.cost(&coarse.base, &coarse.u),
+        model: start.model.clone(),
+    };
+    let fitted = match joint_fit(&coarse, &start_c, JOINT_MAX_ITER) {
+        Some(j) if j.train_cost < start_c.train_cost => j,
+        _ => start_c,
+    };
+    let lr = nested_likelihood_ratio(
+        from,
+        &fitted.model,
+        &coarse.u,
+        &coarse.base.y,
+        coarse.base.warmup,
+        coarse.base.drift_window,
+    )
+    .ok()?;
+    (stick_band(&fitted.model, idx) && lr >= SCREEN_SHARE * threshold * share).then_some(())
+}
+
+/// Whether the effect at `idx` of `model` is friction on a Stribeck curve with a stick band
+/// (breakaway at least [`MIN_STICK_BAND`] times the level).
+fn stick_band(model: &AugmentedModel, idx: usize) -> bool {
+    matches!(
+        model.effects_in_selection_order().get(idx).map(|p| p.effect),
+        Some(Effect::Stiction { level, breakaway, stribeck_velocity })
+            if stribeck_velocity > 0.0 && breakaway >= MIN_STICK_BAND * level
+    )
 }
 
 /// Replaces `selected` (the selection's final model) by its [`stribeck_variant`] when one is
