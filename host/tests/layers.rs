@@ -443,11 +443,6 @@ const OTHER_GENERATORS: &[(&str, &str)] = &[
          session 13, the e2e figures in README were measured with its draws and need a QEMU re-run",
     ),
     (
-        "tests/tests/design_card_crates.rs",
-        "xorshift64 of the design-card error study: not converted in session 13, its error \
-         statistics in README were measured with these draws",
-    ),
-    (
         "tests/qemu/src/reference.rs",
         "the QEMU images' xorshift32 test signals: not converted in session 13 (needs the \
          images rebuilt and the self-test and cycle figures re-measured on QEMU)",
