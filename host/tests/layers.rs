@@ -443,11 +443,6 @@ const OTHER_GENERATORS: &[(&str, &str)] = &[
          session 13, the e2e figures in README were measured with its draws and need a QEMU re-run",
     ),
     (
-        "tests/qemu/src/reference.rs",
-        "the QEMU images' xorshift32 test signals: not converted in session 13 (needs the \
-         images rebuilt and the self-test and cycle figures re-measured on QEMU)",
-    ),
-    (
         "host/src/gap/structure/mod.rs",
         "library code: the two-mass mapping check's broadband input (an LCG); the library does \
          not depend on the firmware crate (the lead's module in session 13)",
