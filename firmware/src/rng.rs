@@ -1,5 +1,9 @@
 //! Small seeded pseudo-random generator (SplitMix64) for reproducible random phases and line
 //! choices. Not cryptographic; deterministic for a given seed on every platform.
+//!
+//! This is the workspace's one generator: the dev crate `ferrosid-sim` builds its uniform and
+//! normal draws (`ferrosid_sim::rng::Rng`) on it, and every test, benchmark and example uses one
+//! of the two (`host/tests/layers.rs` fails on a second SplitMix64 or xorshift/LCG constant).
 
 /// SplitMix64 (Steele, Lea & Flood 2014; the seeding generator of xoshiro): 64-bit state,
 /// passes BigCrush, every seed (including 0) is valid.
@@ -26,6 +30,12 @@ impl SplitMix64 {
     /// Next 32 uniformly distributed bits (the high half of [`Self::next_u64`]).
     pub fn next_u32(&mut self) -> u32 {
         (self.next_u64() >> 32) as u32
+    }
+
+    /// Uniform `f64` in `[0, 1)` from the high 53 bits of [`Self::next_u64`] (every value a
+    /// multiple of 2⁻⁵³).
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
     /// Uniform integer in `0..n` by multiply-shift (bias below `n / 2^32`); `n == 0` gives 0.

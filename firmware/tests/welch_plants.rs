@@ -46,7 +46,7 @@ fn run_plant(
     center: f64,
     far: f64,
 ) -> Outcome {
-    let mut rng = XorShift::new(seed);
+    let mut rng = Noise::new(seed);
     let u = rng.gauss_vec(len);
     let y = lfilter(b, a, &u);
     let (u32s, y32s) = (to_f32(&u), to_f32(&y));

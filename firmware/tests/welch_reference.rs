@@ -19,7 +19,7 @@ fn signals(
     noise: f64,
     offset: f64,
 ) -> (Vec<f32>, Vec<f32>) {
-    let mut rng = XorShift::new(seed);
+    let mut rng = Noise::new(seed);
     let u = rng.gauss_vec(len);
     let yc = lfilter(b, a, &u);
     let u: Vec<f64> = u.iter().map(|v| v + offset).collect();

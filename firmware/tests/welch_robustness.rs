@@ -28,7 +28,7 @@ fn memory_budget_welch_1024() {
 fn nonfinite_samples_drop_exactly_the_segments_containing_them() {
     const N: usize = 256;
     let hop = 128;
-    let mut rng = XorShift::new(5);
+    let mut rng = Noise::new(5);
     let u = rng.gauss_vec(60 * N);
     let y = lfilter(&[0.3, 0.2], &[1.0, -0.5], &u);
     let (mut u32s, mut y32s) = (to_f32(&u), to_f32(&y));
@@ -84,7 +84,7 @@ fn nonfinite_samples_drop_exactly_the_segments_containing_them() {
 fn unconfigured_estimator_is_inert_until_configured() {
     let mut w = Welch::<64>::unconfigured();
     assert!(!w.is_configured());
-    let mut rng = XorShift::new(1);
+    let mut rng = Noise::new(1);
     for _ in 0..1000 {
         w.push(rng.gauss() as f32, rng.gauss() as f32);
     }
@@ -161,7 +161,7 @@ fn spread_and_consistent<const N: usize>() {
     ];
     for cfg in configs {
         let hop = N - cfg.overlap;
-        let mut rng = XorShift::new(9);
+        let mut rng = Noise::new(9);
         let u = to_f32(&rng.gauss_vec(N + 3 * hop));
         let y = to_f32(&lfilter(&[0.3, 0.2], &[1.0, -0.5], &widen(&u)));
         // The second segment ends with sample `end - 1`.
@@ -273,7 +273,7 @@ fn undefined_outputs_before_any_average() {
     assert_eq!(w.h1(33), None);
     assert_eq!(w.suy(1000), (0.0, 0.0));
     // One average: coherence is exactly 1 wherever both spectra are non-zero (bias!).
-    let mut rng = XorShift::new(3);
+    let mut rng = Noise::new(3);
     let mut w = Welch::<64>::new(WelchConfig::scipy_default(1.0, 64)).unwrap();
     for _ in 0..64 {
         w.push(rng.gauss() as f32, rng.gauss() as f32);
@@ -301,7 +301,7 @@ fn mean_noise_coherence<const N: usize>(
     segments: usize,
     seed: u64,
 ) -> (f64, u32, usize) {
-    let mut rng = XorShift::new(seed);
+    let mut rng = Noise::new(seed);
     let mut w = Welch::<N>::new(cfg).unwrap();
     let len = N + (segments - 1) * (N - cfg.overlap);
     for _ in 0..len {

@@ -5,26 +5,8 @@
 use criterion::{criterion_group, Criterion};
 use ferrosid::lti::{poly_mul, TransferFunction};
 use ferrosid::n4sid::{n4sid_slices, N4sidOptions, OrderSelection};
+use ferrosid_sim::rng::Rng;
 use std::f64::consts::PI;
-
-/// SplitMix64 + Box–Muller, seeded.
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        (-2.0 * u1.ln()).sqrt() * (2.0 * PI * self.uniform()).cos()
-    }
-}
 
 fn data(n: usize) -> (Vec<f64>, Vec<f64>) {
     let a = 2.0 * PI * 5.0;
@@ -37,10 +19,8 @@ fn data(n: usize) -> (Vec<f64>, Vec<f64>) {
     .and_then(|tf| tf.to_state_space())
     .and_then(|g| g.c2d_zoh(1e-3))
     .expect("reference plant");
-    let mut rng = Rng(42);
-    let u: Vec<f64> = (0..n)
-        .map(|_| if rng.next_u64() & 1 == 1 { 1.0 } else { -1.0 })
-        .collect();
+    let mut rng = Rng::new(42);
+    let u: Vec<f64> = rng.binary(n);
     let y0 = plant.simulate_siso(&u, None).expect("simulation");
     let mean = y0.iter().sum::<f64>() / n as f64;
     let sd = (y0.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();

@@ -5,33 +5,13 @@
 //! Run: `cargo bench -p ferrosid --bench welch`.
 use criterion::{criterion_group, criterion_main, Criterion};
 use ferrosid::spectral::{PeriodicAveraging, Welch};
+use ferrosid_sim::rng::Rng;
 use std::hint::black_box;
-
-/// SplitMix64 + Box–Muller, seeded.
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * self.uniform()).cos()
-    }
-}
 
 /// Input and output of the benchmark record; `periodic` repeats the first 1000 input samples.
 fn data(n: usize, periodic: bool) -> (Vec<f64>, Vec<f64>) {
-    let mut rng = Rng(42);
-    let mut u: Vec<f64> = (0..n)
-        .map(|_| if rng.next_u64() & 1 == 1 { 1.0 } else { -1.0 })
-        .collect();
+    let mut rng = Rng::new(42);
+    let mut u: Vec<f64> = rng.binary(n);
     if periodic {
         for k in 1000..n {
             u[k] = u[k - 1000];

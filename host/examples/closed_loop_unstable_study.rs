@@ -11,27 +11,12 @@
 //! Run: `cargo run --release -p ferrosid --example closed_loop_unstable_study [SEEDS]`.
 use ferrosid::closed_loop::{identify_closed_loop, ClosedLoopMethod, ClosedLoopOptions};
 use ferrosid::n4sid::{ChannelSet, N4sidOptions, OrderSelection};
+use ferrosid_sim::rng::Rng;
 use num_complex::Complex64;
 use std::f64::consts::PI;
 use std::path::Path;
 
 const TS: f64 = 0.005;
-
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^ (z >> 31)
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64).max(1e-300);
-        let u2 = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
-    }
-}
 
 fn grid() -> Vec<f64> {
     (0..60).map(|k| 40f64.powf(k as f64 / 59.0)).collect()
@@ -54,7 +39,7 @@ fn main() {
             let mut errs = Vec::new();
             let mut kept = 0;
             for seed in 0..seeds {
-                let mut rng = Rng(1000 + seed);
+                let mut rng = Rng::new(1000 + seed);
                 let (mut x, mut v) = (0.0f64, 0.0f64);
                 let (mut r, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
                 for _ in 0..n {

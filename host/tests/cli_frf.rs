@@ -46,7 +46,7 @@ fn col(v: &serde_json::Value, key: &str) -> Vec<f64> {
 #[test]
 fn welch_json_matches_the_closed_form_fir_response() {
     let d = scratch("welch_fir");
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let u = rng.noise(20_000, 1.0);
     let y = fir(&u, &TAPS);
     let p = d.join("fir.csv");
@@ -141,7 +141,7 @@ fn period_synchronous_json_is_exact_for_periodic_steady_state() {
 #[test]
 fn table_marks_exactly_the_bins_below_the_gate() {
     let d = scratch("marks");
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     let u = rng.noise(8192, 1.0);
     // Zeros at DC and Nyquist: coherence collapses there once noise is added.
     let mut y = fir(&u, &[1.0, 0.0, -1.0]);
@@ -187,7 +187,7 @@ fn table_marks_exactly_the_bins_below_the_gate() {
 #[test]
 fn no_bin_above_the_gate_exits_with_1() {
     let d = scratch("nogate");
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     let u = rng.noise(4096, 1.0);
     let y = rng.noise(4096, 1.0); // unrelated to u
     let p = d.join("noise.csv");
@@ -201,7 +201,7 @@ fn no_bin_above_the_gate_exits_with_1() {
 #[test]
 fn several_logs_are_pooled_and_mimo_pairs_estimated() {
     let d = scratch("pool");
-    let mut rng = Rng(9);
+    let mut rng = Rng::new(9);
     let mut paths = Vec::new();
     for name in ["a.csv", "b.csv"] {
         let u1 = rng.noise(4096, 1.0);
@@ -271,7 +271,7 @@ fn several_logs_are_pooled_and_mimo_pairs_estimated() {
 #[test]
 fn reruns_are_byte_identical() {
     let d = scratch("rerun");
-    let mut rng = Rng(21);
+    let mut rng = Rng::new(21);
     let u = rng.noise(3000, 1.0);
     let y: Vec<f64> = fir(&u, &TAPS)
         .iter()

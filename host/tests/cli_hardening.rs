@@ -34,7 +34,7 @@ fn expect(r: &Run, code: i32, needles: &[&str], what: &str) {
 
 /// A first-order plant y[k] = 0.9 y[k-1] + 0.1 u[k-1] + noise, driven by white noise.
 fn plant_log(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let u = rng.noise(n, 1.0);
     let mut y = vec![0.0; n];
     for k in 1..n {

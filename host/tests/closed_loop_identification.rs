@@ -91,7 +91,7 @@ struct Loop {
 /// pole moved to about s = −2 rad/s, since an integrator driven open loop drifts without bound)
 /// driven by the white reference directly. Both with the same coloured noise.
 fn simulate(seed: u64, closed: bool, noise_std: f64) -> Loop {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let (a, b) = plant();
     let leak = if closed { 1.0 } else { (-2.0 * TS).exp() };
     let (kp, kd) = (3.0, 6.0);
@@ -336,7 +336,7 @@ fn cli_warns_of_feedback_and_identifies_with_reference() {
 fn simulate_unstable(seed: u64, n: usize) -> Loop {
     let p = (2.0 * TS).exp();
     let g = 20.0 * (p - 1.0) / 2.0;
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let (mut x, mut v) = (0.0f64, 0.0f64);
     let mut out = Loop {
         r: Vec::with_capacity(n),
@@ -467,7 +467,7 @@ fn joint_method_error_on_an_unstable_plant_is_variance() {
 #[test]
 fn joint_method_refuses_a_controller_without_feedthrough() {
     let (un, yn) = (names("u"), names("y"));
-    let mut rng = Rng(31);
+    let mut rng = Rng::new(31);
     let (a, b) = plant();
     let (mut x, mut v, mut e_prev) = ([0.0f64; 2], 0.0f64, 0.0f64);
     let (mut r, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());

@@ -4,21 +4,15 @@ use ferrosid::data::Log;
 use ferrosid::error::Error;
 use ferrosid::gap::simfile::{discretise_for_logs, load_sim, parse_sim};
 use ferrosid::gap::{diagnose, GapOptions};
+use ferrosid_sim::rng::Rng;
 use std::path::{Path, PathBuf};
 
 const TS: f64 = 1e-3;
 
 fn log(name: &str, n: usize, ts: f64) -> Log {
     // A first-order response to a deterministic pseudo-random input.
-    let mut s = 12345u64;
-    let u: Vec<f64> = (0..n)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        })
-        .collect();
+    let mut rng = Rng::new(12345);
+    let u: Vec<f64> = (0..n).map(|_| rng.uniform() - 0.5).collect();
     let mut y = vec![0.0; n];
     for k in 1..n {
         y[k] = 0.9 * y[k - 1] + 0.1 * u[k - 1];

@@ -133,8 +133,6 @@ mod spectral_plants;
 mod spectral_real_data;
 #[path = "spectral_scipy.rs"]
 mod spectral_scipy;
-#[path = "splitmix.rs"]
-mod splitmix;
 #[path = "synth_hinf.rs"]
 mod synth_hinf;
 #[path = "synth_loopshape.rs"]

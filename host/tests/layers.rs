@@ -421,3 +421,155 @@ fn the_simulator_is_not_in_the_library() {
         }
     }
 }
+
+/// The workspace's one random-number generator: the firmware's SplitMix64.
+const THE_RNG: &str = "firmware/src/rng.rs";
+
+/// Files that still carry a generator of their own, each with the reason. The test fails when
+/// one of them no longer does, so the list cannot outlive the problem.
+const OTHER_GENERATORS: &[(&str, &str)] = &[
+    (
+        "gapsim/src/rng.rs",
+        "the second benchmark family's xoshiro256** (SplitMix64-seeded): independent of the \
+         first family's generator on purpose, so the two families share no code",
+    ),
+    (
+        "host/src/gap/simulator.rs",
+        "`lcg_noise`, the gap unit tests' fixed signal (the lead's module in session 13)",
+    ),
+    (
+        "tests/src/e2e.rs",
+        "ferrosid-tests' xorshift64* (test logs of the QEMU end-to-end runs): not converted in \
+         session 13, the e2e figures in README were measured with its draws and need a QEMU re-run",
+    ),
+    (
+        "host/src/gap/structure/mod.rs",
+        "library code: the two-mass mapping check's broadband input (an LCG); the library does \
+         not depend on the firmware crate (the lead's module in session 13)",
+    ),
+];
+
+/// `.rs` files under `dir`, skipping build output (`target*`) and hidden directories.
+fn workspace_rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).expect("read dir") {
+        let p = e.expect("dir entry").path();
+        let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+        let name = name.unwrap_or_default();
+        if p.is_dir() {
+            if !name.starts_with('.') && !name.starts_with("target") {
+                workspace_rust_files(&p, out);
+            }
+        } else if name.ends_with(".rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// What makes `src` a pseudo-random generator (comments and strings ignored, digit separators
+/// and whitespace removed): SplitMix64's finaliser multipliers, the MMIX LCG multiplier,
+/// xorshift*'s output multiplier, or an xorshift step `x ^= x << k` / `x ^= x >> k`.
+/// Seeds that happen to be such constants are not steps and are not reported.
+fn generator_marks(src: &str) -> Vec<&'static str> {
+    let code: String = strip_comments_and_strings(src)
+        .chars()
+        .filter(|c| !c.is_whitespace() && *c != '_')
+        .collect::<String>()
+        .to_lowercase();
+    let mut marks = Vec::new();
+    for (needle, what) in [
+        ("wrappingmul(0xbf58476d1ce4e5b9", "SplitMix64 finaliser"),
+        ("wrappingmul(0x94d049bb133111eb", "SplitMix64 finaliser"),
+        ("wrappingmul(6364136223846793005", "MMIX LCG"),
+        ("wrappingmul(0x5851f42d4c957f2d", "MMIX LCG"),
+        ("wrappingmul(0x2545f4914f6cdd1d", "xorshift*"),
+    ] {
+        if code.contains(needle) && !marks.contains(&what) {
+            marks.push(what);
+        }
+    }
+    let is_ident = |c: char| c.is_ascii_alphanumeric() || c == '.' || c == '[' || c == ']';
+    for (at, _) in code.match_indices("^=") {
+        let lhs_start = code[..at]
+            .char_indices()
+            .rev()
+            .take_while(|&(_, c)| is_ident(c))
+            .last()
+            .map_or(at, |(i, _)| i);
+        let lhs = &code[lhs_start..at];
+        let rhs = &code[at + 2..];
+        if !lhs.is_empty()
+            && rhs.starts_with(lhs)
+            && (rhs[lhs.len()..].starts_with("<<") || rhs[lhs.len()..].starts_with(">>"))
+            && !marks.contains(&"xorshift step")
+        {
+            marks.push("xorshift step");
+        }
+    }
+    marks
+}
+
+/// Issue 11: one RNG. Every `.rs` file of the workspace (all crates, tests, benches, examples,
+/// the QEMU images) is scanned; only `firmware/src/rng.rs` may implement a generator, apart from
+/// the listed exceptions. `ferrosid_sim::rng::Rng` builds its uniform and normal draws on it.
+#[test]
+fn one_rng_in_the_workspace() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace root")
+        .to_path_buf();
+    let mut files = Vec::new();
+    workspace_rust_files(&root, &mut files);
+    assert!(files.len() > 100, "{} files: wrong root?", files.len());
+    let mut found = BTreeMap::new();
+    for f in &files {
+        let rel = f
+            .strip_prefix(&root)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        let text = std::fs::read_to_string(f).expect("read");
+        let marks = generator_marks(&text);
+        if !marks.is_empty() {
+            found.insert(rel, marks);
+        }
+    }
+    assert!(
+        found.contains_key(THE_RNG),
+        "{THE_RNG} is not a generator any more: {found:?}"
+    );
+    let mut bad = Vec::new();
+    for (rel, marks) in &found {
+        if rel != THE_RNG && !OTHER_GENERATORS.iter().any(|(f, _)| f == rel) {
+            bad.push(format!(
+                "{rel}: {marks:?} (use ferrosid_sim::rng::Rng or {THE_RNG})"
+            ));
+        }
+    }
+    for (f, why) in OTHER_GENERATORS {
+        if !found.contains_key(*f) {
+            bad.push(format!(
+                "{f} has no generator any more: drop it from the list ({why})"
+            ));
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+#[test]
+fn the_generator_scanner_finds_copies_and_ignores_seeds_and_comments() {
+    let splitmix = "fn n(s: &mut u64) -> u64 { *s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);\n\
+                    let z = (*s ^ (*s >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9); z }";
+    assert_eq!(generator_marks(splitmix), ["SplitMix64 finaliser"]);
+    let xorshift = "fn n(&mut self) -> u64 { self.0 ^= self.0 << 13; self.0 ^= self.0 >> 7; 0 }";
+    assert_eq!(generator_marks(xorshift), ["xorshift step"]);
+    let lcg = "s = s\n    .wrapping_mul(6364136223846793005)\n    .wrapping_add(1);";
+    assert_eq!(generator_marks(lcg), ["MMIX LCG"]);
+    let clean = "// x ^= x << 13; wrapping_mul(6364136223846793005)\n\
+                 let r = Rng::new(0x9E37_79B9_7F4A_7C15); let s = \"x ^= x << 13\";\n\
+                 let m = a ^= b << 2; let y = z ^ (z >> 31);";
+    assert!(
+        generator_marks(clean).is_empty(),
+        "{:?}",
+        generator_marks(clean)
+    );
+}

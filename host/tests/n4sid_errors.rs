@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 fn good(n: usize) -> (Vec<f64>, Vec<f64>) {
     let plant = third_order_plant(1e-3);
-    let mut rng = Rng(99);
+    let mut rng = Rng::new(99);
     let u = rng.binary(n);
     let y = plant.simulate_siso(&u, None).unwrap();
     (u, y)
@@ -141,7 +141,7 @@ fn non_persistently_exciting_input_is_warned() {
     let plant = third_order_plant(1e-3);
     let u: Vec<f64> = (0..4000).map(|k| (0.05 * k as f64).sin()).collect();
     let y = plant.simulate_siso(&u, None).unwrap();
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     let y: Vec<f64> = y.iter().map(|v| v + 1e-3 * rng.normal()).collect();
     match n4sid_slices(1e-3, &[&u], &[&y], &N4sidOptions::default()) {
         Ok(r) => assert!(

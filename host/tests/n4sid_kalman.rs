@@ -130,7 +130,7 @@ fn identified_innovation_model_matches_the_true_noise_model() {
     let k = mat(&[&[0.6], &[0.2]]);
     let truth_h = StateSpace::new(a.clone(), k.clone(), c.clone(), mat(&[&[1.0]]), 1.0).unwrap();
     let n = 50_000;
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     let u = rng.binary(n);
     let e = rng.noise(n, 0.2);
     let mut x = [0.0, 0.0];

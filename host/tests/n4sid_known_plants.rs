@@ -15,7 +15,7 @@ const TS: f64 = 1e-3;
 /// standard deviation `noise` × std(y).
 fn reference_data(n: usize, noise: f64, seed: u64) -> (Vec<f64>, Vec<f64>, StateSpace) {
     let plant = third_order_plant(TS);
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let u = rng.binary(n);
     let y0 = plant.simulate_siso(&u, None).unwrap();
     let sd = std_dev(&y0);
@@ -124,7 +124,7 @@ fn mimo_plant() -> StateSpace {
 
 fn mimo_data(n: usize, noise: f64, seed: u64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let plant = mimo_plant();
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let u = vec![rng.binary(n), rng.binary(n)];
     let y0 = plant.simulate(&u, None).unwrap();
     let y = y0
@@ -225,7 +225,7 @@ fn feedthrough_is_estimated_or_fixed_to_zero() {
         0.1,
     )
     .unwrap();
-    let mut rng = Rng(8);
+    let mut rng = Rng::new(8);
     let u = rng.binary(2000);
     let y = plant.simulate_siso(&u, None).unwrap();
     let r = n4sid_slices(
@@ -274,7 +274,7 @@ fn order_range_override_is_respected() {
 #[test]
 fn initial_state_is_estimated() {
     let plant = third_order_plant(TS);
-    let mut rng = Rng(10);
+    let mut rng = Rng::new(10);
     let u = rng.binary(2000);
     let x0 = [0.3, -1.2, 2.0];
     let y = plant.simulate_siso(&u, Some(&x0)).unwrap();
@@ -310,7 +310,7 @@ fn unstable_plant() -> StateSpace {
 #[test]
 fn unstable_plant_is_reported_and_stability_can_be_enforced() {
     let plant = unstable_plant();
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     let u = rng.binary(400);
     let y0 = plant.simulate_siso(&u, None).unwrap();
     let y: Vec<f64> = y0.iter().map(|v| v + 1e-4 * rng.normal()).collect();
@@ -493,7 +493,7 @@ fn significant_feedthrough_is_kept() {
         0.1,
     )
     .unwrap();
-    let mut rng = Rng(21);
+    let mut rng = Rng::new(21);
     let u = rng.binary(2000);
     let y0 = plant.simulate_siso(&u, None).unwrap();
     let sd = std_dev(&y0);

@@ -12,7 +12,7 @@ use n4sid_support::*;
 fn hundred_thousand_sample_reference_case() {
     let ts = 1e-3;
     let plant = third_order_plant(ts);
-    let mut rng = Rng(42);
+    let mut rng = Rng::new(42);
     let n = 100_000;
     let u: Vec<f64> = (0..n)
         .map(|_| if rng.next_u64() & 1 == 1 { 1.0 } else { -1.0 })
@@ -36,13 +36,29 @@ fn hundred_thousand_sample_reference_case() {
         .sum::<f64>()
         / all.len() as f64)
         .sqrt();
+    // RMS relative error up to 100 Hz, where the plant has gain: the part of the full-grid
+    // error that the dynamics (not the estimated D) set.
+    let n_low = all.iter().filter(|&&f| f <= 100.0).count();
+    let rms_low = (gh
+        .iter()
+        .zip(&g)
+        .zip(&all)
+        .filter(|(_, &f)| f <= 100.0)
+        .map(|((a, b), _)| ((a - b).norm() / b.norm()).powi(2))
+        .sum::<f64>()
+        / n_low as f64)
+        .sqrt();
     println!(
         "reference case: order {}, max rel FRF error 0.5–70 Hz {max_band:.3e}, RMS rel FRF \
-         error 0.5–450 Hz {rms:.3e}",
+         error 0.5–100 Hz {rms_low:.3e}, 0.5–450 Hz {rms:.3e}",
         r.order
     );
     assert!(max_band < 1e-2, "{max_band:.3e}");
-    assert!(rms < 0.05, "{rms:.3e}");
+    assert!(rms_low < 1e-2, "{rms_low:.3e}");
+    // Above 100 Hz the plant rolls off below the 10 % noise and the estimated D's error sets
+    // the relative error: over 50 noise realisations of this case (bench/peers/seeds.md, RMS
+    // fe column, 0.1–450 Hz) it spreads from 0.017 to 0.37, so only a gross failure is caught.
+    assert!(rms < 0.5, "{rms:.3e}");
     // Validation on a fresh realisation: fit close to the noise limit 100(1 − 0.1) = 90 %,
     // and output-error residuals independent of the input.
     let uv: Vec<f64> = (0..20_000)

@@ -6,20 +6,15 @@ use ferrosid::io::{read_csv, CsvOptions};
 use ferrosid::n4sid::{n4sid, N4sidOptions, OrderSelection};
 use ferrosid::spectral::Welch;
 use ferrosid::{Channel, Log};
+use ferrosid_sim::rng::Rng;
 use proptest::prelude::*;
 use std::fmt::Write as _;
 
 /// White-noise input through y[k] = a·y[k−1] + u[k−1], plus a little output noise, from a
-/// SplitMix64 stream seeded with `seed`.
+/// stream of the workspace's seeded generator (`ferrosid_sim::rng`) seeded with `seed`.
 fn signals(seed: u64, n: usize, a: f64) -> (Vec<f64>, Vec<f64>) {
-    let mut s = seed;
-    let mut next = move || {
-        s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = s;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rng = Rng::new(seed);
+    let mut next = move || rng.uniform() - 0.5;
     let u: Vec<f64> = (0..n).map(|_| next()).collect();
     let mut y = vec![0.0; n];
     for k in 1..n {

@@ -6,6 +6,7 @@ use ferrosid::rational_fit::{
     fit_discrete_rational, fit_discrete_rational_delay_search, RationalFitOptions,
 };
 use ferrosid::Error;
+use ferrosid_sim::rng::Rng;
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -83,26 +84,21 @@ fn delay_search_finds_the_transport_delay() {
     assert!(fit.max_rel_error < 1e-8);
 }
 
-/// Deterministic pseudo-random numbers in [-0.5, 0.5) (xorshift), independent of the crate.
-struct Xs(u64);
-impl Xs {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    }
-}
-
 #[test]
 fn noisy_data_gives_a_close_model() {
     let (a, b) = resonance();
     let f = grid(128, 250.0);
-    let mut rng = Xs(0x9E37_79B9_7F4A_7C15);
+    let mut rng = Rng::new(0x9E37_79B9_7F4A_7C15);
     // 1 % relative complex noise (uniform, RMS 0.58 % per component).
     let h: Vec<Complex64> = f
         .iter()
-        .map(|&x| tf(&a, &b, 1, x) * Complex64::new(1.0 + 0.02 * rng.next(), 0.02 * rng.next()))
+        .map(|&x| {
+            tf(&a, &b, 1, x)
+                * Complex64::new(
+                    1.0 + 0.02 * (rng.uniform() - 0.5),
+                    0.02 * (rng.uniform() - 0.5),
+                )
+        })
         .collect();
     let fit = fit_discrete_rational(&f, &h, None, TS, &RationalFitOptions::new(2, 1, 1)).unwrap();
     // The model (not the data) must be within 0.5 % of the truth everywhere on the grid:

@@ -2,6 +2,7 @@
 use faer::Mat;
 use ferrosid::lti::StateSpace;
 use ferrosid::robust::norms::{hinf_norm, logspace, peak_gain_on_grid};
+use ferrosid_sim::rng::Rng;
 use std::f64::consts::PI;
 
 use crate::test_models::ss;
@@ -117,29 +118,22 @@ fn discrete_resonance_matches_zoh_of_continuous_and_dense_grid() {
     assert!((r.gamma / cont - 1.0).abs() < 0.05, "{} vs {cont}", r.gamma);
 }
 
-/// Small deterministic generator (xorshift64*) so tests need no RNG dependency.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let v = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d);
-        (v >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    }
+/// Uniform in [−1, 1) from the workspace's seeded generator.
+fn symmetric(rng: &mut Rng) -> f64 {
+    2.0 * rng.uniform() - 1.0
 }
 
 #[test]
 fn random_stable_mimo_models_agree_with_dense_grid() {
-    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut rng = Rng::new(0x9e37_79b9_7f4a_7c15);
     for (n, m, p) in [(3, 1, 1), (5, 2, 3), (7, 3, 2), (4, 2, 2)] {
         // Block-diagonal modes (real poles and damped pairs) mixed by random B, C, D.
         let mut a = Mat::<f64>::zeros(n, n);
         let mut i = 0;
         while i < n {
-            if i + 1 < n && rng.next() > -0.3 {
-                let wn = 10f64.powf(rng.next() * 1.5);
-                let zeta = 0.05 + 0.4 * (rng.next() + 1.0) / 2.0;
+            if i + 1 < n && symmetric(&mut rng) > -0.3 {
+                let wn = 10f64.powf(symmetric(&mut rng) * 1.5);
+                let zeta = 0.05 + 0.4 * (symmetric(&mut rng) + 1.0) / 2.0;
                 let (re, im) = (-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
                 a[(i, i)] = re;
                 a[(i + 1, i + 1)] = re;
@@ -147,13 +141,13 @@ fn random_stable_mimo_models_agree_with_dense_grid() {
                 a[(i + 1, i)] = -im;
                 i += 2;
             } else {
-                a[(i, i)] = -10f64.powf(rng.next() * 1.5);
+                a[(i, i)] = -10f64.powf(symmetric(&mut rng) * 1.5);
                 i += 1;
             }
         }
-        let b = Mat::from_fn(n, m, |_, _| rng.next());
-        let c = Mat::from_fn(p, n, |_, _| rng.next());
-        let d = Mat::from_fn(p, m, |_, _| 0.3 * rng.next());
+        let b = Mat::from_fn(n, m, |_, _| symmetric(&mut rng));
+        let c = Mat::from_fn(p, n, |_, _| symmetric(&mut rng));
+        let d = Mat::from_fn(p, m, |_, _| 0.3 * symmetric(&mut rng));
         let sys = StateSpace::new(a, b, c, d, 0.0).unwrap();
         let r = hinf_norm(&sys).unwrap();
         let grid = logspace(1e-4, 1e4, 40_001);

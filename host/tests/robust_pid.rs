@@ -7,6 +7,7 @@ use ferrosid::robust::pid::{
     implemented_loop, tune_pid, DiscretePidState, Pid, PidTuningSpec, Rolloff,
 };
 use ferrosid::robust::uncertainty::{fit_uncertainty_weight, multiplicative_envelope};
+use ferrosid_sim::rng::Rng;
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -55,15 +56,8 @@ fn pid_transfer_function_and_discretisation() {
     assert!((kd - kc).norm() < 1e-9 * kc.norm(), "{kd} vs {kc}");
     // The firmware difference equations equal the transfer function on a random input.
     let k_ss = d.to_state_space().unwrap();
-    let mut seed = 12345u64;
-    let e: Vec<f64> = (0..2000)
-        .map(|_| {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        })
-        .collect();
+    let mut rng = Rng::new(12345);
+    let e: Vec<f64> = (0..2000).map(|_| rng.uniform() - 0.5).collect();
     let y_ref = k_ss.simulate_siso(&e, None).unwrap();
     let mut st = DiscretePidState::default();
     for (k, &ek) in e.iter().enumerate() {

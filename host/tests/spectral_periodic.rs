@@ -10,7 +10,7 @@ use spectral_support::{freqz, lfilter, Rng};
 
 /// Random-phase multisine with period `p` exciting `lines`, repeated `reps` times.
 fn multisine(p: usize, lines: &[usize], reps: usize, seed: u64) -> Vec<f64> {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let phases: Vec<f64> = lines.iter().map(|_| 2.0 * PI * rng.uniform()).collect();
     let one: Vec<f64> = (0..p)
         .map(|n| {
@@ -93,10 +93,10 @@ fn reported_variance_matches_actual_error() {
     let a = plant_a();
     let u0 = multisine(p, &lines, skip + np, 11);
     let y0 = lfilter(&B, &a, &u0);
-    let mut rng = Rng(12);
+    let mut rng = Rng::new(12);
     let (su, sy) = (0.05, 0.3);
-    let u: Vec<f64> = u0.iter().map(|v| v + su * rng.gauss()).collect();
-    let y: Vec<f64> = y0.iter().map(|v| v + sy * rng.gauss()).collect();
+    let u: Vec<f64> = u0.iter().map(|v| v + su * rng.normal()).collect();
+    let y: Vec<f64> = y0.iter().map(|v| v + sy * rng.normal()).collect();
     let r = PeriodicAveraging {
         skip_periods: skip,
         ..PeriodicAveraging::new(p)

@@ -19,7 +19,7 @@ fn first_order_plant_from_white_noise() {
     // y[n] = 0.8 y[n-1] + 0.5 u[n], fs = 1 kHz, 2^16 samples, no output noise.
     let (b, a) = ([0.5], [1.0, -0.8]);
     let fs = 1000.0;
-    let u = Rng(1).gauss_vec(1 << 16);
+    let u = Rng::new(1).noise(1 << 16, 1.0);
     let y = lfilter(&b, &a, &u);
     let e = Welch::new(1024).etfe(&u, &y, fs).unwrap();
     let mut worst = 0.0f64;
@@ -45,7 +45,7 @@ fn lightly_damped_second_order_resonance() {
     let g = a.iter().sum::<f64>();
     let b = [g];
     let fs = 1.0;
-    let u = Rng(2).gauss_vec(1 << 17);
+    let u = Rng::new(2).noise(1 << 17, 1.0);
     let y = lfilter(&b, &a, &u);
     let e = Welch::new(4096).etfe(&u, &y, fs).unwrap();
     let (mut worst, mut k_peak) = (0.0f64, 0);
@@ -87,7 +87,7 @@ fn lightly_damped_second_order_resonance() {
 #[test]
 fn pure_delay_has_negative_phase_h1_is_y_over_u() {
     // y[n] = 2 u[n-3]: H = 2 e^{-j 3 w}. Checks the csd convention conj(U)·Y.
-    let u = Rng(3).gauss_vec(20_000);
+    let u = Rng::new(3).noise(20_000, 1.0);
     let mut y = vec![0.0; u.len()];
     for n in 3..u.len() {
         y[n] = 2.0 * u[n - 3];
@@ -118,11 +118,11 @@ fn coherence_with_output_noise_matches_theory() {
     // White u (variance 1) through H, white output noise variance s2: gamma^2 = |H|^2 / (|H|^2 + s2).
     let (b, a) = ([0.3, 0.3], [1.0, -0.5]);
     let s2: f64 = 0.25;
-    let mut rng = Rng(4);
-    let u = rng.gauss_vec(1 << 17);
+    let mut rng = Rng::new(4);
+    let u = rng.noise(1 << 17, 1.0);
     let mut y = lfilter(&b, &a, &u);
     for v in &mut y {
-        *v += s2.sqrt() * rng.gauss();
+        *v += s2.sqrt() * rng.normal();
     }
     let e = Welch::new(512).etfe(&u, &y, 1.0).unwrap();
     // Random error of the coherence estimate (Bendat & Piersol): std ~ sqrt(2) g (1 - g) /
@@ -178,11 +178,11 @@ fn gate_excludes_the_notch_band_only() {
     let f0 = 0.2;
     let c = (2.0 * PI * f0).cos();
     let b = [1.0, -2.0 * c, 1.0];
-    let mut rng = Rng(5);
-    let u = rng.gauss_vec(1 << 16);
+    let mut rng = Rng::new(5);
+    let u = rng.noise(1 << 16, 1.0);
     let mut y = lfilter(&b, &[1.0], &u);
     for v in &mut y {
-        *v += 0.05 * rng.gauss();
+        *v += 0.05 * rng.normal();
     }
     let e = Welch::new(256).etfe(&u, &y, 1.0).unwrap();
     let gate = e.gate(ferrosid::spectral::DEFAULT_COHERENCE_THRESHOLD);
@@ -209,7 +209,7 @@ fn gate_excludes_the_notch_band_only() {
 
 #[test]
 fn bad_inputs_are_errors() {
-    let u: Vec<f64> = Rng(6).gauss_vec(1000);
+    let u: Vec<f64> = Rng::new(6).noise(1000, 1.0);
     let y = u.clone();
     let inv = |r: Result<ferrosid::spectral::Etfe, Error>| match r {
         Err(Error::InvalidArgument(m)) => m,
@@ -273,7 +273,7 @@ fn gate_rejects_bins_without_input_power_despite_coherence() {
     // S_uu is round-off and the coherence can be close to 1, but the bin must not pass.
     let n = 256;
     let (p, reps) = (n, 64);
-    let mut rng = Rng(9);
+    let mut rng = Rng::new(9);
     let lines: Vec<usize> = (4..120).step_by(4).collect();
     let ph: Vec<f64> = lines.iter().map(|_| 2.0 * PI * rng.uniform()).collect();
     let one: Vec<f64> = (0..p)

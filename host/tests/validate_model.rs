@@ -26,7 +26,7 @@ fn fit_of_a_half_gain_model_is_fifty_percent() {
 #[test]
 fn true_model_fits_perfectly_with_estimated_initial_state() {
     let plant = third_order_plant(1e-3);
-    let mut rng = Rng(1);
+    let mut rng = Rng::new(1);
     let u = rng.binary(3000);
     let y = plant.simulate_siso(&u, Some(&[1.0, -0.5, 0.25])).unwrap();
     let fit = simulation_fit(&plant, &[&u], &[&y], InitialState::Estimate).unwrap();
@@ -134,7 +134,7 @@ fn etfe_comparison_bad_inputs() {
 #[test]
 fn residual_tests_pass_for_the_true_model_and_fail_for_a_wrong_one() {
     let plant = third_order_plant(1e-3);
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     let n = 20_000;
     let u = rng.binary(n);
     let y0 = plant.simulate_siso(&u, None).unwrap();
@@ -169,7 +169,7 @@ fn one_step_predictor_residual_is_white_for_the_innovation_model() {
     )
     .unwrap();
     let k = mat(&[&[0.7]]);
-    let mut rng = Rng(4);
+    let mut rng = Rng::new(4);
     let n = 20_000;
     let u = rng.binary(n);
     let e = rng.noise(n, 0.5);

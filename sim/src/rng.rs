@@ -1,11 +1,14 @@
-//! Seeded pseudo-random numbers for the benchmark simulator: SplitMix64 (Steele, Lea & Flood
-//! 2014) for uniforms, Box–Muller for normals. Deterministic across platforms and crate
-//! versions, so the same seed always gives the same logs.
+//! Seeded pseudo-random numbers for the benchmark simulator, the tests, benchmarks and example
+//! generators: the firmware's SplitMix64 (Steele, Lea & Flood 2014; `ferrosid_firmware::rng`,
+//! the workspace's one generator) for bits and uniforms, Box–Muller for normals. Deterministic
+//! across platforms and crate versions, so the same seed always gives the same logs.
 
-/// SplitMix64 generator.
+pub use ferrosid_firmware::rng::SplitMix64;
+
+/// SplitMix64 bits with uniform and normal draws.
 #[derive(Debug, Clone)]
 pub struct Rng {
-    state: u64,
+    bits: SplitMix64,
     spare: Option<f64>,
 }
 
@@ -13,21 +16,17 @@ impl Rng {
     /// Generator from a seed.
     pub fn new(seed: u64) -> Self {
         Self {
-            state: seed,
+            bits: SplitMix64::new(seed),
             spare: None,
         }
     }
     /// Next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.bits.next_u64()
     }
     /// Uniform in [0, 1) with 53 random bits.
     pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+        self.bits.next_f64()
     }
     /// Standard normal.
     pub fn normal(&mut self) -> f64 {
@@ -40,5 +39,15 @@ impl Rng {
         let t = 2.0 * std::f64::consts::PI * u2;
         self.spare = Some(r * t.sin());
         r * t.cos()
+    }
+    /// `n` samples of white Gaussian noise of standard deviation `std`.
+    pub fn noise(&mut self, n: usize, std: f64) -> Vec<f64> {
+        (0..n).map(|_| std * self.normal()).collect()
+    }
+    /// `n` random ±1 values (a white binary signal, one bit of [`Self::next_u64`] each).
+    pub fn binary(&mut self, n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|_| if self.next_u64() & 1 == 1 { 1.0 } else { -1.0 })
+            .collect()
     }
 }

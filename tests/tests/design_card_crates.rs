@@ -213,20 +213,8 @@ fn model_evaluation_code_size() {
 #[path = "../qemu/src/eval_alt.rs"]
 mod eval_alt;
 
-/// xorshift64 uniform in [0, 1) and a Box–Muller normal (deterministic test data).
-struct Rng(u64);
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let u = self.uniform().max(1e-300);
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * self.uniform()).cos()
-    }
-}
+/// The workspace's seeded generator (uniform in [0, 1), Box–Muller normals).
+use ferrosid_sim::rng::Rng;
 
 /// `x = M⁻¹ r` in complex f64 (Gaussian elimination, partial pivoting): the reference.
 fn solve_f64(
@@ -369,7 +357,7 @@ fn model_evaluation_errors_agree_on_random_models() {
         v.sort_by(f64::total_cmp);
         v[((v.len() - 1) as f64 * q) as usize]
     }
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut rng = Rng::new(0x9E37_79B9_7F4A_7C15);
     println!("| states | median error hand | nalgebra | 95th pct hand | nalgebra | median ratio |");
     let check = |ns: usize, (mut r, mut h, mut n): (Vec<f64>, Vec<f64>, Vec<f64>)| {
         let (mr, mh, mn, ph, pn) = (

@@ -5,31 +5,23 @@
 //! mean over segments starting at 0, hop, 2·hop, … while a full segment fits.
 #![allow(dead_code)]
 
+use ferrosid_firmware::rng::SplitMix64;
 use rustfft::num_complex::Complex64;
 use rustfft::FftPlanner;
 
-/// xorshift64* (Vigna): seeded, reproducible.
-pub struct XorShift(u64);
+/// Seeded Gaussian noise from the firmware's SplitMix64 (`ferrosid_firmware::rng`, the
+/// workspace's one generator). Not `ferrosid_sim::rng::Rng`: that dev crate depends on the host
+/// library, which these no_std-crate tests do not build.
+pub struct Noise(SplitMix64);
 
-impl XorShift {
+impl Noise {
     pub fn new(seed: u64) -> Self {
-        Self(seed.max(1))
+        Self(SplitMix64::new(seed))
     }
-    pub fn next_u64(&mut self) -> u64 {
-        let mut x = self.0;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.0 = x;
-        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    /// Uniform in (0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    /// Standard normal (Box–Muller).
+    /// Standard normal (Box–Muller, one draw per call).
     pub fn gauss(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
+        let a = 1.0 - self.0.next_f64(); // (0, 1]
+        let b = self.0.next_f64();
         (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
     }
     pub fn gauss_vec(&mut self, n: usize) -> Vec<f64> {

@@ -1567,13 +1567,8 @@ mod tests {
         .map(|s| s.to_string())
         .collect();
         // Halfway points between neighbouring doubles, printed with 40 digits, and just off.
-        let mut s = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        };
+        let mut rng = ferrosid_firmware::rng::SplitMix64::new(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.next_u64();
         for _ in 0..2000 {
             let x = f64::from_bits(next() >> 2);
             if x.is_finite() && x > 0.0 {

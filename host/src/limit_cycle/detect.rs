@@ -224,15 +224,8 @@ mod tests {
         let mut settled: Vec<f64> = (0..20000).map(|k| (0.01 * k as f64).sin()).collect();
         settled[10000..].iter_mut().for_each(|v| *v = 0.25);
         assert!(detect(&settled, ts, &DetectOptions::default()).is_none());
-        let mut s = 12345u64;
-        let noise: Vec<f64> = (0..20000)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-            .collect();
+        let mut rng = ferrosid_firmware::rng::SplitMix64::new(12345);
+        let noise: Vec<f64> = (0..20000).map(|_| rng.next_f64() - 0.5).collect();
         assert!(detect(&noise, ts, &DetectOptions::default()).is_none());
         assert!(detect(&[1.0, f64::NAN], ts, &DetectOptions::default()).is_none());
         assert!(detect(&[], ts, &DetectOptions::default()).is_none());

@@ -257,18 +257,9 @@ mod tests {
     #[test]
     fn fixed_siso_path_equals_general_loop_bit_for_bit() {
         let len = 5000;
-        let mut s = 12345u64;
+        let mut rng = ferrosid_firmware::rng::SplitMix64::new(12345);
         let u: Vec<f64> = (0..len)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                if s >> 63 == 1 {
-                    1.0
-                } else {
-                    -0.7
-                }
-            })
+            .map(|_| if rng.next_u64() >> 63 == 1 { 1.0 } else { -0.7 })
             .collect();
         for n in 1..=8usize {
             // Block-diagonal-ish A: a rotation 0.98·R(0.3) then decaying real poles, with
@@ -321,13 +312,8 @@ mod tests {
     #[test]
     fn fixed_two_input_path_equals_general_loop_bit_for_bit() {
         let len = 5000;
-        let mut s = 99u64;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = ferrosid_firmware::rng::SplitMix64::new(99);
+        let mut next = || rng.next_f64() - 0.5;
         let u0: Vec<f64> = (0..len).map(|_| next()).collect();
         let u1: Vec<f64> = (0..len).map(|_| next()).collect();
         for n in 1..=8usize {

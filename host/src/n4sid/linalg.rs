@@ -301,36 +301,12 @@ pub(super) fn tall_lstsq(a: &[&[f64]], y: &[f64], what: &str) -> Result<(Mat<f64
     Ok((theta, r11))
 }
 
-/// Uniform numbers in [0, 1) from a 64-bit LCG (Knuth's MMIX constants, the top 53 bits),
-/// deterministic for the tests' noise and data.
+/// Uniform numbers in [0, 1) from the workspace's one generator (the firmware's SplitMix64,
+/// `ferrosid_firmware::rng`, a dev-dependency), deterministic for the tests' noise and data.
 #[cfg(test)]
 pub(crate) fn test_uniform(seed: u64) -> impl FnMut() -> f64 {
-    let mut s = seed;
-    move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// xorshift64 (13, 7, 17): the seeded values of the bit-for-bit kernel tests (n4sid, validate).
-#[cfg(test)]
-pub(crate) struct XorShift(pub u64);
-
-#[cfg(test)]
-impl XorShift {
-    /// Next state.
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    /// Uniform in [−0.5, 0.5).
-    pub(crate) fn centred(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    }
+    let mut rng = ferrosid_firmware::rng::SplitMix64::new(seed);
+    move || rng.next_f64()
 }
 
 #[cfg(test)]
@@ -341,7 +317,7 @@ mod tests {
     /// lane count and long ones, values of mixed sign and scale.
     #[test]
     fn dot_paths_agree_bit_for_bit() {
-        let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
+        let mut rng = ferrosid_firmware::rng::SplitMix64::new(0x9e37_79b9_7f4a_7c15);
         let mut next = || {
             let s = rng.next_u64();
             ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((s % 7) as i32 - 3)

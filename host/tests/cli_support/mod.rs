@@ -53,7 +53,7 @@ pub fn write_csv(path: &Path, ts: f64, u: &[f64], y: &[f64]) {
 }
 
 #[allow(unused_imports)] // not every test that declares this module draws noise
-pub use crate::splitmix::Rng;
+pub use ferrosid_sim::rng::Rng;
 
 /// Row-major real matrix from JSON rows.
 pub fn rows(v: &serde_json::Value) -> Vec<Vec<f64>> {

@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 #[allow(unused_imports)] // not every test that declares this module draws noise
-pub use crate::splitmix::Rng;
+pub use ferrosid_sim::rng::Rng;
 
 pub fn std_dev(x: &[f64]) -> f64 {
     let m = x.iter().sum::<f64>() / x.len() as f64;

@@ -48,28 +48,9 @@ pub fn plant_discrete() -> StateSpace {
         .expect("test plant discretisation")
 }
 
-/// xorshift64* with Box–Muller normals: deterministic, independent of the library's RNG.
-pub struct Rng(u64);
-
-impl Rng {
-    /// Seeded generator.
-    pub fn new(seed: u64) -> Self {
-        Self(seed.max(1))
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Standard normal.
-    pub fn normal(&mut self) -> f64 {
-        let u1 = 1.0 - self.uniform();
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
-    }
-}
+/// The workspace's seeded generator (`ferrosid_sim::rng`: the firmware's SplitMix64, Box–Muller
+/// normals).
+pub use ferrosid_sim::rng::Rng;
 
 /// `periods` periods of a random-phase multisine on the 2 Hz lines 2..=200 Hz, RMS `rms`.
 pub fn multisine(periods: usize, rms: f64, rng: &mut Rng) -> Vec<f64> {

@@ -5,11 +5,14 @@
 //! * [`Dft`]: direct O(N²) discrete Fourier transform with a `libm` twiddle table.
 //! * [`welch_reference`]: Welch auto/cross spectra with scipy's conventions (periodic Hann from
 //!   `libm::cos`, constant detrend, density scaling, one-sided doubling), built on [`Dft`].
-//! * [`XorShift32`]: Marsaglia's xorshift32 noise source (not the firmware's SplitMix64).
+//! * [`UniformNoise`]: uniform white test signals from the firmware's SplitMix64 (the
+//!   workspace's one generator; the signals are inputs, not the code under test).
 //! * [`FirstOrderLag`], [`SecondOrderMode`]: discrete plants simulated in `f64`, with their
 //!   analytic frequency responses.
 
 use core::f64::consts::PI;
+
+use ferrosid_firmware::rng::SplitMix64;
 
 /// Complex number `(re, im)`.
 pub type C64 = (f64, f64);
@@ -46,28 +49,18 @@ pub fn wrap_pi(mut a: f64) -> f64 {
     a
 }
 
-/// Marsaglia's xorshift32 (13, 17, 5): uniform samples for white test signals.
-pub struct XorShift32(u32);
+/// Uniform white test signals in `[-1, 1)` (variance 1/3) from the firmware's SplitMix64.
+pub struct UniformNoise(SplitMix64);
 
-impl XorShift32 {
-    /// Seeded generator (seed 0 is replaced by 1: the all-zero state is a fixed point).
+impl UniformNoise {
+    /// Seeded generator (any seed).
     pub fn new(seed: u32) -> Self {
-        XorShift32(if seed == 0 { 1 } else { seed })
+        UniformNoise(SplitMix64::new(u64::from(seed)))
     }
 
-    /// Next raw state.
-    pub fn next_u32(&mut self) -> u32 {
-        let mut x = self.0;
-        x ^= x << 13;
-        x ^= x >> 17;
-        x ^= x << 5;
-        self.0 = x;
-        x
-    }
-
-    /// Uniform in `[-1, 1)` (variance 1/3).
+    /// Uniform in `[-1, 1)`.
     pub fn uniform(&mut self) -> f64 {
-        (self.next_u32() as f64) * (2.0 / 4_294_967_296.0) - 1.0
+        2.0 * self.0.next_f64() - 1.0
     }
 }
 

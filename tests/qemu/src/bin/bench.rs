@@ -22,7 +22,7 @@ use ferrosid_firmware::excitation::{
     Chirp, ChirpConfig, ChirpLaw, Line, Multisine, MultisineScratch, MultisineSpec, Phases, Prbs,
 };
 use ferrosid_firmware::{Excitation, Welch, WelchConfig, Window};
-use ferrosid_qemu::reference::XorShift32;
+use ferrosid_qemu::reference::UniformNoise;
 use ferrosid_qemu::{exit, InstructionCounter, EXIT_FAILURE, EXIT_SUCCESS};
 
 /// Input record replayed cyclically (power of two).
@@ -108,7 +108,7 @@ fn main() -> ! {
     ) else {
         exit(EXIT_FAILURE)
     };
-    let mut rng = XorShift32::new(2024);
+    let mut rng = UniformNoise::new(2024);
     let mut lag = 0.0f32;
     for (ui, yi) in u.iter_mut().zip(y.iter_mut()) {
         *ui = rng.uniform() as f32;

@@ -25,7 +25,7 @@ use ferrosid_firmware::excitation::{
 use ferrosid_firmware::{Error, Excitation, Welch, WelchConfig, Window};
 use ferrosid_qemu::reference::{
     cabs, cdiv, welch_reference, wrap_pi, Dft, FirstOrderLag, RefSpectra, RefWindow,
-    SecondOrderMode, XorShift32,
+    SecondOrderMode, UniformNoise,
 };
 use ferrosid_qemu::{exit, EXIT_FAILURE, EXIT_SUCCESS};
 
@@ -493,7 +493,7 @@ fn multisine_crest_beats_schroeder() -> Outcome {
 /// Fills `u` with `0.5 + uniform` white noise and `y` with a first-order lag of it plus 0.1
 /// uniform noise (seeded).
 fn noisy_lag_record(u: &mut [f32], y: &mut [f32], seed: u32) {
-    let mut rng = XorShift32::new(seed);
+    let mut rng = UniformNoise::new(seed);
     let mut plant = FirstOrderLag::new(0.8);
     for (ui, yi) in u.iter_mut().zip(y.iter_mut()) {
         let x = 0.5 + rng.uniform();
@@ -568,7 +568,7 @@ fn welch_matches_direct_dft(w: &mut Welch<256>, u: &mut [f32], y: &mut [f32]) ->
 
 /// Fills `u` with white uniform noise and `y` with `plant(u)`.
 fn plant_record(u: &mut [f32], y: &mut [f32], seed: u32, mut plant: impl FnMut(f64) -> f64) {
-    let mut rng = XorShift32::new(seed);
+    let mut rng = UniformNoise::new(seed);
     for (ui, yi) in u.iter_mut().zip(y.iter_mut()) {
         let x = rng.uniform();
         *ui = x as f32;
@@ -753,7 +753,7 @@ fn welch_h1_periodic_exact(w: &mut Welch<256>, inject: bool) -> Outcome {
 fn coherence_statistics(w: &mut Welch<256>, u: &mut [f32], y: &mut [f32]) -> Outcome {
     let mut o = Outcome::new();
     let len = 256 + 63 * 128;
-    let mut rng = XorShift32::new(31337);
+    let mut rng = UniformNoise::new(31337);
     for (ui, yi) in u[..len].iter_mut().zip(y[..len].iter_mut()) {
         *ui = rng.uniform() as f32;
         *yi = rng.uniform() as f32;
