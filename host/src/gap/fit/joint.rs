@@ -104,6 +104,14 @@ pub(super) fn is_free(kind: EffectKind) -> bool {
     kind != EffectKind::Quantization
 }
 
+/// [`joint_fit`] from `start`, kept only when it lowers the training cost (else `start`).
+pub fn refined(td: &TrainData, start: Fitted, max_iter: usize) -> Fitted {
+    match joint_fit(td, &start, max_iter) {
+        Some(j) if j.train_cost < start.train_cost => j,
+        _ => start,
+    }
+}
+
 /// Stage 2 of [`fit_placed`]: Levenberg–Marquardt on the simulated error over all parameters
 /// at once, from `start`. When the linear part's input does not depend on the model (effects
 /// in the drive, quantization at the sensor), the coordinates are the pole parameters and the

@@ -35,7 +35,7 @@ mod tests;
 
 pub(crate) use eval::keep_best;
 pub use eval::{eval_model, Fitted, TrainData};
-pub use joint::joint_fit;
+pub use joint::{joint_fit, refined};
 pub(crate) use joint::{stiction_coords, stiction_from_coords};
 pub use model::{input_transform, sensor_transform, AugmentedModel, VelocitySource};
 pub use placed::{fit_candidate, fit_placed, null_effect, FitHints, GRID_STARTS};

@@ -1,7 +1,7 @@
 //! One candidate effect at its place, fitted end to end ([`fit_placed`]): grid, screening,
 //! joint refinement, and the null guard that keeps a candidate from ending worse than its base.
 use super::eval::{eval_added, eval_model, keep_best, Fitted, TrainData};
-use super::joint::{effect_to_coords, joint_fit};
+use super::joint::{effect_to_coords, refined};
 use super::model::AugmentedModel;
 use super::resonance::relabel_resonance;
 use super::search::initial_search;
@@ -59,7 +59,7 @@ pub fn fit_candidate(
 /// poles and the base's effects fixed; the [`GRID_STARTS`] best grid points of distinct
 /// parameter values are screened by a joint refinement on the coarse data (the fixed-pole cost
 /// misleads when the base's poles are off); stage 2 refines the winner jointly by
-/// Levenberg–Marquardt on all the data ([`joint_fit`]). Stiction starts from the Coulomb fit
+/// Levenberg–Marquardt on all the data ([`super::joint_fit`]). Stiction starts from the Coulomb fit
 /// (`coulomb`, or fitted here) with the breakaway ratio scanned (and seeded by
 /// `hints.breakaway`); quantization takes its step from `hints.lattice_step`.
 ///
@@ -154,11 +154,7 @@ pub fn fit_placed(
             }
             let mut best: Option<Fitted> = None;
             for p in picked {
-                let refined = match joint_fit(&coarse, &p, SCREEN_MAX_ITER) {
-                    Some(j) if j.train_cost < p.train_cost => j,
-                    _ => p,
-                };
-                keep_best(&mut best, Some(refined));
+                keep_best(&mut best, Some(refined(&coarse, p, SCREEN_MAX_ITER)));
             }
             eval_model(td, best?.model, FRICTION_SUBSTEPS)?
         }
@@ -169,10 +165,7 @@ pub fn fit_placed(
         (_, EffectKind::Resonance) => 2 * JOINT_MAX_ITER,
         _ => JOINT_MAX_ITER,
     };
-    let fitted = match joint_fit(td, &start, iters) {
-        Some(j) if j.train_cost < start.train_cost => j,
-        _ => start,
-    };
+    let fitted = refined(td, start, iters);
     let fitted = if kind == EffectKind::Resonance && base0.effect.is_none() {
         relabel_resonance(td, fitted, sim_poles)
     } else if kind.is_state_clamp() {

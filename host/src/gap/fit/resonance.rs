@@ -1,7 +1,7 @@
 //! The added mode (`resonance`): its frequency grid from the residual spectrum, and the
 //! labelling that keeps the linear part closest to the nominal sim.
 use super::eval::{eval_fixed_poles, log_grid, Fitted, TrainData};
-use super::joint::joint_fit;
+use super::joint::refined;
 use super::model::{AugmentedModel, VelocitySource};
 use super::{
     resonance_range_hz, COARSE_SAMPLES, JOINT_MAX_ITER, MAX_RESONANCE_DAMPING,
@@ -85,10 +85,7 @@ pub(super) fn relabel_resonance(td: &TrainData, fitted: Fitted, sim_poles: &[Com
         let Some(start) = eval_fixed_poles(td, &swapped, effect, VelocitySource::Output) else {
             continue;
         };
-        let cand = match joint_fit(td, &start, JOINT_MAX_ITER) {
-            Some(j) if j.train_cost < start.train_cost => j,
-            _ => start,
-        };
+        let cand = refined(td, start, JOINT_MAX_ITER);
         if cand.train_cost > fitted.train_cost * (1.0 + RELABEL_COST_TOL) {
             continue;
         }

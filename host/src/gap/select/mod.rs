@@ -31,8 +31,8 @@
 use super::drift::validation_nrmse;
 use super::effect::{Effect, EffectKind};
 use super::fit::{
-    eval_model, fit_placed, joint_fit, AugmentedModel, FitHints, Fitted, TrainData, VelocitySource,
-    FRICTION_SUBSTEPS, JOINT_MAX_ITER,
+    eval_model, fit_placed, joint_fit, refined, AugmentedModel, FitHints, Fitted, TrainData,
+    VelocitySource, FRICTION_SUBSTEPS, JOINT_MAX_ITER,
 };
 use super::modal::ModalModel;
 use super::place::{Candidate, Place, PlacedEffect};
@@ -759,11 +759,7 @@ impl PairContext<'_> {
             // narrow in the gap and the first stops short when the drive effect moves too).
             let t0 = profile_seconds();
             let fc = match fc {
-                Some(f) if c.place.needs_two_mass() => match joint_fit(self.td, &f, JOINT_MAX_ITER)
-                {
-                    Some(j) if j.train_cost < f.train_cost => Some(j),
-                    _ => Some(f),
-                },
+                Some(f) if c.place.needs_two_mass() => Some(refined(self.td, f, JOINT_MAX_ITER)),
                 other => other,
             };
             if c.place.needs_two_mass() {

@@ -5,7 +5,7 @@ use super::{dwell_evidence, score, DwellEvidence, PairContext, Scored};
 use crate::gap::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD};
 use crate::gap::effect::{Effect, EffectKind};
 use crate::gap::fit::{
-    eval_model, fit_placed, joint_fit, AugmentedModel, Fitted, TrainData, FRICTION_SUBSTEPS,
+    eval_model, fit_placed, refined, AugmentedModel, Fitted, TrainData, FRICTION_SUBSTEPS,
     JOINT_MAX_ITER,
 };
 use crate::gap::place::{Candidate, Place, PlacedEffect};
@@ -225,10 +225,7 @@ fn coulomb_variant(td: &TrainData, pair: &Scored, fp: PlacedEffect, level: f64) 
     let mut m = pair.model.clone();
     m.set_effects_in_selection_order(&list);
     let f = eval_model(td, m, FRICTION_SUBSTEPS)?;
-    match joint_fit(td, &f, JOINT_MAX_ITER) {
-        Some(j) if j.train_cost < f.train_cost => Some(j),
-        _ => Some(f),
-    }
+    Some(refined(td, f, JOINT_MAX_ITER))
 }
 
 #[cfg(test)]

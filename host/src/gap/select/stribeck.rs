@@ -20,7 +20,7 @@ use super::{score, Scored, Val};
 use crate::gap::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD, NESTED_LR_THRESHOLD_2};
 use crate::gap::effect::{Effect, EffectKind};
 use crate::gap::fit::{
-    joint_fit, keep_best, AugmentedModel, Fitted, TrainData, VelocitySource, COARSE_SAMPLES,
+    keep_best, refined, AugmentedModel, Fitted, TrainData, VelocitySource, COARSE_SAMPLES,
     JOINT_MAX_ITER,
 };
 
@@ -111,10 +111,7 @@ pub(super) fn stribeck_variant(
     }
     let start = best?;
     screen(td, &from.model, &start, idx, threshold)?;
-    let fitted = match joint_fit(td, &start, JOINT_MAX_ITER) {
-        Some(j) if j.train_cost < start.train_cost => j,
-        _ => start,
-    };
+    let fitted = refined(td, start, JOINT_MAX_ITER);
     if !stick_band(&fitted.model, idx) {
         return None;
     }
@@ -131,16 +128,12 @@ pub(super) fn stribeck_variant(
     (lr > threshold && v.gap <= from.gap * (1.0 + EVIDENCE_TOLERANCE)).then_some((v, lr))
 }
 
-/// Share of the likelihood-ratio threshold, per share of the scored samples, the variant must
-/// reach on the coarse data to be refined on all of it ([`screen`]).
-pub const SCREEN_SHARE: f64 = 1.0;
-
 /// The coarse screen of [`stribeck_variant`]: the variant refined from `start` on the first
 /// [`COARSE_SAMPLES`] scored samples of each training log, its stick band and its likelihood
 /// ratio there over `from` (as fitted on all the data, so the screen leans towards the
 /// variant). A variant the logs ask for gains in proportion to the samples, so on a quarter of
-/// them it reaches about a quarter of its full ratio; one below [`SCREEN_SHARE`] times
-/// `threshold` times the coarse share of the samples, or without a stick band there, is dropped
+/// them it reaches about a quarter of its full ratio; one below `threshold` times the coarse
+/// share of the samples, or without a stick band there, is dropped
 /// before the full refinement, which costs four times more.
 /// `Some(())` lets the variant through (also when the logs are no longer than the coarse copy:
 /// the screen would be the fit itself).
@@ -161,10 +154,7 @@ fn screen(
         train_cost: start.model.cost(&coarse.base, &coarse.u),
         model: start.model.clone(),
     };
-    let fitted = match joint_fit(&coarse, &start_c, JOINT_MAX_ITER) {
-        Some(j) if j.train_cost < start_c.train_cost => j,
-        _ => start_c,
-    };
+    let fitted = refined(&coarse, start_c, JOINT_MAX_ITER);
     let lr = nested_likelihood_ratio(
         from,
         &fitted.model,
@@ -174,7 +164,7 @@ fn screen(
         coarse.base.drift_window,
     )
     .ok()?;
-    (stick_band(&fitted.model, idx) && lr >= SCREEN_SHARE * threshold * share).then_some(())
+    (stick_band(&fitted.model, idx) && lr >= threshold * share).then_some(())
 }
 
 /// Whether the effect at `idx` of `model` is friction on a Stribeck curve with a stick band
