@@ -38,7 +38,7 @@ pub use eval::{eval_model, Fitted, TrainData};
 pub use joint::{joint_fit, refined};
 pub(crate) use joint::{stiction_coords, stiction_from_coords};
 pub use model::{input_transform, sensor_transform, AugmentedModel, VelocitySource};
-pub use placed::{fit_candidate, fit_placed, null_effect, FitHints, GRID_STARTS};
+pub use placed::{fit_candidate, fit_placed, null_effect, FitHints, GRID_STARTS, SCREEN_MIN_GAIN};
 pub use resonance::RELABEL_COST_TOL;
 
 use crate::gap::select::lattice_evidence;

@@ -21,6 +21,10 @@ pub struct FitHints {
     pub lattice_step: Option<f64>,
     /// Breakaway level (input units) from dwells at zero velocity.
     pub breakaway: Option<f64>,
+    /// Training cost (all the data) of the model the candidate must improve on: the linear
+    /// re-fit for a single, the first effect's model for a pair. A drivetrain fit that does not
+    /// lower it by [`SCREEN_MIN_GAIN`] after its coarse search is not refined.
+    pub to_beat: Option<f64>,
 }
 
 /// Fits one candidate effect (at its default place) to the training data. `starts` are linear
@@ -40,6 +44,7 @@ pub fn fit_candidate(
     let hints = FitHints {
         lattice_step: lattice_step(&td.base.y),
         breakaway: None,
+        to_beat: None,
     };
     fit_placed(
         Candidate::new(kind, default_place(kind)),
@@ -77,6 +82,8 @@ pub fn fit_placed(
 ) -> Option<Fitted> {
     let kind = cand.kind;
     let base0 = bases.first()?;
+    // Whether the start earns the joint refinement on all the data (see [`promising`]).
+    let mut refine = true;
     let start = match kind {
         EffectKind::Stiction => {
             let own;
@@ -113,6 +120,7 @@ pub fn fit_placed(
                 bases,
                 COARSE_SAMPLES,
                 JOINT_MAX_ITER,
+                hints.to_beat,
             )?;
             return Some(null_guard(td, cand, base0, f));
         }
@@ -156,7 +164,9 @@ pub fn fit_placed(
             for p in picked {
                 keep_best(&mut best, Some(refined(&coarse, p, SCREEN_MAX_ITER)));
             }
-            eval_model(td, best?.model, FRICTION_SUBSTEPS)?
+            let best = best?;
+            refine = promising(&coarse, base0, best.train_cost);
+            eval_model(td, best.model, FRICTION_SUBSTEPS)?
         }
     };
     let iters = match (cand.place, kind) {
@@ -165,8 +175,12 @@ pub fn fit_placed(
         (_, EffectKind::Resonance) => 2 * JOINT_MAX_ITER,
         _ => JOINT_MAX_ITER,
     };
-    let fitted = refined(td, start, iters);
-    let fitted = if kind == EffectKind::Resonance && base0.effect.is_none() {
+    let fitted = if refine {
+        refined(td, start, iters)
+    } else {
+        start
+    };
+    let fitted = if kind == EffectKind::Resonance && base0.effect.is_none() && refine {
         relabel_resonance(td, fitted, sim_poles)
     } else if kind.is_state_clamp() {
         // Scored by its free run (the guard below compares like with like).
@@ -258,6 +272,22 @@ pub(super) fn null_guard(
     } else {
         fitted
     }
+}
+
+/// Smallest relative drop of the coarse training cost below the base's for a candidate to earn
+/// its joint refinement on all the data. A candidate is worth selecting only when it lowers the
+/// validation NRMSE by half the selection margin (5 %, a cost drop near 10 %); one that does not
+/// lower the cost of the coarse data (the first [`COARSE_SAMPLES`] scored samples of every log)
+/// by a tenth of that after its screening refinement is kept as screened, evaluated on all the
+/// data (and null-guarded like any other fit).
+pub const SCREEN_MIN_GAIN: f64 = 0.01;
+
+/// Whether a candidate whose screened fit costs `screened` on `coarse` lowers the cost of
+/// `base` (its residues, feedthrough and offset re-fitted on the same data) by at least
+/// [`SCREEN_MIN_GAIN`]; `true` when the base cannot be evaluated.
+fn promising(coarse: &TrainData, base: &AugmentedModel, screened: f64) -> bool {
+    eval_model(coarse, base.clone(), FRICTION_SUBSTEPS)
+        .is_none_or(|b| screened < (1.0 - SCREEN_MIN_GAIN) * b.train_cost)
 }
 
 /// Grid points screened by a coarse joint refinement in [`fit_placed`] (the best of

@@ -32,7 +32,7 @@ use super::drift::validation_nrmse;
 use super::effect::{Effect, EffectKind};
 use super::fit::{
     eval_model, fit_placed, joint_fit, refined, AugmentedModel, FitHints, Fitted, TrainData,
-    VelocitySource, FRICTION_SUBSTEPS, JOINT_MAX_ITER,
+    VelocitySource, FRICTION_SUBSTEPS, JOINT_MAX_ITER, SCREEN_MIN_GAIN,
 };
 use super::modal::ModalModel;
 use super::place::{Candidate, Place, PlacedEffect};
@@ -294,6 +294,7 @@ pub fn select_effects(
     let hints = FitHints {
         lattice_step: lattice.map(|l| l.step),
         breakaway: dwell.as_ref().map(|d| d.breakaway),
+        to_beat: Some(linear.cost(&td.base, &td.u)),
     };
     let bases = bases_of(starts, structure);
     let cands = if opts.candidates.is_empty() {
@@ -369,6 +370,7 @@ pub fn select_effects(
             gap_linear,
             opts,
             velocity: vel,
+            structure_base: bases.iter().find(|b| b.two_mass.is_some()),
         };
         let (first, tried, chosen) = ctx.select(first, tentative, dwell.as_ref(), &mut notes);
         selected_models[0] = first;
@@ -561,6 +563,8 @@ struct PairContext<'a> {
     opts: &'a SelectOptions,
     /// The velocity the dwell evidence reads (output or its derivative).
     velocity: VelocitySource,
+    /// The nominal's two-mass plant (offset from the linear re-fit), when it has one.
+    structure_base: Option<&'a AugmentedModel>,
 }
 
 impl PairContext<'_> {
@@ -719,16 +723,18 @@ impl PairContext<'_> {
 
     /// The model partner `c` is fitted on: `first`'s; for a partner inside the two-mass
     /// structure (drivetrain, load) on a `first` fitted on the modal linear part, the
-    /// structure's two-mass plant (as the best single inside it fitted it) carrying `first`'s
-    /// effects — a modal linear part refined around a drive effect need not convert back to a
-    /// two-mass plant, and the pair must be one model.
+    /// structure's two-mass plant (as the best single inside it fitted it, else the nominal's)
+    /// carrying `first`'s effects — a modal linear part refined around a drive effect need not
+    /// convert back to a two-mass plant, and the pair must be one model.
     fn base_for(&self, first: &Scored, c: Candidate) -> Option<AugmentedModel> {
         let base = &first.model;
         if !c.place.needs_two_mass() || base.two_mass.is_some() {
             return Some(base.clone());
         }
-        let s = self.singles.iter().find(|s| s.model.two_mass.is_some())?;
-        let mut m = s.model.clone();
+        let mut m = match self.singles.iter().find(|s| s.model.two_mass.is_some()) {
+            Some(s) => s.model.clone(),
+            None => self.structure_base?.clone(),
+        };
         m.effect = None;
         m.place = Place::Drive;
         m.extra.clear();
@@ -746,20 +752,31 @@ impl PairContext<'_> {
                 continue;
             };
             let t0 = profile_seconds();
+            let hints = FitHints {
+                to_beat: Some(first.train_cost),
+                ..*self.hints
+            };
             let fc = fit_placed(
                 c,
                 self.td,
                 std::slice::from_ref(&base),
                 None,
                 self.sim_poles,
-                self.hints,
+                &hints,
             );
             profile_since(&format!("pair + {c}"), t0);
             // A pair inside the two-mass structure: a second joint refinement (its cost is
-            // narrow in the gap and the first stops short when the drive effect moves too).
+            // narrow in the gap and the first stops short when the drive effect moves too),
+            // when the first brought it a gain on `first` worth refining (see
+            // [`SCREEN_MIN_GAIN`]).
             let t0 = profile_seconds();
             let fc = match fc {
-                Some(f) if c.place.needs_two_mass() => Some(refined(self.td, f, JOINT_MAX_ITER)),
+                Some(f)
+                    if c.place.needs_two_mass()
+                        && f.train_cost < (1.0 - SCREEN_MIN_GAIN) * first.train_cost =>
+                {
+                    Some(refined(self.td, f, JOINT_MAX_ITER))
+                }
                 other => other,
             };
             if c.place.needs_two_mass() {

@@ -3,7 +3,7 @@
 //! in physical log coordinates (the model itself is [`super::TwoMassModel`]).
 use super::{TwoMassModel, TWO_MASS_COORD_STEP};
 use crate::gap::effect::{Effect, EffectKind};
-use crate::gap::fit::{eval_model, AugmentedModel, Fitted, TrainData};
+use crate::gap::fit::{eval_model, AugmentedModel, Fitted, TrainData, SCREEN_MIN_GAIN};
 use crate::gap::optim::levenberg_marquardt_steps;
 use crate::gap::place::{Candidate, Place, PlacedEffect};
 /// Sets the two-mass model's offset to its least-squares value on the training logs and
@@ -124,12 +124,15 @@ fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
 /// on the first `coarse_samples`/2 scored samples of each log: the best gap of a grid (30
 /// points over 0.02…4 twist RMS), then two Nelder–Mead searches over the main physical
 /// parameters and the gap; the best is refined on all the data by a fine gap scan (±6 %) and
-/// a joint Levenberg–Marquardt.
+/// a joint Levenberg–Marquardt — only when the screened fit, evaluated on all the data, lowers
+/// `to_beat` (the training cost of the model the candidate must improve on) by
+/// [`SCREEN_MIN_GAIN`].
 pub fn fit_drivetrain_backlash(
     td: &TrainData,
     bases: &[AugmentedModel],
     coarse_samples: usize,
     max_iter: usize,
+    to_beat: Option<f64>,
 ) -> Option<Fitted> {
     let coarse = td.coarse(coarse_samples / 2);
     let with_gap = |m: &AugmentedModel, g: f64| -> AugmentedModel {
@@ -210,6 +213,10 @@ pub fn fit_drivetrain_backlash(
     }
     let b = best?;
     let mut f = eval_two_mass(td, b.model)?;
+    if to_beat.is_some_and(|c| f.train_cost >= (1.0 - SCREEN_MIN_GAIN) * c) {
+        // The screened fit does not lower the cost to beat enough to earn the refinement.
+        return Some(f);
+    }
     if let Some(s) = scan(td, &f.model, 0.94, 1.06, 7) {
         if s.train_cost < f.train_cost {
             f = s;
