@@ -98,7 +98,7 @@ pub fn validation_nrmse(
 mod tests {
     use super::*;
 
-    use crate::gap::simulator::lcg_noise;
+    use crate::gap::simulator::uniform_noise;
 
     /// A position output y = sin at 5 Hz (1 kHz) against a model that adds drift (a ramp, a
     /// 0.02 Hz sine, a random walk) plus an in-band error of amplitude 0.01 at 20 Hz: the
@@ -112,7 +112,7 @@ mod tests {
         let tau = std::f64::consts::TAU;
         let y: Vec<f64> = (0..n).map(|k| (tau * 5.0 * k as f64 * ts).sin()).collect();
         let mut walk = 0.0;
-        let steps = lcg_noise(n, 9);
+        let steps = uniform_noise(n, 9);
         let yhat: Vec<f64> = (0..n)
             .map(|k| {
                 let t = k as f64 * ts;

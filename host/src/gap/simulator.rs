@@ -14,16 +14,9 @@ pub mod plant;
 #[path = "../../../sim/src/rng.rs"]
 pub mod rng;
 
-/// Uniform noise in [-0.5, 0.5) from a 64-bit LCG (Knuth's MMIX constants): a fixed test
-/// signal for the gap unit tests, independent of [`rng::Rng`].
-pub fn lcg_noise(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed;
-    (0..n)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        })
-        .collect()
+/// Uniform noise in [-0.5, 0.5) from the workspace's generator ([`rng::Rng`]): the fixed test
+/// signal of the modal and drift tests.
+pub fn uniform_noise(n: usize, seed: u64) -> Vec<f64> {
+    let mut r = rng::Rng::new(seed);
+    (0..n).map(|_| r.uniform() - 0.5).collect()
 }

@@ -375,7 +375,7 @@ impl ModalModel {
 mod tests {
     use super::*;
 
-    use crate::gap::simulator::lcg_noise;
+    use crate::gap::simulator::uniform_noise;
 
     /// Direct-form recursion of the same transfer function, independent of the modal code.
     fn second_order_direct(u: &[f64], a1: f64, a2: f64, b1: f64, b2: f64) -> Vec<f64> {
@@ -399,7 +399,7 @@ mod tests {
         let (r, phi) = (0.97f64, 0.3f64);
         let (a1, a2) = (-2.0 * r * phi.cos(), r * r);
         let (b1, b2) = (0.5, 0.2);
-        let u = lcg_noise(3000, 7);
+        let u = uniform_noise(3000, 7);
         let y = second_order_direct(&u, a1, a2, b1, b2);
         // Start 10 % off in both radius decay and angle.
         let start = Complex64::from_polar(0.96, 0.33);
@@ -436,13 +436,13 @@ mod tests {
             m.residues = vec![2e-3, -1.6e-3];
             m
         };
-        let logs: Vec<Vec<f64>> = vec![lcg_noise(4000, 3), lcg_noise(3000, 11)];
+        let logs: Vec<Vec<f64>> = vec![uniform_noise(4000, 3), uniform_noise(3000, 11)];
         let ys: Vec<Vec<f64>> = logs
             .iter()
             .enumerate()
             .map(|(l, u)| {
                 let y = truth.simulate(u);
-                let noise = lcg_noise(u.len(), 40 + l as u64);
+                let noise = uniform_noise(u.len(), 40 + l as u64);
                 y.iter()
                     .enumerate()
                     .zip(&noise)
@@ -526,7 +526,7 @@ mod tests {
         .unwrap()
         .c2d_zoh(ts)
         .unwrap();
-        let u = lcg_noise(2000, 3);
+        let u = uniform_noise(2000, 3);
         let y = disc.simulate_siso(&u, None).unwrap();
         let v = vel.simulate_siso(&u, None).unwrap();
         let mut mm = ModalModel::from_poles(ts, &disc.poles().unwrap(), false).unwrap();
@@ -579,7 +579,7 @@ mod tests {
             .unwrap()
             .c2d_zoh(ts)
             .unwrap();
-        let u: Vec<f64> = lcg_noise(3000, 11);
+        let u: Vec<f64> = uniform_noise(3000, 11);
         let y = disc.simulate_siso(&u, None).unwrap();
         let v = vdisc.simulate_siso(&u, None).unwrap();
         let mut mm = ModalModel::from_poles(ts, &disc.poles().unwrap(), false).unwrap();

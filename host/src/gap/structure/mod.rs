@@ -477,14 +477,13 @@ impl TwoMassStructure {
         }
         let cont = sim.d2c_zoh().ok()?;
         let model = TwoMassModel::from_continuous(&cont, sim.ts)?;
-        // Check on a deterministic broadband test input.
-        let mut s = 0x9e37_79b9_7f4a_7c15u64;
-        let u: Vec<f64> = (0..4096)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        // Check on a deterministic broadband test input: a linear chirp from DC to Nyquist
+        // over 4,096 samples (instantaneous frequency k/(2n) cycles per sample).
+        let n = 4096;
+        let u: Vec<f64> = (0..n)
+            .map(|k| {
+                let k = k as f64;
+                (std::f64::consts::PI * k * k / (2.0 * n as f64)).sin()
             })
             .collect();
         let y_ref = sim.simulate_siso(&u, None).ok()?;
