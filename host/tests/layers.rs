@@ -438,11 +438,6 @@ const OTHER_GENERATORS: &[(&str, &str)] = &[
         "`lcg_noise`, the gap unit tests' fixed signal (the lead's module in session 13)",
     ),
     (
-        "tests/src/e2e.rs",
-        "ferrosid-tests' xorshift64* (test logs of the QEMU end-to-end runs): not converted in \
-         session 13, the e2e figures in README were measured with its draws and need a QEMU re-run",
-    ),
-    (
         "host/src/gap/structure/mod.rs",
         "library code: the two-mass mapping check's broadband input (an LCG); the library does \
          not depend on the firmware crate (the lead's module in session 13)",
