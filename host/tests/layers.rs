@@ -433,11 +433,6 @@ const OTHER_GENERATORS: &[(&str, &str)] = &[
         "the second benchmark family's xoshiro256** (SplitMix64-seeded): independent of the \
          first family's generator on purpose, so the two families share no code",
     ),
-    (
-        "tests/src/e2e.rs",
-        "ferrosid-tests' xorshift64* (test logs of the QEMU end-to-end runs): not converted in \
-         session 13, the e2e figures in README were measured with its draws and need a QEMU re-run",
-    ),
 ];
 
 /// `.rs` files under `dir`, skipping build output (`target*`) and hidden directories.

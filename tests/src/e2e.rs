@@ -29,6 +29,7 @@ use ferrosid::robust::uncertainty::{
 };
 use ferrosid::spectral::Welch;
 use ferrosid::target_frame::{ReceiptRow, TargetFrame};
+use ferrosid_sim::rng::Rng;
 use num_complex::Complex64;
 
 use crate::{decode_defmt, image_target_dir, run_qemu, Error, LogLine, RunOptions, TARGET};
@@ -126,37 +127,18 @@ impl Axis {
     }
 }
 
-/// xorshift64*: a small seeded generator for the test signals (independent of the crates
-/// under test).
-pub struct Rng(u64);
-
-impl Rng {
-    /// Seeded generator (seed 0 is mapped to a fixed non-zero state).
-    pub fn new(seed: u64) -> Self {
-        Rng(seed.max(1).wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Approximately standard normal (sum of 12 uniforms − 6).
-    pub fn normal(&mut self) -> f64 {
-        (0..12).map(|_| self.uniform()).sum::<f64>() - 6.0
-    }
-}
-
 /// Simulates `n` samples of `axis` (host ZOH model) driven by uniform noise of unit RMS, with
-/// [`NOISE_RMS`] of output noise. Returns (u, y).
+/// [`NOISE_RMS`] of white Gaussian output noise, both drawn from the workspace's generator
+/// (`ferrosid_sim::rng::Rng`, seeded with `seed`: the n inputs first, then the n noise samples).
+/// Returns (u, y).
 pub fn simulate_log(axis: &Axis, n: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
     let mut rng = Rng::new(seed);
     let u: Vec<f64> = (0..n)
         .map(|_| (rng.uniform() - 0.5) * 12f64.sqrt())
         .collect();
     let y0 = axis.discrete().simulate_siso(&u, None).expect("simulate");
-    let y = y0.iter().map(|v| v + NOISE_RMS * rng.normal()).collect();
+    let noise = rng.noise(n, NOISE_RMS);
+    let y = y0.iter().zip(&noise).map(|(v, e)| v + e).collect();
     (u, y)
 }
 

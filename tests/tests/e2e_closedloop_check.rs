@@ -276,7 +276,7 @@ fn linear_closed_loop_with_noise_recovers_g_where_naive_h1_is_biased() {
     .unwrap();
     let lines: Vec<usize> = (1..=25).collect();
     let amp = 0.01 * (2.0 / lines.len() as f64).sqrt();
-    let mut rng = ferrosid_tests::e2e::Rng::new(11);
+    let mut rng = ferrosid_sim::rng::Rng::new(11);
     let noise = 2e-3;
     let mut est = ClosedLoopEstimator::<N>::unconfigured();
     est.configure((1.0 / TS) as f32).unwrap();
@@ -339,11 +339,15 @@ fn linear_closed_loop_with_noise_recovers_g_where_naive_h1_is_biased() {
     }
     println!("worst relative error: closed-loop estimate {worst_iv:.4}, naive H1 {worst_naive:.3}");
     // The noise fed back through the controller pulls the naive estimate towards −1/C at the
-    // low lines (where the loop gain is high): biased by more than half of |G|, ten times the
-    // closed-loop estimate's worst error on the same records.
-    assert!(worst_iv < 0.08, "{worst_iv}");
+    // low lines (where the loop gain is high): biased by more than half of |G|, three times the
+    // closed-loop estimate's worst error on the same records. Both limits from the spread over
+    // the noise seeds 1..=30: the closed-loop estimate's worst error is 0.009–0.224 (median
+    // 0.087; seed 11: 0.131 at 3.9 Hz; every line of every seed inside 3√2σ), the naive one
+    // 0.965–0.988, their ratio 4.4–110. (The bounds 0.08 and 10× fitted the one draw of the xorshift64*
+    // used before session 14: 0.058.)
+    assert!(worst_iv < 0.25, "{worst_iv}");
     assert!(
-        worst_naive > 0.5 && worst_naive > 10.0 * worst_iv,
+        worst_naive > 0.5 && worst_naive > 3.0 * worst_iv,
         "the naive estimate should be biased far beyond the closed-loop one: {worst_naive}"
     );
 }
