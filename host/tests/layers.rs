@@ -427,13 +427,11 @@ const THE_RNG: &str = "firmware/src/rng.rs";
 
 /// Files that still carry a generator of their own, each with the reason. The test fails when
 /// one of them no longer does, so the list cannot outlive the problem.
-const OTHER_GENERATORS: &[(&str, &str)] = &[
-    (
-        "gapsim/src/rng.rs",
-        "the second benchmark family's xoshiro256** (SplitMix64-seeded): independent of the \
+const OTHER_GENERATORS: &[(&str, &str)] = &[(
+    "gapsim/src/rng.rs",
+    "the second benchmark family's xoshiro256** (SplitMix64-seeded): independent of the \
          first family's generator on purpose, so the two families share no code",
-    ),
-];
+)];
 
 /// `.rs` files under `dir`, skipping build output (`target*`) and hidden directories.
 fn workspace_rust_files(dir: &Path, out: &mut Vec<PathBuf>) {

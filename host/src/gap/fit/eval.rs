@@ -90,6 +90,17 @@ pub struct Fitted {
     pub train_cost: f64,
 }
 
+impl Fitted {
+    /// `model` scored by its free run on `td` as it stands (nothing re-fitted); `None` when the
+    /// cost is not finite.
+    pub fn free_run(td: &TrainData, model: AugmentedModel) -> Option<Fitted> {
+        let train_cost = model.cost(&td.base, &td.u);
+        train_cost
+            .is_finite()
+            .then_some(Fitted { model, train_cost })
+    }
+}
+
 /// Re-fits the linear part's residues (poles fixed) for `effect` and returns the model and its
 /// training cost.
 pub(super) fn eval_fixed_poles(

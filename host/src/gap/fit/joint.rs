@@ -233,8 +233,5 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
     if projectable {
         project(&mut model)?;
     }
-    let train_cost = model.cost(&td.base, &td.u);
-    train_cost
-        .is_finite()
-        .then_some(Fitted { model, train_cost })
+    Fitted::free_run(td, model)
 }

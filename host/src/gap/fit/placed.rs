@@ -339,14 +339,7 @@ pub(super) fn stiction_start(td: &TrainData, c: &Fitted, breakaway: Option<f64>)
             stribeck_velocity: 0.0,
         };
         m.set_effects_in_selection_order(&l);
-        let cost = m.cost(&td.base, &td.u);
-        keep_best(
-            &mut best,
-            cost.is_finite().then_some(Fitted {
-                model: m,
-                train_cost: cost,
-            }),
-        );
+        keep_best(&mut best, Fitted::free_run(td, m));
     }
     best
 }

@@ -99,14 +99,7 @@ pub(super) fn stribeck_variant(
             };
             let mut m = from.model.clone();
             m.set_effects_in_selection_order(&l);
-            let cost = m.cost(&td.base, &td.u);
-            keep_best(
-                &mut best,
-                cost.is_finite().then_some(Fitted {
-                    model: m,
-                    train_cost: cost,
-                }),
-            );
+            keep_best(&mut best, Fitted::free_run(td, m));
         }
     }
     let start = best?;
