@@ -21,7 +21,7 @@ use crate::gap::diagnose::{nested_likelihood_ratio, NESTED_LR_THRESHOLD, NESTED_
 use crate::gap::effect::{Effect, EffectKind};
 use crate::gap::fit::{
     keep_best, refined, AugmentedModel, Fitted, TrainData, VelocitySource, COARSE_SAMPLES,
-    JOINT_MAX_ITER,
+    JOINT_MAX_ITER, SCREEN_MAX_ITER,
 };
 
 /// Stribeck velocities of the starts, relative to the RMS of the velocity the friction sees.
@@ -147,7 +147,7 @@ fn screen(
         train_cost: start.model.cost(&coarse.base, &coarse.u),
         model: start.model.clone(),
     };
-    let fitted = refined(&coarse, start_c, JOINT_MAX_ITER);
+    let fitted = refined(&coarse, start_c, SCREEN_MAX_ITER);
     let lr = nested_likelihood_ratio(
         from,
         &fitted.model,
