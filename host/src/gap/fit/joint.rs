@@ -2,7 +2,9 @@
 //! parameters at once ([`joint_fit`]), in unconstrained coordinates.
 use super::eval::{Fitted, TrainData};
 use super::model::AugmentedModel;
-use super::{resonance_range_hz, MAX_DELAY_SAMPLES, MAX_RESONANCE_DAMPING, MIN_RESONANCE_DAMPING};
+use super::{
+    resonance_range_hz, JOINT_RTOL, MAX_DELAY_SAMPLES, MAX_RESONANCE_DAMPING, MIN_RESONANCE_DAMPING,
+};
 use crate::gap::drift::detrended;
 use crate::gap::effect::{Effect, EffectKind};
 use crate::gap::optim::levenberg_marquardt_steps;
@@ -228,7 +230,7 @@ pub fn joint_fit(td: &TrainData, start: &Fitted, max_iter: usize) -> Option<Fitt
         }
         r.iter().all(|v| v.is_finite()).then_some(r)
     };
-    let (theta, _) = levenberg_marquardt_steps(residuals, &theta0, &steps, max_iter, 1e-6);
+    let (theta, _) = levenberg_marquardt_steps(residuals, &theta0, &steps, max_iter, JOINT_RTOL);
     let mut model = build(&theta)?;
     if projectable {
         project(&mut model)?;

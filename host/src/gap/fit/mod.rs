@@ -35,6 +35,7 @@ mod tests;
 
 pub(crate) use eval::keep_best;
 pub use eval::{eval_model, Fitted, TrainData};
+
 pub use joint::{joint_fit, refined};
 pub(crate) use joint::{stiction_coords, stiction_from_coords};
 pub use model::{input_transform, sensor_transform, AugmentedModel, VelocitySource};
@@ -76,6 +77,10 @@ pub const COARSE_SAMPLES: usize = 4096;
 
 /// Iteration cap of the joint Levenberg–Marquardt refinement.
 pub const JOINT_MAX_ITER: usize = 12;
+
+/// Relative cost decrease below which a joint refinement stops: a further step would move the
+/// likelihood ratio of a log of 10^4 samples by less than 0.1.
+pub const JOINT_RTOL: f64 = 1e-5;
 
 /// Iteration cap of the coarse screening refinements (they only rank the starts).
 pub const SCREEN_MAX_ITER: usize = 6;

@@ -3,7 +3,7 @@
 //! in physical log coordinates (the model itself is [`super::TwoMassModel`]).
 use super::{TwoMassModel, TWO_MASS_COORD_STEP};
 use crate::gap::effect::{Effect, EffectKind};
-use crate::gap::fit::{eval_model, AugmentedModel, Fitted, TrainData, SCREEN_MIN_GAIN};
+use crate::gap::fit::{eval_model, AugmentedModel, Fitted, TrainData, JOINT_RTOL, SCREEN_MIN_GAIN};
 use crate::gap::optim::levenberg_marquardt_steps;
 use crate::gap::place::{Candidate, Place, PlacedEffect};
 /// Sets the two-mass model's offset to its least-squares value on the training logs and
@@ -377,7 +377,7 @@ fn joint_fit_two_mass_opt(
         }
         r.iter().all(|v| v.is_finite()).then_some(r)
     };
-    let (theta, _) = levenberg_marquardt_steps(residuals, &theta0, &steps, max_iter, 1e-6);
+    let (theta, _) = levenberg_marquardt_steps(residuals, &theta0, &steps, max_iter, JOINT_RTOL);
     let model = build(&theta)?;
     eval_two_mass(td, model)
 }
