@@ -618,13 +618,7 @@ mod tests {
             "compensation.friction_feedforward.velocity.filter_hz"
         );
         let mut c = full();
-        c.friction_feedforward
-            .as_mut()
-            .unwrap()
-            .lag_aware
-            .as_mut()
-            .unwrap()
-            .lag_s = 20.0;
+        lag_aware(&mut c).lag_s = 20.0;
         c.validate().unwrap();
         assert_eq!(
             err_field(&c, Some(1e-3)),
