@@ -460,6 +460,16 @@ mod tests {
         }
     }
 
+    /// The lag-aware part of `c`'s friction feedforward (present in [`full`]).
+    fn lag_aware(c: &mut Compensation) -> &mut LagAwareFriction {
+        c.friction_feedforward
+            .as_mut()
+            .unwrap()
+            .lag_aware
+            .as_mut()
+            .unwrap()
+    }
+
     fn err_field(c: &Compensation, ts: Option<f64>) -> String {
         let r = match ts {
             Some(ts) => c.validate_at(ts),
@@ -524,51 +534,19 @@ mod tests {
                 "compensation.friction_feedforward.velocity.filter_hz",
             ),
             (
-                |c| {
-                    c.friction_feedforward
-                        .as_mut()
-                        .unwrap()
-                        .lag_aware
-                        .as_mut()
-                        .unwrap()
-                        .lag_s = 0.0
-                },
+                |c| lag_aware(c).lag_s = 0.0,
                 "compensation.friction_feedforward.lag_aware.lag_s",
             ),
             (
-                |c| {
-                    c.friction_feedforward
-                        .as_mut()
-                        .unwrap()
-                        .lag_aware
-                        .as_mut()
-                        .unwrap()
-                        .horizon_s = 0.031
-                },
+                |c| lag_aware(c).horizon_s = 0.031,
                 "compensation.friction_feedforward.lag_aware.horizon_s",
             ),
             (
-                |c| {
-                    c.friction_feedforward
-                        .as_mut()
-                        .unwrap()
-                        .lag_aware
-                        .as_mut()
-                        .unwrap()
-                        .horizon_s = -1e-3
-                },
+                |c| lag_aware(c).horizon_s = -1e-3,
                 "compensation.friction_feedforward.lag_aware.horizon_s",
             ),
             (
-                |c| {
-                    c.friction_feedforward
-                        .as_mut()
-                        .unwrap()
-                        .lag_aware
-                        .as_mut()
-                        .unwrap()
-                        .stick_band = f64::NAN
-                },
+                |c| lag_aware(c).stick_band = f64::NAN,
                 "compensation.friction_feedforward.lag_aware.stick_band",
             ),
             (
@@ -640,13 +618,7 @@ mod tests {
             "compensation.friction_feedforward.velocity.filter_hz"
         );
         let mut c = full();
-        c.friction_feedforward
-            .as_mut()
-            .unwrap()
-            .lag_aware
-            .as_mut()
-            .unwrap()
-            .lag_s = 20.0;
+        lag_aware(&mut c).lag_s = 20.0;
         c.validate().unwrap();
         assert_eq!(
             err_field(&c, Some(1e-3)),

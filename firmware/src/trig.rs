@@ -13,43 +13,16 @@
 
 use core::f64::consts::FRAC_PI_4;
 
-/// Odd Taylor series of `sin(x)` for `|x| <= π/4` (terms to `x^17`), in `f64`.
-const fn sin_taylor(x: f64) -> f64 {
-    let x2 = x * x;
-    // Horner form of x·(1 - x²/3! + x⁴/5! - ...), coefficients 1/(2k+1)! with alternating sign.
+/// Horner form of `Σ_{k=0..8} (-1)^k x^(2k) / (2k + odd)!` for `x2 = x²`: the series of
+/// `sin(x)/x` (`odd = 1`) or of `cos(x)` (`odd = 0`), highest term first.
+const fn alternating_series(x2: f64, odd: u32) -> f64 {
     let mut acc = 0.0;
-    let mut k = 8u32; // highest term x^17 = x^(2·8+1)
+    let mut k = 8u32; // highest term x^(2·8+odd)
     loop {
-        // coefficient (-1)^k / (2k+1)!
+        // coefficient (-1)^k / (2k+odd)!
         let mut fact = 1.0f64;
         let mut i = 2;
-        while i <= 2 * k + 1 {
-            fact *= i as f64;
-            i += 1;
-        }
-        let c = if k.is_multiple_of(2) {
-            1.0 / fact
-        } else {
-            -1.0 / fact
-        };
-        acc = acc * x2 + c;
-        if k == 0 {
-            break;
-        }
-        k -= 1;
-    }
-    acc * x
-}
-
-/// Even Taylor series of `cos(x)` for `|x| <= π/4` (terms to `x^16`), in `f64`.
-const fn cos_taylor(x: f64) -> f64 {
-    let x2 = x * x;
-    let mut acc = 0.0;
-    let mut k = 8u32;
-    loop {
-        let mut fact = 1.0f64;
-        let mut i = 2;
-        while i <= 2 * k {
+        while i <= 2 * k + odd {
             fact *= i as f64;
             i += 1;
         }
@@ -65,6 +38,17 @@ const fn cos_taylor(x: f64) -> f64 {
         k -= 1;
     }
     acc
+}
+
+/// Odd Taylor series of `sin(x)` for `|x| <= π/4` (terms to `x^17`), in `f64`.
+const fn sin_taylor(x: f64) -> f64 {
+    // x·(1 - x²/3! + x⁴/5! - ...), coefficients 1/(2k+1)! with alternating sign.
+    alternating_series(x * x, 1) * x
+}
+
+/// Even Taylor series of `cos(x)` for `|x| <= π/4` (terms to `x^16`), in `f64`.
+const fn cos_taylor(x: f64) -> f64 {
+    alternating_series(x * x, 0)
 }
 
 /// `sin(2π·num/den)` in `f64`, for any `num` and `den > 0` (`den == 0` returns 0).

@@ -182,6 +182,20 @@ pub struct ControlOutput {
     pub held: bool,
 }
 
+impl ControlOutput {
+    /// The output of a held step: the previous command `last_u` repeated, nothing else.
+    #[inline(always)]
+    const fn hold(last_u: f32) -> Self {
+        ControlOutput {
+            u: last_u,
+            u_pid: 0.0,
+            u_ff: 0.0,
+            u_unclamped: last_u,
+            held: true,
+        }
+    }
+}
+
 impl ControlLaw {
     /// Validates `cfg` and precomputes the step's constants.
     ///
@@ -204,13 +218,7 @@ impl ControlLaw {
     #[inline]
     pub fn step(&self, st: &mut ControlState, r: f32, y: f32) -> ControlOutput {
         if !(r.is_finite() && y.is_finite()) {
-            return ControlOutput {
-                u: st.last_u,
-                u_pid: 0.0,
-                u_ff: 0.0,
-                u_unclamped: st.last_u,
-                held: true,
-            };
+            return ControlOutput::hold(st.last_u);
         }
         let e = r - y;
         let (u_pid, v, i_new, d_new) = self.pid.update(st, e);
@@ -246,13 +254,7 @@ impl ControlLaw {
     #[inline]
     pub fn compensate(&self, st: &mut ControlState, r: f32, y: f32, u_in: f32) -> ControlOutput {
         if !(r.is_finite() && y.is_finite() && u_in.is_finite()) {
-            return ControlOutput {
-                u: st.last_u,
-                u_pid: 0.0,
-                u_ff: 0.0,
-                u_unclamped: st.last_u,
-                held: true,
-            };
+            return ControlOutput::hold(st.last_u);
         }
         let mut out = ControlOutput {
             u: u_in,

@@ -206,6 +206,18 @@ pub struct LawOutput {
     pub held: bool,
 }
 
+impl LawOutput {
+    /// The output of a held step: the previous command `last_u` repeated.
+    #[inline(always)]
+    const fn hold(last_u: f32) -> Self {
+        LawOutput {
+            u: last_u,
+            u_unclamped: last_u,
+            held: true,
+        }
+    }
+}
+
 impl<const S: usize> PidNotchLaw<S> {
     /// Validates the PID, the cascade and the rails.
     ///
@@ -235,11 +247,7 @@ impl<const S: usize> PidNotchLaw<S> {
     #[inline]
     pub fn step(&self, st: &mut PidNotchState<S>, r: f32, y: f32) -> LawOutput {
         if !(r.is_finite() && y.is_finite()) {
-            return LawOutput {
-                u: st.last_u,
-                u_unclamped: st.last_u,
-                held: true,
-            };
+            return LawOutput::hold(st.last_u);
         }
         let c = &self.cfg;
         let e = r - y;
@@ -352,11 +360,7 @@ impl<const N: usize> StateSpaceLaw<N> {
     #[inline]
     pub fn step(&self, st: &mut StateSpaceState<N>, r: f32, y: f32) -> LawOutput {
         if !(r.is_finite() && y.is_finite()) {
-            return LawOutput {
-                u: st.last_u,
-                u_unclamped: st.last_u,
-                held: true,
-            };
+            return LawOutput::hold(st.last_u);
         }
         let c = &self.cfg;
         let e = r - y;
@@ -382,11 +386,7 @@ impl<const N: usize> StateSpaceLaw<N> {
         // A non-finite state (an unstable controller driven far) is not kept: the step is
         // held instead, so the next sample starts from the last finite state.
         if !(v.is_finite() && next.iter().all(|x| x.is_finite())) {
-            return LawOutput {
-                u: st.last_u,
-                u_unclamped: st.last_u,
-                held: true,
-            };
+            return LawOutput::hold(st.last_u);
         }
         st.x = next;
         st.last_u = u;

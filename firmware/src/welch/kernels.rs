@@ -52,19 +52,28 @@ fn rot(zr: f32, zi: f32, c: f32, s: f32) -> (f32, f32) {
     (zr * c + zi * s, zi * c - zr * s)
 }
 
+/// The sums and differences of a radix-4 DIF butterfly for channel `ch` (0 or 1) as
+/// (re, im) pairs: `t0 = x0 + x2`, `t1 = x1 + x3`, `t2 = x0 - x2`, `t3 = x1 - x3`.
+#[inline(always)]
+fn dif_terms(x: &[Quad; 4], ch: usize) -> [(f32, f32); 4] {
+    let [x0, x1, x2, x3] = x;
+    [
+        (x0[ch] + x2[ch], x0[ch + 2] + x2[ch + 2]),
+        (x1[ch] + x3[ch], x1[ch + 2] + x3[ch + 2]),
+        (x0[ch] - x2[ch], x0[ch + 2] - x2[ch + 2]),
+        (x1[ch] - x3[ch], x1[ch + 2] - x3[ch + 2]),
+    ]
+}
+
 /// Radix-4 DIF butterfly on both channels with twiddles `[cos θ, sin θ, cos 2θ, …]`:
 /// `y0 = t0 + t1`, `y1 = (t0 - t1)W²`, `y2 = (t2 - j t3)W`, `y3 = (t2 + j t3)W³`, where
 /// `t0 = x0 + x2`, `t1 = x1 + x3`, `t2 = x0 - x2`, `t3 = x1 - x3`, `W = e^{-jθ}`.
 #[inline(always)]
 fn radix4(x: [Quad; 4], w: &[f32; 6]) -> [Quad; 4] {
     let [c1, s1, c2, s2, c3, s3] = *w;
-    let [x0, x1, x2, x3] = x;
     let mut y = [[0.0f32; 4]; 4];
     for ch in [0, 1] {
-        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 2] + x2[ch + 2]);
-        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 2] + x3[ch + 2]);
-        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 2] - x2[ch + 2]);
-        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 2] - x3[ch + 2]);
+        let [(t0r, t0i), (t1r, t1i), (t2r, t2i), (t3r, t3i)] = dif_terms(&x, ch);
         y[0][ch] = t0r + t1r;
         y[0][ch + 2] = t0i + t1i;
         (y[1][ch], y[1][ch + 2]) = rot(t0r - t1r, t0i - t1i, c2, s2);
@@ -77,13 +86,9 @@ fn radix4(x: [Quad; 4], w: &[f32; 6]) -> [Quad; 4] {
 /// Radix-4 DIF butterfly with unit twiddles (the stage of length 4).
 #[inline(always)]
 fn radix4_unit(x: [Quad; 4]) -> [Quad; 4] {
-    let [x0, x1, x2, x3] = x;
     let mut y = [[0.0f32; 4]; 4];
     for ch in [0, 1] {
-        let (t0r, t0i) = (x0[ch] + x2[ch], x0[ch + 2] + x2[ch + 2]);
-        let (t1r, t1i) = (x1[ch] + x3[ch], x1[ch + 2] + x3[ch + 2]);
-        let (t2r, t2i) = (x0[ch] - x2[ch], x0[ch + 2] - x2[ch + 2]);
-        let (t3r, t3i) = (x1[ch] - x3[ch], x1[ch + 2] - x3[ch + 2]);
+        let [(t0r, t0i), (t1r, t1i), (t2r, t2i), (t3r, t3i)] = dif_terms(&x, ch);
         y[0][ch] = t0r + t1r;
         y[0][ch + 2] = t0i + t1i;
         y[1][ch] = t0r - t1r;
@@ -103,6 +108,29 @@ fn quarters<T>(s: &mut [T], q: usize) -> Option<[&mut [T]; 4]> {
     let (b, rest) = rest.split_at_mut_checked(q)?;
     let (c, d) = rest.split_at_mut_checked(q)?;
     Some([a, b, c, d])
+}
+
+/// The `k`-th quad of each quarter `a`..`d` of a butterfly and its twiddles `tw[k]` (`None`
+/// when any of them is past its end).
+#[inline(always)]
+fn butterfly_at<'s, 't>(
+    a: &'s mut [Quad],
+    b: &'s mut [Quad],
+    c: &'s mut [Quad],
+    d: &'s mut [Quad],
+    tw: &'t [[f32; 6]],
+    k: usize,
+) -> Option<([&'s mut Quad; 4], &'t [f32; 6])> {
+    let (Some(a), Some(b), Some(c), Some(d), Some(t)) = (
+        a.get_mut(k),
+        b.get_mut(k),
+        c.get_mut(k),
+        d.get_mut(k),
+        tw.get(k),
+    ) else {
+        return None;
+    };
+    Some(([a, b, c, d], t))
 }
 
 /// Subtracts the channel means `mu` and applies the window pair `w` to one quad.
@@ -164,13 +192,7 @@ pub(super) fn first_stage(
                 return;
             };
             for k in 0..end - start.min(end) {
-                let (Some(a), Some(b), Some(c), Some(d), Some(t)) = (
-                    a.get_mut(k),
-                    b.get_mut(k),
-                    c.get_mut(k),
-                    d.get_mut(k),
-                    tw.get(k),
-                ) else {
+                let Some(([a, b, c, d], t)) = butterfly_at(a, b, c, d, tw, k) else {
                     return;
                 };
                 let (Some(w0), Some(w1), Some(w2), Some(w3)) =
@@ -189,13 +211,7 @@ pub(super) fn first_stage(
         }
         None => {
             for k in 0..end - start.min(end) {
-                let (Some(a), Some(b), Some(c), Some(d), Some(t)) = (
-                    a.get_mut(k),
-                    b.get_mut(k),
-                    c.get_mut(k),
-                    d.get_mut(k),
-                    tw.get(k),
-                ) else {
+                let Some(([a, b, c, d], t)) = butterfly_at(a, b, c, d, tw, k) else {
                     return;
                 };
                 let x = [
@@ -238,13 +254,7 @@ pub(super) fn radix4_stage(z: &mut [Quad], l: usize, tw: &[[f32; 6]], start: usi
             return;
         };
         for k in 0..run {
-            let (Some(a), Some(b), Some(c), Some(d), Some(w)) = (
-                a.get_mut(k),
-                b.get_mut(k),
-                c.get_mut(k),
-                d.get_mut(k),
-                tw.get(k),
-            ) else {
+            let Some(([a, b, c, d], w)) = butterfly_at(a, b, c, d, tw, k) else {
                 return;
             };
             [*a, *b, *c, *d] = radix4([*a, *b, *c, *d], w);

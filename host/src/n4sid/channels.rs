@@ -20,29 +20,19 @@ pub(super) fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| (v * g) * (v * g)).sum::<f64>() / x.len() as f64).sqrt() / g
 }
 
-pub(super) fn check_channels(
-    source: &Path,
-    u: &[&[f64]],
-    y: &[&[f64]],
-    un: &[String],
-    yn: &[String],
-) -> Result<usize> {
+/// Checks every channel of `data` (finite, non-constant, equal length); returns the length.
+pub(super) fn check_channels(data: &ChannelSet<'_>) -> Result<usize> {
     // Compiled for AVX2 too (the finiteness scan and the largest magnitude vectorise 4 wide;
     // the sums keep their order): the same results.
     super::linalg::with_avx(
         #[inline(always)]
-        || check_channels_body(source, u, y, un, yn),
+        || check_channels_body(data),
     )
 }
 
 #[inline(always)]
-fn check_channels_body(
-    source: &Path,
-    u: &[&[f64]],
-    y: &[&[f64]],
-    un: &[String],
-    yn: &[String],
-) -> Result<usize> {
+fn check_channels_body(data: &ChannelSet<'_>) -> Result<usize> {
+    let (source, u, y, un, yn) = (data.source, data.u, data.y, data.u_names, data.y_names);
     if u.is_empty() || y.is_empty() {
         return Err(data_err(
             source,
@@ -174,14 +164,7 @@ pub(super) struct Problem {
 /// Checks the sample time, the options against the data, and every channel (finite,
 /// non-constant, equal length, enough samples for the block rows and orders asked for).
 pub(super) fn check_problem(data: &ChannelSet<'_>, opts: &N4sidOptions) -> Result<Problem> {
-    let (source, ts, u, y, un, yn) = (
-        data.source,
-        data.ts,
-        data.u,
-        data.y,
-        data.u_names,
-        data.y_names,
-    );
+    let (source, ts, u, y) = (data.source, data.ts, data.u, data.y);
     if !(ts.is_finite() && ts > 0.0) {
         return Err(data_err(
             source,
@@ -201,7 +184,7 @@ pub(super) fn check_problem(data: &ChannelSet<'_>, opts: &N4sidOptions) -> Resul
             )));
         }
     }
-    let len = check_channels(source, u, y, un, yn)?;
+    let len = check_channels(data)?;
     let (m, p) = (u.len(), y.len());
     let q = m + p;
     let max_order = (k - 1) * p;
