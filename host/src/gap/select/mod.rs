@@ -324,35 +324,12 @@ pub fn select_effects(
     profile_since("nested singles", t0);
     // 2. Best single (a forward step below the margin when it reaches half of it: kept only
     // if a pair on top of it reaches the margin, see below).
-    let mut selected_models: Vec<Scored> = Vec::new();
-    let mut tentative = false;
-    if let Some(best) = singles.first() {
-        if best.improvement >= opts.margin {
-            selected_models.push(best.clone());
-        } else {
-            if best.improvement >= 0.5 * opts.margin {
-                selected_models.push(best.clone());
-                tentative = true;
-            }
-            notes.push(format!(
-                "best single {} improves the validation NRMSE by {:.3} < margin {}",
-                best.effects
-                    .first()
-                    .map_or("?".to_string(), |p| p.to_string()),
-                best.improvement,
-                opts.margin
-            ));
-        }
-    }
+    let (mut selected_models, tentative) = first_step(&singles, opts, &mut notes);
     // 3. Pairs on top of the selected single.
     let mut pairs: Vec<Scored> = Vec::new();
-    let try_pairs = selected_models.first().is_some_and(|f| {
-        f.improvement < PAIR_WORTH_TRYING
-            && opts.noise_floor.is_none_or(|fl| {
-                f.gap.partial_cmp(&(PAIR_FLOOR_FACTOR * fl)) != Some(std::cmp::Ordering::Less)
-                    && f.gap != PAIR_FLOOR_FACTOR * fl
-            })
-    });
+    let try_pairs = selected_models
+        .first()
+        .is_some_and(|f| pairs_worth_trying(f, opts));
     if !try_pairs && !selected_models.is_empty() {
         notes.push(format!(
             "no pair tried: the best single closes more than {:.0} % of the linear gap or \
@@ -412,6 +389,45 @@ pub fn select_effects(
         dwell,
         notes,
     })
+}
+
+/// Step 2 of [`select_effects`]: the best single when it improves on the linear re-fit by the
+/// margin; when it reaches only half of it, a tentative forward step (the flag), which a pair
+/// has to carry over the margin. Notes a best single below the margin.
+fn first_step(
+    singles: &[Scored],
+    opts: &SelectOptions,
+    notes: &mut Vec<String>,
+) -> (Vec<Scored>, bool) {
+    let Some(best) = singles.first() else {
+        return (Vec::new(), false);
+    };
+    if best.improvement >= opts.margin {
+        return (vec![best.clone()], false);
+    }
+    notes.push(format!(
+        "best single {} improves the validation NRMSE by {:.3} < margin {}",
+        best.effects
+            .first()
+            .map_or("?".to_string(), |p| p.to_string()),
+        best.improvement,
+        opts.margin
+    ));
+    if best.improvement >= 0.5 * opts.margin {
+        (vec![best.clone()], true)
+    } else {
+        (Vec::new(), false)
+    }
+}
+
+/// Whether pairs are grown on `first`: it leaves more than [`PAIR_WORTH_TRYING`] of the linear
+/// gap open and (with a noise floor) stays at or above [`PAIR_FLOOR_FACTOR`] times the floor.
+fn pairs_worth_trying(first: &Scored, opts: &SelectOptions) -> bool {
+    first.improvement < PAIR_WORTH_TRYING
+        && opts.noise_floor.is_none_or(|fl| {
+            first.gap.partial_cmp(&(PAIR_FLOOR_FACTOR * fl)) != Some(std::cmp::Ordering::Less)
+                && first.gap != PAIR_FLOOR_FACTOR * fl
+        })
 }
 
 /// The linear parts every single extends: each start, and with a two-mass structure the
