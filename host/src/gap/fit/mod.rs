@@ -9,7 +9,9 @@
 //!    feedthrough and offset by variable projection (exact least squares for the input-side
 //!    effects; one simulate-then-refit step for friction, whose force depends on the model).
 //! 2. **Joint refinement.** From the best grid point, Levenberg–Marquardt on all the data over
-//!    the poles and the effect parameters together ([`joint_fit`]).
+//!    the poles and the effect parameters together ([`joint_fit`]), for a candidate whose
+//!    screened fit lowered the coarse cost by at least [`SCREEN_MIN_GAIN`] (one that does not
+//!    could not reach the selection margin; it keeps its screened fit).
 //!
 //! Friction acts against the velocity of the driven mass, which a black-box model does not
 //! expose: the fit tries both the model output (velocity-output plants) and its time

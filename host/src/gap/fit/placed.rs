@@ -64,7 +64,9 @@ pub fn fit_candidate(
 /// poles and the base's effects fixed; the [`GRID_STARTS`] best grid points of distinct
 /// parameter values are screened by a joint refinement on the coarse data (the fixed-pole cost
 /// misleads when the base's poles are off); stage 2 refines the winner jointly by
-/// Levenberg–Marquardt on all the data ([`super::joint_fit`]). Stiction starts from the Coulomb fit
+/// Levenberg–Marquardt on all the data ([`super::joint_fit`]) when the screen lowered the
+/// base's coarse cost by [`SCREEN_MIN_GAIN`] (else the screened fit is kept, evaluated on all
+/// the data; drivetrain backlash is screened against `hints.to_beat`). Stiction starts from the Coulomb fit
 /// (`coulomb`, or fitted here) with the breakaway ratio scanned (and seeded by
 /// `hints.breakaway`); quantization takes its step from `hints.lattice_step`.
 ///
@@ -285,7 +287,7 @@ pub const SCREEN_MIN_GAIN: f64 = 0.01;
 /// Whether a candidate whose screened fit costs `screened` on `coarse` lowers the cost of
 /// `base` (its residues, feedthrough and offset re-fitted on the same data) by at least
 /// [`SCREEN_MIN_GAIN`]; `true` when the base cannot be evaluated.
-fn promising(coarse: &TrainData, base: &AugmentedModel, screened: f64) -> bool {
+pub(super) fn promising(coarse: &TrainData, base: &AugmentedModel, screened: f64) -> bool {
     eval_model(coarse, base.clone(), FRICTION_SUBSTEPS)
         .is_none_or(|b| screened < (1.0 - SCREEN_MIN_GAIN) * b.train_cost)
 }
