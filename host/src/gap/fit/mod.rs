@@ -85,4 +85,4 @@ pub const JOINT_MAX_ITER: usize = 12;
 pub const JOINT_RTOL: f64 = 1e-5;
 
 /// Iteration cap of the coarse screening refinements (they only rank the starts).
-pub const SCREEN_MAX_ITER: usize = 6;
+pub const SCREEN_MAX_ITER: usize = 4;
