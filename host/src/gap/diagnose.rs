@@ -3,6 +3,7 @@
 //! The verdict rule and the nested-effect statistics are in [`crate::gap::verdict`], the linear
 //! model (modal stand-ins, warm-up, period averaging, re-fit) in [`crate::gap::linear`]; both
 //! are re-exported here.
+use super::align;
 use super::drift::validation_nrmse;
 use super::effect::{Effect, EffectKind};
 use super::evidence::{self, Evidence};
@@ -12,6 +13,7 @@ use super::locate::{locate, Where};
 use super::logs::{read_logs, Logs};
 use super::modal::{nrmse, FitSet, ModalModel};
 use super::noise::{self, NoiseFloor};
+use super::outliers;
 use super::place::Candidate;
 use super::report::{BandError, EffectReport, GapReport, LinearReport, Settings, VerdictEffect};
 use super::select::{default_candidates, select_effects, Scored, SelectOptions, Selection};
@@ -292,6 +294,7 @@ fn run_selection(
     choice: &LinearChoice,
     nominal_modal: Option<&ModalModel>,
     noise_floor: &NoiseFloor,
+    (gap_linear, alignment_samples): (f64, f64),
     opts: &GapOptions,
 ) -> Result<Selection> {
     let lin = &choice.lin;
@@ -325,12 +328,16 @@ fn run_selection(
             candidates,
             // The validation NRMSE noise alone leaves: within twice it, the validation log
             // cannot separate nested effects nor credit a second one.
-            noise_floor: noise_floor.available().then_some(noise_floor.nrmse),
+            // A floor the linear re-fit contradicts describes other noise: none.
+            noise_floor: (noise_floor.available()
+                && !super::verdict::floor_contradicted(gap_linear, noise_floor))
+            .then_some(noise_floor.nrmse),
             drift_window: s.drift_window,
             min_excess_closed: opts.min_excess_closed,
             // The lattice of a quantizing sensor is read off the logged values: the period
             // average of periodic logs sits on a lattice m times finer.
             raw_outputs: logs.ty.clone(),
+            alignment_samples,
             ..SelectOptions::default()
         },
     )
@@ -519,7 +526,12 @@ fn effect_report(sc: &Scored, gap_linear: f64, n_logs: usize) -> Option<EffectRe
 }
 
 /// The linear part of the report: its state-space form, offset, source, poles (Hz, damping).
-fn linear_report(choice: &LinearChoice, ts: f64, train_nrmse: f64) -> Result<LinearReport> {
+fn linear_report(
+    choice: &LinearChoice,
+    ts: f64,
+    train_nrmse: f64,
+    alignment_samples: f64,
+) -> Result<LinearReport> {
     let lin = &choice.lin;
     Ok(LinearReport {
         model: StateSpaceData::from(&lin.to_state_space()?),
@@ -540,6 +552,7 @@ fn linear_report(choice: &LinearChoice, ts: f64, train_nrmse: f64) -> Result<Lin
             })
             .collect(),
         train_nrmse,
+        alignment_samples,
     })
 }
 
@@ -584,6 +597,80 @@ fn noise_floor_of(
     )
 }
 
+/// The linear stage of a diagnosis: the nominal on the validation log, the nominal in modal
+/// form, the linear re-fit guarded by it, and the residuals.
+struct LinearStage {
+    y_nom: Vec<f64>,
+    gap_before: f64,
+    nominal_modal: Option<ModalModel>,
+    choice: LinearChoice,
+    linear: AugmentedModel,
+    gap_linear: f64,
+    resid: Residuals,
+}
+
+fn linear_stage(
+    sim: &StateSpace,
+    logs: &Logs,
+    s: &Setup,
+    notes: &mut Vec<String>,
+) -> Result<LinearStage> {
+    let (ts, warmup) = (logs.ts, s.warmup);
+    let vu = &logs.vu;
+    // HOW FAR (before): the nominal sim on the validation log (with an integrator, the
+    // free run's drift left out).
+    let vscore = |yh: &[f64]| validation_nrmse(&logs.vy, yh, warmup, s.drift_window);
+    let y_nom = sim.simulate_siso(vu, None)?;
+    let gap_before = vscore(&y_nom);
+    // The nominal in modal form, and the linear re-fit guarded by it (LinearReport::source).
+    let use_d = sim.d[(0, 0)] != 0.0;
+    let nominal_modal = nominal_modal_form(sim, ts, &s.poles, use_d, &s.fu, vu, warmup);
+    let choice = choose_linear(
+        &s.td,
+        &s.poles,
+        use_d,
+        nominal_modal.as_ref(),
+        gap_before,
+        vu,
+        &vscore,
+        notes,
+    )?;
+    let linear = AugmentedModel::linear(choice.lin.clone());
+    let gap_linear = vscore(&linear.simulate(vu)?);
+    let resid = Residuals::of(sim, &linear, logs)?;
+    Ok(LinearStage {
+        y_nom,
+        gap_before,
+        nominal_modal,
+        choice,
+        linear,
+        gap_linear,
+        resid,
+    })
+}
+
+/// Finds the output spikes of every log on the linear model's residuals
+/// ([`crate::gap::outliers`]) and masks them in `logs`; their report, `None` without spikes.
+fn mask_spikes(
+    train: &[Log],
+    validate: &Log,
+    logs: &mut Logs,
+    resid: &Residuals,
+    warmup: usize,
+) -> Option<outliers::Outliers> {
+    let mut found: Vec<(String, Vec<usize>, &[f64])> = Vec::new();
+    for (i, log) in train.iter().enumerate() {
+        let at = outliers::spikes(&resid.train_lin[i], warmup);
+        outliers::mask(&mut logs.ty[i], &resid.y_lin_train[i], &at);
+        found.push((log.path.display().to_string(), at, &resid.train_lin[i]));
+    }
+    let at = outliers::spikes(&resid.val_lin, warmup);
+    outliers::mask(&mut logs.vy, &resid.y_lin_val, &at);
+    found.push((validate.path.display().to_string(), at, &resid.val_lin));
+    let total = logs.ty.iter().map(Vec::len).sum::<usize>() + logs.vy.len();
+    outliers::report(&found, logs.ts, total)
+}
+
 /// Runs the gap diagnosis of the discrete nominal model `sim` (SISO, sample time equal to the
 /// logs', see [`crate::gap::simfile::discretise_for_logs`]) against the training logs `train`
 /// (typically low and high amplitude) and the validation log `validate`.
@@ -599,36 +686,114 @@ pub fn diagnose(
     opts: &GapOptions,
 ) -> Result<Diagnosis> {
     let logs = read_logs(sim, train, validate)?;
-    let mut notes = Vec::new();
+    let use_d = sim.d[(0, 0)] != 0.0;
+    // ALIGNMENT, on the training logs.
+    let first = setup(sim, train, &logs, opts, &mut Vec::new())?;
+    let alignment = align::estimate(&first.td.coarse(REFIT_SCREEN_SAMPLES), &first.poles, use_d)
+        .filter(|a| a.applied);
+    let Some(a) = alignment else {
+        return diagnose_logs(sim, train, validate, opts, logs, 0.0, Vec::new());
+    };
+    // An unmodelled effect can pull the alignment estimate (a shift mimics part of a missing
+    // mode's phase): the diagnosis runs on the aligned and on the logs as logged, and keeps
+    // the aligned one unless the other's verdict model does better on the validation log by
+    // the verdict margin.
+    let aligned_logs = Logs {
+        ts: logs.ts,
+        tu: logs
+            .tu
+            .iter()
+            .map(|u| align::shift_input(u, a.samples))
+            .collect(),
+        ty: logs.ty.clone(),
+        vu: align::shift_input(&logs.vu, a.samples),
+        vy: logs.vy.clone(),
+    };
+    let note = format!(
+        "sample alignment: the logged output {} the zero-order-hold model by {:.2} samples \
+         (likelihood ratio {:.1} over no alignment); every log's input was shifted by it before \
+         the fits (a logging offset and a dead time of that length are the same thing in \
+         input/output data)",
+        if a.samples > 0.0 { "lags" } else { "leads" },
+        a.samples.abs(),
+        a.likelihood_ratio
+    );
+    let aligned = diagnose_logs(
+        sim,
+        train,
+        validate,
+        opts,
+        aligned_logs,
+        a.samples,
+        vec![note],
+    );
+    let as_logged = diagnose_logs(sim, train, validate, opts, logs, 0.0, Vec::new());
+    match (aligned, as_logged) {
+        (Ok(al), Ok(mut raw))
+            if raw.report.gap_after < (1.0 - opts.margin) * al.report.gap_after =>
+        {
+            raw.report.notes.push(format!(
+                "an alignment of {:+.2} samples was significant for the linear model alone \
+                 (likelihood ratio {:.1}), but on the aligned logs the verdict {} leaves {:.4} \
+                 against {:.4} here: the logs are judged as logged",
+                a.samples,
+                a.likelihood_ratio,
+                al.report.verdict,
+                al.report.gap_after,
+                raw.report.gap_after
+            ));
+            Ok(raw)
+        }
+        (Ok(al), _) => Ok(al),
+        (Err(_), raw) => raw,
+    }
+}
+
+/// The diagnosis of logs already aligned by `alignment_samples` (reported as such), with
+/// `notes` to start from.
+fn diagnose_logs(
+    sim: &StateSpace,
+    train: &[Log],
+    validate: &Log,
+    opts: &GapOptions,
+    mut logs: Logs,
+    alignment_samples: f64,
+    mut notes: Vec<String>,
+) -> Result<Diagnosis> {
     let s = setup(sim, train, &logs, opts, &mut notes)?;
+    let profile = Profile::new();
+    let mut s = s;
+    let mut st = linear_stage(sim, &logs, &s, &mut notes)?;
+    // OUTLIERS: spikes on the linear model's residual, masked in every log, then the linear
+    // model again on the masked logs.
+    let outliers = mask_spikes(train, validate, &mut logs, &st.resid, s.warmup);
+    if let Some(o) = &outliers {
+        notes.push(format!(
+            "{} output spike(s) ({:.2} % of the samples) masked before the noise floor and \
+             every fit (largest {:.4e} output units)",
+            o.count,
+            100.0 * o.share,
+            o.logs
+                .iter()
+                .map(|l| l.largest)
+                .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+                .unwrap_or(0.0)
+        ));
+        s = setup(sim, train, &logs, opts, &mut Vec::new())?;
+        st = linear_stage(sim, &logs, &s, &mut Vec::new())?;
+    }
+    profile.mark("linear refit");
+    let LinearStage {
+        y_nom,
+        gap_before,
+        nominal_modal,
+        choice,
+        linear,
+        gap_linear,
+        resid,
+    } = st;
     let (ts, warmup, drift_window) = (logs.ts, s.warmup, s.drift_window);
     let (vu, vy) = (&logs.vu, &logs.vy);
-    let profile = Profile::new();
-
-    // HOW FAR (before): the nominal sim on the validation log (with an integrator, the
-    // free run's drift left out).
-    let vscore = |yh: &[f64]| validation_nrmse(vy, yh, warmup, drift_window);
-    let y_nom = sim.simulate_siso(vu, None)?;
-    let gap_before = vscore(&y_nom);
-
-    // The nominal in modal form, and the linear re-fit guarded by it (LinearReport::source).
-    let use_d = sim.d[(0, 0)] != 0.0;
-    let nominal_modal = nominal_modal_form(sim, ts, &s.poles, use_d, &s.fu, vu, warmup);
-    let choice = choose_linear(
-        &s.td,
-        &s.poles,
-        use_d,
-        nominal_modal.as_ref(),
-        gap_before,
-        vu,
-        &vscore,
-        &mut notes,
-    )?;
-    profile.mark("linear refit");
-    let linear = AugmentedModel::linear(choice.lin.clone());
-    let gap_linear = vscore(&linear.simulate(vu)?);
-    let resid = Residuals::of(sim, &linear, &logs)?;
-
     // NOISE FLOOR.
     let noise_floor = noise_floor_of(&logs, &resid, warmup, ts)?;
 
@@ -639,6 +804,7 @@ pub fn diagnose(
         &choice,
         nominal_modal.as_ref(),
         &noise_floor,
+        (gap_linear, alignment_samples),
         opts,
     )?;
     notes.extend(selection.notes.iter().cloned());
@@ -707,6 +873,7 @@ pub fn diagnose(
         e.vanished = e.reproduces_linear(train_linear, gap_linear);
     }
     let report = GapReport {
+        outliers,
         verdict: verdict.name,
         verdict_effects,
         noise_floor,
@@ -717,7 +884,7 @@ pub fn diagnose(
         gap_after: verdict.gap_after,
         band_error,
         effects,
-        linear: linear_report(&choice, ts, train_linear)?,
+        linear: linear_report(&choice, ts, train_linear, alignment_samples)?,
         settings: Settings {
             ts,
             warmup_samples: warmup,

@@ -2,6 +2,7 @@
 //! unmodelled effect explains it, and how far the gap shrinks once the effect is added.
 //!
 //! Entry point: [`diagnose`] (command line: `ferrosid gap`, [`crate::cli::gap`]).
+pub mod align;
 pub mod diagnose;
 pub mod drift;
 pub mod effect;
@@ -14,6 +15,7 @@ pub mod locate;
 pub mod logs;
 pub mod modal;
 pub mod noise;
+pub mod outliers;
 pub use crate::optim;
 pub mod place;
 pub mod reading;

@@ -2,18 +2,20 @@
 //! from the data alone, so a verdict of `none` can be tied to "the linear re-fit reaches the
 //! noise" (see [`crate::gap::diagnose`]).
 //!
-//! Methods, tried in this order:
+//! Methods, tried in this order, on the validation log first (the floor must describe the log
+//! whose error it judges: a training log with heavy process noise says nothing of it) and on the
+//! training logs only when the validation log gives none:
 //! 1. **`periodic_scatter`** — when the input repeats exactly (a multisine played for several
 //!    periods, detected by [`detect_period`]), the output of any time-invariant plant (linear or
 //!    not) repeats too once the transient has died out, so what changes from period to period
-//!    is noise: σ² = Σ_periods Σ_k (y_p[k] − ȳ[k])² / ((M − 1)·P) over the M whole periods
-//!    after the warm-up (rounded up to whole periods, at least one period skipped when three or
-//!    more exist). Tried on the validation log, then on the periodic training logs (pooled σ²).
+//!    is noise: σ² from the differences of consecutive whole periods after the warm-up (rounded
+//!    up to whole periods, at least one period skipped when three or more exist), each pair's
+//!    mean removed (drift) and spikes left out ([`periodic_scatter`]).
 //! 2. **`off_band_residual`** — else the residual of the linear re-fit on the validation log
 //!    where the input has no power: Welch PSD of the residual on the bins whose input PSD is at
 //!    most [`OFF_BAND_REL`] of its peak (DC excluded; at least [`MIN_OFF_BAND_BINS`] bins and
 //!    5 % of all bins), σ² = median density there × fs/2 (white noise; the median keeps the
-//!    harmonics a nonlinearity puts off the band from inflating it). Then the training logs.
+//!    harmonics a nonlinearity puts off the band from inflating it).
 //! 3. **`unavailable`** — neither applies (broadband excitation without repetition): `nrmse`
 //!    is NaN (null in JSON) and the verdict rule says so.
 //!
@@ -141,26 +143,43 @@ pub fn whole_periods(len: usize, p: usize, warmup: usize) -> Option<(usize, usiz
 
 /// Period-to-period scatter of `y` with period `p` after `warmup` samples: (σ², periods used),
 /// `None` when fewer than two whole periods remain.
+///
+/// Read from the differences of consecutive periods, e_q[k] = y_{q+1}[k] − y_q[k] (variance 2σ²
+/// for noise of variance σ²), each pair's own mean removed: a drift that moves the output by a
+/// near-constant amount per period (a position output creeping) leaves no trace. Differences
+/// beyond [`SCATTER_CLIP`] robust standard deviations (1.4826·MAD) are left out, so sensor spikes
+/// do not set the floor; with no spread in the median (a coarse lattice) every difference counts.
 pub fn periodic_scatter(y: &[f64], p: usize, warmup: usize) -> Option<(f64, usize)> {
     let (skip, m) = whole_periods(y.len(), p, warmup)?;
     let seg = &y[skip * p..(skip + m) * p];
-    let mut avg = vec![0.0; p];
-    for q in 0..m {
-        for (a, v) in avg.iter_mut().zip(&seg[q * p..(q + 1) * p]) {
-            *a += v / m as f64;
-        }
+    let mut diffs: Vec<f64> = Vec::with_capacity((m - 1) * p);
+    for q in 0..m - 1 {
+        let e: Vec<f64> = seg[(q + 1) * p..(q + 2) * p]
+            .iter()
+            .zip(&seg[q * p..(q + 1) * p])
+            .map(|(b, a)| b - a)
+            .collect();
+        let mean = e.iter().sum::<f64>() / p as f64;
+        diffs.extend(e.iter().map(|v| v - mean));
     }
-    let ss: f64 = (0..m)
-        .map(|q| {
-            seg[q * p..(q + 1) * p]
-                .iter()
-                .zip(&avg)
-                .map(|(v, a)| (v - a) * (v - a))
-                .sum::<f64>()
-        })
-        .sum();
-    Some((ss / ((m - 1) * p) as f64, m))
+    let mut abs: Vec<f64> = diffs.iter().map(|v| v.abs()).collect();
+    let mid = abs.len() / 2;
+    let mad = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let cut = if mad > 0.0 {
+        SCATTER_CLIP * 1.4826 * mad
+    } else {
+        f64::INFINITY
+    };
+    let kept: Vec<f64> = diffs.into_iter().filter(|v| v.abs() <= cut).collect();
+    // Degrees of freedom: one mean per period pair.
+    let dof = kept.len().saturating_sub(m - 1).max(1);
+    let ss: f64 = kept.iter().map(|v| v * v).sum();
+    Some((ss / (2.0 * dof as f64), m))
 }
+
+/// Differences of consecutive periods beyond this many robust standard deviations are left out
+/// of [`periodic_scatter`] (a Gaussian difference passes with probability 1 − 6e-7).
+pub const SCATTER_CLIP: f64 = 5.0;
 
 /// Off-band noise variance of the residual `r` of a model driven by `u` (see the module docs),
 /// `None` when the input leaves too few bins without power.
@@ -215,6 +234,20 @@ pub fn noise_floor(
             });
         }
     }
+    // 2. Off-band residual of the validation log: the floor of the log the verdict judges comes
+    // before any training log's.
+    let w = warmup.min(val.0.len());
+    if let Some(s2) = off_band_variance(&val.0[w..], &val_resid[w..], fs)? {
+        return Ok(NoiseFloor {
+            nrmse: floor(s2),
+            method: "off_band_residual".into(),
+            source: "validation".into(),
+            period_samples: None,
+            periods: None,
+        });
+    }
+    // 3. Training logs (their noise taken as the validation's): periodic scatter pooled, then
+    // the off-band residual pooled.
     let mut pooled: Vec<(f64, usize, usize)> = Vec::new();
     for (u, y) in train {
         if let Some(p) = detect_period(u) {
@@ -231,17 +264,6 @@ pub fn noise_floor(
             source: "training".into(),
             period_samples: Some(pooled[0].2),
             periods: Some(pooled.iter().map(|v| v.1).sum()),
-        });
-    }
-    // 2. Off-band residual: validation, then the training logs pooled.
-    let w = warmup.min(val.0.len());
-    if let Some(s2) = off_band_variance(&val.0[w..], &val_resid[w..], fs)? {
-        return Ok(NoiseFloor {
-            nrmse: floor(s2),
-            method: "off_band_residual".into(),
-            source: "validation".into(),
-            period_samples: None,
-            periods: None,
         });
     }
     let mut v = Vec::new();
@@ -319,6 +341,35 @@ mod tests {
         assert_eq!(m, 11);
         // 11·400 samples, (m−1)·p = 4000 degrees of freedom: relative SE of σ² ≈ sqrt(2/4000).
         assert!((s2.sqrt() / sigma - 1.0).abs() < 0.05, "{}", s2.sqrt());
+    }
+
+    /// A position output creeping by 5σ per period and 0.5 % sensor spikes of 40σ: neither sets
+    /// the floor (the scatter about the period average would read the drift's spread, ~16σ,
+    /// and the spikes' 40σ·√0.005 ≈ 2.8σ).
+    #[test]
+    fn drift_between_periods_and_spikes_do_not_set_the_scatter() {
+        let mut rng = Rng::new(13);
+        let one = multisine_period(400, &mut rng);
+        let (p, n, sigma) = (400, 400 * 12, 0.05);
+        let drift: Vec<f64> = (0..n)
+            .map(|k| one[k % p] + sigma * rng.normal() + 5.0 * sigma * k as f64 / p as f64)
+            .collect();
+        let (s2, _) = periodic_scatter(&drift, p, 10).unwrap();
+        assert!(
+            (s2.sqrt() / sigma - 1.0).abs() < 0.06,
+            "drift: {}",
+            s2.sqrt() / sigma
+        );
+        let mut spiky: Vec<f64> = (0..n).map(|k| one[k % p] + sigma * rng.normal()).collect();
+        for k in (7..n).step_by(200) {
+            spiky[k] += 40.0 * sigma;
+        }
+        let (s2, _) = periodic_scatter(&spiky, p, 10).unwrap();
+        assert!(
+            (s2.sqrt() / sigma - 1.0).abs() < 0.06,
+            "spikes: {}",
+            s2.sqrt() / sigma
+        );
     }
 
     #[test]

@@ -78,6 +78,10 @@ pub struct LinearReport {
     pub poles_hz: Vec<(f64, f64)>,
     /// RMS over the training logs of their NRMSE.
     pub train_nrmse: f64,
+    /// Sample alignment of the logs, samples: the logged output lags the zero-order-hold model
+    /// by this much (negative: it leads); every log's input was shifted by it before anything
+    /// was fitted or judged ([`crate::gap::align`]). 0 when no significant alignment was found.
+    pub alignment_samples: f64,
 }
 
 /// Settings the diagnosis ran with.
@@ -121,6 +125,10 @@ pub struct BandError {
 /// The full report (`ferrosid gap --json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct GapReport {
+    /// Output spikes found and masked before the noise floor and every fit
+    /// ([`crate::gap::outliers`]); absent when there were none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub outliers: Option<crate::gap::outliers::Outliers>,
     /// `none`, `unexplained`, an effect name, or effect names joined by `+` (selection order).
     pub verdict: String,
     /// The verdict's effects with place, parameters and share (empty for `none` and
@@ -408,7 +416,47 @@ impl GapReport {
                 "  noise floor      not estimable (no repeating input, no off-band bins)"
             );
         }
+        if let Some(o) = &self.outliers {
+            let _ = writeln!(
+                s,
+                "  data quality     {} output spike(s), {:.2} % of the samples, masked before \
+                 the floor and the fits",
+                o.count,
+                100.0 * o.share
+            );
+            for l in &o.logs {
+                let _ = writeln!(
+                    s,
+                    "    {}: {} at {} s{} (largest {:+.4e})",
+                    l.log,
+                    l.count,
+                    l.times_s
+                        .iter()
+                        .map(|t| format!("{t:.4}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    if l.count > l.times_s.len() {
+                        ", …"
+                    } else {
+                        ""
+                    },
+                    l.largest
+                );
+            }
+        }
         let _ = writeln!(s, "  nominal sim      {:.4}", self.gap_before);
+        if self.linear.alignment_samples != 0.0 {
+            let a = self.linear.alignment_samples;
+            let _ = writeln!(
+                s,
+                "  alignment        {:+.2} samples (the logged output {} the zero-order-hold \
+                 model by {:.2} samples = {:.3e} s; the logs are judged aligned)",
+                a,
+                if a > 0.0 { "lags" } else { "leads" },
+                a.abs(),
+                a.abs() * self.settings.ts
+            );
+        }
         let _ = writeln!(
             s,
             "  linear {:<9} {:.4}  ({} vs nominal{})",

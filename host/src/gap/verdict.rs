@@ -18,6 +18,8 @@ pub enum Decision {
 
 /// The verdict rule (docs/gap.md, "Verdict"). With `floor` the noise-floor NRMSE on the
 /// validation log and `best` the best candidate's validation NRMSE:
+/// 0. a floor above [`FLOOR_CONTRADICTION`]·gap_linear is contradicted by the data: **effect**
+///    when the candidate passes rule 1 with the floor taken as 0, else **unexplained**;
 /// 1. **effect** when the candidate improves on the linear re-fit by at least `margin`
 ///    (relative) *and* removes at least `min_excess_closed` of the excess
 ///    gap_linear − floor (floor taken as 0 when it could not be estimated);
@@ -46,6 +48,19 @@ impl VerdictRule {
         evidence: &Evidence,
     ) -> Decision {
         let f = if floor.available() { floor.nrmse } else { 0.0 };
+        if floor_contradicted(gap_linear, floor) {
+            // A floor above what the linear re-fit reaches describes some other noise: no
+            // licence for `none`, and no share of the excess taken off.
+            let effect = has_candidate
+                && best.is_finite()
+                && (gap_linear - best) >= self.margin * gap_linear
+                && (gap_linear - best) >= self.min_excess_closed * gap_linear;
+            return if effect {
+                Decision::Effect
+            } else {
+                Decision::Unexplained
+            };
+        }
         if has_candidate
             && best.is_finite()
             && (gap_linear - best) >= self.margin * gap_linear
@@ -87,6 +102,15 @@ impl VerdictRule {
                  off-band bins) and no evidence of a nonlinearity; the linear re-fit leaves \
                  {gap_linear:.4}"
             )),
+            Decision::Unexplained if floor_contradicted(gap_linear, floor) => Some(format!(
+                "verdict unexplained: the noise floor ({fl:.4}, {} of the {} log) lies above what \
+                 the linear re-fit reaches ({gap_linear:.4}): it cannot describe the validation \
+                 log's noise, so it licenses no `none`; the best candidate ({best:.4}) does not \
+                 remove {:.0}% of the gap",
+                floor.method,
+                floor.source,
+                100.0 * self.min_excess_closed
+            )),
             Decision::Unexplained => Some(format!(
                 "verdict unexplained: the linear re-fit leaves {gap_linear:.4}{}, and the best \
                  candidate ({best:.4}) does not improve on it by {:.0}% while removing {:.0}% of \
@@ -101,6 +125,17 @@ impl VerdictRule {
             )),
         }
     }
+}
+
+/// A noise floor above [`FLOOR_CONTRADICTION`] times the linear re-fit's validation NRMSE
+/// contradicts it (no model can do better than the noise): the floor describes other noise
+/// (another log, process noise, drift) and is no licence for `none`.
+pub const FLOOR_CONTRADICTION: f64 = 1.2;
+
+/// Whether `floor` contradicts the linear re-fit's validation NRMSE `gap_linear`
+/// ([`FLOOR_CONTRADICTION`]).
+pub fn floor_contradicted(gap_linear: f64, floor: &NoiseFloor) -> bool {
+    floor.available() && floor.nrmse > FLOOR_CONTRADICTION * gap_linear
 }
 
 /// Likelihood-ratio threshold for the nested pair (stiction over Coulomb friction) when the
@@ -241,6 +276,25 @@ mod tests {
             sse_rich,
             sst,
         }
+    }
+
+    /// A floor above 1.2× what the linear re-fit reaches is contradicted (issue case: a
+    /// training log's scatter of 0.67 against a validation gap of 0.30), one at or below it
+    /// is not, and no floor contradicts nothing.
+    #[test]
+    fn a_floor_above_the_linear_gap_is_contradicted() {
+        let floor = |nrmse: f64| NoiseFloor {
+            nrmse,
+            method: "periodic_scatter".into(),
+            source: "training".into(),
+            period_samples: None,
+            periods: None,
+        };
+        assert!(floor_contradicted(0.30, &floor(0.67)));
+        assert!(!floor_contradicted(0.30, &floor(0.30)));
+        assert!(!floor_contradicted(0.30, &floor(0.35)));
+        assert!(floor_contradicted(0.30, &floor(0.37)));
+        assert!(!floor_contradicted(0.30, &floor(f64::NAN)));
     }
 
     /// One log: Λ = N_eff·ln(SSE_simple/SSE_rich) whatever the output's scale.

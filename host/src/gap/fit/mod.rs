@@ -37,11 +37,13 @@ mod tests;
 
 pub(crate) use eval::keep_best;
 pub use eval::{eval_model, Fitted, TrainData};
-
 pub use joint::{joint_fit, refined};
 pub(crate) use joint::{stiction_coords, stiction_from_coords};
 pub use model::{input_transform, sensor_transform, AugmentedModel, VelocitySource};
-pub use placed::{fit_candidate, fit_placed, null_effect, FitHints, GRID_STARTS, SCREEN_MIN_GAIN};
+pub use placed::{
+    beats_by_screen_gain, fit_candidate, fit_placed, null_effect, FitHints, GRID_STARTS,
+    SCREEN_MIN_GAIN,
+};
 pub use resonance::RELABEL_COST_TOL;
 
 use crate::gap::select::lattice_evidence;
@@ -84,5 +86,6 @@ pub const JOINT_MAX_ITER: usize = 12;
 /// likelihood ratio of a log of 10^4 samples by less than 0.1.
 pub const JOINT_RTOL: f64 = 1e-5;
 
-/// Iteration cap of the coarse screening refinements (they only rank the starts).
+/// Iteration cap of the coarse screening refinements (they rank the starts and decide whether
+/// the best earns the full refinement, see [`SCREEN_MIN_GAIN`]).
 pub const SCREEN_MAX_ITER: usize = 4;

@@ -284,12 +284,18 @@ pub(super) fn null_guard(
 /// data (and null-guarded like any other fit).
 pub const SCREEN_MIN_GAIN: f64 = 0.01;
 
+/// Whether `cost` lies below `reference` by more than [`SCREEN_MIN_GAIN`] (relative): the one
+/// test every refinement screen applies.
+pub fn beats_by_screen_gain(cost: f64, reference: f64) -> bool {
+    cost < (1.0 - SCREEN_MIN_GAIN) * reference
+}
+
 /// Whether a candidate whose screened fit costs `screened` on `coarse` lowers the cost of
 /// `base` (its residues, feedthrough and offset re-fitted on the same data) by at least
 /// [`SCREEN_MIN_GAIN`]; `true` when the base cannot be evaluated.
 pub(super) fn promising(coarse: &TrainData, base: &AugmentedModel, screened: f64) -> bool {
     eval_model(coarse, base.clone(), FRICTION_SUBSTEPS)
-        .is_none_or(|b| screened < (1.0 - SCREEN_MIN_GAIN) * b.train_cost)
+        .is_none_or(|b| beats_by_screen_gain(screened, b.train_cost))
 }
 
 /// Grid points screened by a coarse joint refinement in [`fit_placed`] (the best of

@@ -31,8 +31,8 @@
 use super::drift::validation_nrmse;
 use super::effect::{Effect, EffectKind};
 use super::fit::{
-    eval_model, fit_placed, joint_fit, refined, AugmentedModel, FitHints, Fitted, TrainData,
-    VelocitySource, FRICTION_SUBSTEPS, JOINT_MAX_ITER, SCREEN_MIN_GAIN,
+    beats_by_screen_gain, eval_model, fit_placed, joint_fit, refined, AugmentedModel, FitHints,
+    Fitted, TrainData, VelocitySource, FRICTION_SUBSTEPS, JOINT_MAX_ITER,
 };
 use super::modal::ModalModel;
 use super::place::{Candidate, Place, PlacedEffect};
@@ -40,6 +40,7 @@ use super::structure::TwoMassStructure;
 use crate::error::{Error, Result};
 use num_complex::Complex64;
 
+mod contradiction;
 mod dwell;
 mod lattice;
 mod nested;
@@ -52,6 +53,8 @@ mod checks;
 #[cfg(test)]
 mod conditioning;
 
+use contradiction::DataFacts;
+pub use contradiction::{CLIP_TOL, MAX_SHARE_BEYOND_CLIP, MIN_REVERSALS, REVERSAL_BAND};
 pub use dwell::{dwell_evidence, DwellEvidence, MIN_DWELLS, MIN_DWELL_SAMPLES};
 pub use lattice::{lattice_evidence, LatticeEvidence, LATTICE_TOL_STEPS, MIN_LATTICE_SHARE};
 pub use nested::NESTED_FLOOR_FACTOR;
@@ -87,6 +90,9 @@ pub struct SelectOptions {
     /// Drift window of the validation NRMSE ([`crate::gap::modal::validation_nrmse`]), for a
     /// linear part with an integrator; `None`: the plain NRMSE.
     pub drift_window: Option<usize>,
+    /// Sample alignment already applied to the logs ([`crate::gap::align`]), samples: a time
+    /// delay that keeps the total lag within the alignment range is the alignment's.
+    pub alignment_samples: f64,
 }
 
 /// A second effect is not sought once the best single's validation NRMSE is within this
@@ -105,6 +111,7 @@ impl Default for SelectOptions {
             noise_floor: None,
             min_excess_closed: crate::gap::diagnose::DEFAULT_MIN_EXCESS_CLOSED,
             drift_window: None,
+            alignment_samples: 0.0,
         }
     }
 }
@@ -303,12 +310,26 @@ pub fn select_effects(
         opts.candidates.clone()
     };
     // 1. Singles.
+    let raw = if opts.raw_outputs.is_empty() {
+        &td.base.y
+    } else {
+        &opts.raw_outputs
+    };
+    let facts = DataFacts::of(
+        raw,
+        &td.u,
+        td.ts,
+        vel,
+        td.base.warmup,
+        opts.alignment_samples,
+    );
     let mut singles = fit_singles(
         td,
         &bases,
         &cands,
         (sim_poles, &hints),
         (val, gap_linear),
+        &facts,
         &mut notes,
     );
     // Nested: stiction vs Coulomb friction at the same place.
@@ -369,13 +390,15 @@ pub fn select_effects(
         stribeck::refine_stribeck(last, td, val, gap_linear, &mut notes);
         profile_since("stribeck", t0);
     }
-    // 4. Lattice evidence decides quantization.
+    // 4. Lattice evidence decides quantization; the effects selected besides it must pass
+    // the verdict rule on their own.
     let model = lattice_decides(
         &mut selected_models,
         &linear,
         lattice,
         td,
         (val, gap_linear),
+        opts,
         &mut notes,
     );
     let selected = shares(&selected_models, gap_linear);
@@ -457,6 +480,7 @@ fn fit_singles(
     cands: &[Candidate],
     (sim_poles, hints): (&[Complex64], &FitHints),
     (val, gap_linear): (Val, f64),
+    facts: &DataFacts,
     notes: &mut Vec<String>,
 ) -> Vec<Scored> {
     let mut singles: Vec<Scored> = Vec::new();
@@ -488,14 +512,21 @@ fn fit_singles(
         let t0 = profile_seconds();
         let fc = fit_placed(*c, td, &use_bases, hint, sim_poles, hints);
         profile_since(&c.to_string(), t0);
-        match fc {
-            Some(f) => {
+        let why_not = fc.as_ref().and_then(|f| {
+            f.model
+                .effects()
+                .iter()
+                .find_map(|pe| facts.contradiction(pe))
+        });
+        match (fc, why_not) {
+            (Some(_), Some(why)) => notes.push(why),
+            (Some(f), None) => {
                 if c.kind == EffectKind::CoulombFriction && c.place == Place::Motor {
                     coulomb = Some(f.clone());
                 }
                 singles.push(score(f, val, gap_linear));
             }
-            None => notes.push(format!("{c}: no fit")),
+            (None, _) => notes.push(format!("{c}: no fit")),
         }
     }
     singles.sort_by(|a, b| a.gap.total_cmp(&b.gap));
@@ -525,6 +556,21 @@ fn fit_singles(
     singles
 }
 
+/// Share of the excess gap_linear − floor (floor 0 when unknown) that a validation NRMSE of
+/// `gap` removes.
+fn excess_closed(gap: f64, gap_linear: f64, floor: Option<f64>) -> f64 {
+    let f = floor.unwrap_or(0.0).clamp(0.0, gap_linear);
+    (gap_linear - gap) / (gap_linear - f).max(1e-300)
+}
+
+/// The verdict rule ([`crate::gap::verdict::VerdictRule`]) on a scored selection step alone:
+/// the margin over the linear re-fit and the share of the excess over the floor.
+fn passes_rule_alone(s: &Scored, gap_linear: f64, opts: &SelectOptions) -> bool {
+    s.gap.is_finite()
+        && s.improvement >= opts.margin
+        && excess_closed(s.gap, gap_linear, opts.noise_floor) >= opts.min_excess_closed
+}
+
 /// Step 4 of [`select_effects`]: a lattice in the measured outputs decides quantization by
 /// itself (added at the sensor to the selected model when it lacks it). Returns the final
 /// model (the last selected step, or `linear`).
@@ -534,17 +580,41 @@ fn lattice_decides(
     lattice: Option<LatticeEvidence>,
     td: &TrainData,
     (val, gap_linear): (Val, f64),
+    opts: &SelectOptions,
     notes: &mut Vec<String>,
 ) -> AugmentedModel {
+    let Some(l) = lattice else {
+        return selected_models
+            .last()
+            .map_or(linear.clone(), |s| s.model.clone());
+    };
+    // The lattice names quantization by itself; nothing else rides in on it: the effects
+    // selected besides a lattice-added quantization pass the verdict rule without it or go.
+    let has_q = |m: &AugmentedModel| {
+        m.effects()
+            .iter()
+            .any(|p| p.effect.kind() == EffectKind::Quantization)
+    };
+    if let Some(last) = selected_models.last() {
+        if !has_q(&last.model) && !passes_rule_alone(last, gap_linear, opts) {
+            notes.push(format!(
+                "{} closes {:.0} % of the linear re-fit's excess over the noise floor (the \
+                 verdict rule asks {:.0} %): not named beside the lattice's quantization",
+                last.effects
+                    .iter()
+                    .map(ToString::to_string)
+                    .collect::<Vec<_>>()
+                    .join(" + "),
+                100.0 * excess_closed(last.gap, gap_linear, opts.noise_floor),
+                100.0 * opts.min_excess_closed
+            ));
+            selected_models.clear();
+        }
+    }
     let mut model = selected_models
         .last()
         .map_or(linear.clone(), |s| s.model.clone());
-    let Some(l) = lattice else { return model };
-    let has_q = model
-        .effects()
-        .iter()
-        .any(|p| p.effect.kind() == EffectKind::Quantization);
-    if !has_q {
+    if !has_q(&model) {
         let m = model.with_added(PlacedEffect {
             effect: Effect::Quantization { step: l.step },
             place: Place::Sensor,
@@ -784,12 +854,12 @@ impl PairContext<'_> {
             // A pair inside the two-mass structure: a second joint refinement (its cost is
             // narrow in the gap and the first stops short when the drive effect moves too),
             // when the first brought it a gain on `first` worth refining (see
-            // [`SCREEN_MIN_GAIN`]).
+            // [`crate::gap::fit::SCREEN_MIN_GAIN`]).
             let t0 = profile_seconds();
             let fc = match fc {
                 Some(f)
                     if c.place.needs_two_mass()
-                        && f.train_cost < (1.0 - SCREEN_MIN_GAIN) * first.train_cost =>
+                        && beats_by_screen_gain(f.train_cost, first.train_cost) =>
                 {
                     Some(refined(self.td, f, JOINT_MAX_ITER))
                 }
@@ -808,7 +878,8 @@ impl PairContext<'_> {
 
 /// The selected effects with their forward-selection shares: each step's model adds one effect
 /// to the previous one; its share is its drop of the validation NRMSE, clipped at zero,
-/// normalised to sum to 1 (equal shares when nothing dropped).
+/// normalised to sum to 1 — and 0 for every effect when nothing dropped (a lattice can name
+/// quantization on a gap that does not shrink: its share of no shrink is none).
 fn shares(steps: &[Scored], gap_linear: f64) -> Vec<SelectedEffect> {
     let mut prev = gap_linear;
     let mut deltas = Vec::new();
@@ -839,9 +910,8 @@ fn shares(steps: &[Scored], gap_linear: f64) -> Vec<SelectedEffect> {
         }
     }
     let total: f64 = deltas.iter().sum();
-    let n = out.len().max(1) as f64;
     for (o, d) in out.iter_mut().zip(&deltas) {
-        o.share = if total > 0.0 { d / total } else { 1.0 / n };
+        o.share = if total > 0.0 { d / total } else { 0.0 };
     }
     out
 }

@@ -3,7 +3,9 @@
 //! in physical log coordinates (the model itself is [`super::TwoMassModel`]).
 use super::{TwoMassModel, TWO_MASS_COORD_STEP};
 use crate::gap::effect::{Effect, EffectKind};
-use crate::gap::fit::{eval_model, AugmentedModel, Fitted, TrainData, JOINT_RTOL, SCREEN_MIN_GAIN};
+use crate::gap::fit::{
+    beats_by_screen_gain, eval_model, AugmentedModel, Fitted, TrainData, JOINT_RTOL,
+};
 use crate::gap::optim::levenberg_marquardt_steps;
 use crate::gap::place::{Candidate, Place, PlacedEffect};
 /// Sets the two-mass model's offset to its least-squares value on the training logs and
@@ -126,7 +128,7 @@ fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
 /// parameters and the gap; the best is refined on all the data by a fine gap scan (±6 %) and
 /// a joint Levenberg–Marquardt — only when the screened fit, evaluated on all the data, lowers
 /// `to_beat` (the training cost of the model the candidate must improve on) by
-/// [`SCREEN_MIN_GAIN`].
+/// [`crate::gap::fit::SCREEN_MIN_GAIN`].
 pub fn fit_drivetrain_backlash(
     td: &TrainData,
     bases: &[AugmentedModel],
@@ -213,7 +215,7 @@ pub fn fit_drivetrain_backlash(
     }
     let b = best?;
     let mut f = eval_two_mass(td, b.model)?;
-    if to_beat.is_some_and(|c| f.train_cost >= (1.0 - SCREEN_MIN_GAIN) * c) {
+    if to_beat.is_some_and(|c| !beats_by_screen_gain(f.train_cost, c)) {
         // The screened fit does not lower the cost to beat enough to earn the refinement.
         return Some(f);
     }
