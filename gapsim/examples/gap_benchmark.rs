@@ -1,10 +1,11 @@
 //! Runs the two-family gap benchmark and prints the markdown summary.
 //!
-//! `cargo run --release -p ferrosid-gapsim --example gap_benchmark -- [--family same|indep|all]
+//! `cargo run --release -p ferrosid-gapsim --example gap_benchmark -- [--family same|indep|all|null]
 //! [--filter TEXT] [--seed-offset K] [--n SAMPLES] [--verbose] [--jobs J]`
 //!
 //! `--family` (default `all`): the first family (`ferrosid_sim::benchmark`, same equations as
-//! the candidates), the independent one (this crate's simulator) or both; `--filter` keeps cases
+//! the candidates), the independent one (this crate's simulator), both, or `null` (the
+//! effect-free set of `ferrosid_gapsim::null`, for the false-positive rate); `--filter` keeps cases
 //! whose id contains TEXT; `--seed-offset` adds K to every seed (fresh nominal mismatch,
 //! excitation and noise: a held-out draw); `--n` samples per log (default 16384); `--verbose`
 //! prints each report's JSON to stderr; `--jobs` runs cases on J threads (default 1).
@@ -14,7 +15,7 @@ use ferrosid_gapsim::score::markdown;
 
 fn usage(msg: &str) -> ! {
     eprintln!(
-        "{msg}\nusage: gap_benchmark [--family same|indep|all] [--filter TEXT] [--seed-offset K] \
+        "{msg}\nusage: gap_benchmark [--family same|indep|all|null] [--filter TEXT] [--seed-offset K] \
          [--n SAMPLES] [--verbose] [--jobs J]"
     );
     std::process::exit(2)
@@ -37,8 +38,8 @@ fn main() {
     while i < args.len() {
         match args[i].as_str() {
             "--family" => {
-                family = value(i, "same, indep or all");
-                if !["same", "indep", "all"].contains(&family.as_str()) {
+                family = value(i, "same, indep, all or null");
+                if !["same", "indep", "all", "null"].contains(&family.as_str()) {
                     usage(&format!("--family: unknown family {family:?}"));
                 }
                 i += 1;
@@ -82,6 +83,8 @@ fn main() {
     }
     eprintln!("{} cases, {n} samples per log, {jobs} job(s)", cases.len());
     let opts = GapOptions::default();
+    let described: std::collections::HashMap<String, String> =
+        cases.iter().map(|c| (c.id(), c.describe())).collect();
     let outcomes = run_all(&cases, n, jobs, &opts, &|o, v| {
         if verbose {
             if let Some(v) = v {
@@ -94,8 +97,9 @@ fn main() {
             .map(|(k, v)| format!("{k} {:.1}%", 100.0 * v))
             .collect();
         eprintln!(
-            "{:<44} {} expected {:<24} verdict {:<24} place {:<5} gaps {:.3} {:.3} {:.3} floor {:.4}  {}  {:.2} s",
+            "{:<44} {:<8} {} expected {:<24} verdict {:<24} place {:<5} gaps {:.3} {:.3} {:.3} floor {:.4}  {}  {:.2} s  {}",
             o.id,
+            o.split.name(),
             if o.verdict_right { "ok " } else { "BAD" },
             o.expected,
             o.verdict,
@@ -109,7 +113,8 @@ fn main() {
             o.gaps[2],
             o.noise_floor,
             pe.join(" "),
-            o.seconds
+            o.seconds,
+            described.get(&o.id).map_or("", String::as_str)
         );
     });
     println!("{}", markdown(&outcomes));

@@ -8,6 +8,7 @@
 //! Family `indep`: [`crate::cases`], noise floor exact.
 use crate::cases::{self, TruthEffect, TS};
 use crate::excite::rms;
+use crate::null;
 use crate::score::{failed, score, Family, Outcome};
 use ferrosid::gap::{diagnose, GapOptions};
 use serde_json::Value;
@@ -21,6 +22,8 @@ pub enum AnyCase {
     Same(ferrosid_sim::benchmark::Case),
     /// From this crate.
     Indep(cases::Case),
+    /// Effect-free, from this crate ([`crate::null`]).
+    Null(null::Case),
 }
 
 impl AnyCase {
@@ -29,6 +32,7 @@ impl AnyCase {
         match self {
             AnyCase::Same(c) => format!("same/{}", c.id),
             AnyCase::Indep(c) => c.id.clone(),
+            AnyCase::Null(c) => c.id.clone(),
         }
     }
     /// Family.
@@ -36,6 +40,14 @@ impl AnyCase {
         match self {
             AnyCase::Same(_) => Family::Same,
             AnyCase::Indep(_) => Family::Indep,
+            AnyCase::Null(_) => Family::Null,
+        }
+    }
+    /// What was drawn for a null case (empty for the effect families).
+    pub fn describe(&self) -> String {
+        match self {
+            AnyCase::Null(c) => c.describe(),
+            _ => String::new(),
         }
     }
     /// Adds `k` to the seed.
@@ -43,12 +55,17 @@ impl AnyCase {
         match self {
             AnyCase::Same(c) => c.seed = c.seed.wrapping_add(k),
             AnyCase::Indep(c) => c.seed = c.seed.wrapping_add(k),
+            AnyCase::Null(c) => c.seed = c.seed.wrapping_add(k),
         }
     }
 }
 
-/// All cases of the selected families (`same`, `indep` or `all`), in a fixed order.
+/// All cases of the selected families (`same`, `indep`, `all` = both, or `null`, the
+/// effect-free set), in a fixed order.
 pub fn all_cases(family: &str) -> Vec<AnyCase> {
+    if family == "null" {
+        return null::cases().into_iter().map(AnyCase::Null).collect();
+    }
     let mut v = Vec::new();
     if family == "same" || family == "all" {
         v.extend(
@@ -115,6 +132,9 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
             .map_err(|e| e.to_string()),
         AnyCase::Indep(c) => cases::generate(c, n)
             .map(|d| (d.sim, d.train, d.validate, d.truth, d.noise_floor))
+            .map_err(|e| e.to_string()),
+        AnyCase::Null(c) => null::generate(c, n)
+            .map(|d| (d.sim, d.train, d.validate, Vec::new(), d.noise_floor))
             .map_err(|e| e.to_string()),
     };
     let (sim, train, validate, truth, floor) = match generated {

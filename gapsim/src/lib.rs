@@ -15,6 +15,7 @@ pub mod cases;
 pub mod excite;
 pub mod hybrid;
 pub mod laws;
+pub mod null;
 pub mod ode;
 pub mod plants;
 pub mod rng;

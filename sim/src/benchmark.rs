@@ -289,19 +289,51 @@ pub struct Outcome {
     pub gaps: [f64; 3],
     /// Wall time of the diagnosis, s.
     pub seconds: f64,
+    /// Whether the verdict is right ([`score`]).
+    pub right: bool,
 }
 
 impl Outcome {
-    /// Whether the verdict names the true effect.
+    /// Whether the verdict names the true effect (a delay within the alignment range: whether
+    /// the report's lag matches it, see [`score`]).
     pub fn correct(&self) -> bool {
-        self.truth == self.verdict
+        self.right
     }
 }
 
-/// Scores a report against the case's truth.
+/// Scores a report against the case's truth. A true time delay within the alignment range
+/// (±[`ferrosid::gap::align::MAX_ALIGNMENT`] samples) is the sample alignment's to report: the
+/// verdict is right when it is `none` (or `time_delay`) and the report's total lag (alignment
+/// plus the verdict's delay) is within 0.3 samples or half the true lag of it; its parameter
+/// error is that lag's.
 pub fn score(case: &Case, truth: Option<&Effect>, report: &GapReport, seconds: f64) -> Outcome {
     let truth_name = truth.map_or("none".to_string(), |e| e.kind().name().to_string());
     let mut param_errors = Vec::new();
+    let ts = report.settings.ts;
+    if let Some(&Effect::TimeDelay { seconds: d }) = truth {
+        if (d / ts).abs() <= ferrosid::gap::align::MAX_ALIGNMENT {
+            let lag = report.linear.alignment_samples
+                + report
+                    .verdict_effects
+                    .iter()
+                    .filter_map(|e| e.params.get("seconds"))
+                    .sum::<f64>()
+                    / ts;
+            // Found: within 0.3 samples or half the true lag (its accuracy is the parameter
+            // error, as for every other effect).
+            let right = (lag - d / ts).abs() <= 0.3f64.max(0.5 * (d / ts).abs())
+                && (report.verdict == "none" || report.verdict == "time_delay");
+            return Outcome {
+                id: case.id.clone(),
+                truth: truth_name.clone(),
+                verdict: format!("{} (lag {lag:.2} samples)", report.verdict),
+                param_errors: vec![("seconds".into(), ((lag * ts - d) / d).abs())],
+                gaps: [report.gap_before, report.gap_linear, report.gap_after],
+                seconds,
+                right,
+            };
+        }
+    }
     if let Some(t) = truth {
         if let Some(er) = report.effects.iter().find(|e| e.effect == truth_name) {
             for (k, v) in t.params() {
@@ -313,6 +345,7 @@ pub fn score(case: &Case, truth: Option<&Effect>, report: &GapReport, seconds: f
     }
     Outcome {
         id: case.id.clone(),
+        right: truth_name == report.verdict,
         truth: truth_name,
         verdict: report.verdict.clone(),
         param_errors,
@@ -389,7 +422,15 @@ pub fn markdown(outcomes: &[Outcome]) -> Result<String> {
         for v in &labels {
             let c = outcomes
                 .iter()
-                .filter(|o| &o.truth == t && &o.verdict == v)
+                .filter(|o| {
+                    // A delay scored on the alignment counts where its score puts it.
+                    let said = if o.right {
+                        o.truth.as_str()
+                    } else {
+                        o.verdict.split(' ').next().unwrap_or("")
+                    };
+                    &o.truth == t && said == v
+                })
                 .count();
             let _ = write!(
                 s,
