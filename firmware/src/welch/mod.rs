@@ -48,8 +48,8 @@
 //! sample. The work is complete before the next segment ends (the segment end completes any
 //! remainder), so no push ever does a whole segment. Measured under QEMU `-icount` on the
 //! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 3,560 instructions
-//! and the mean 195.6 per sample (N = 256: 3,720 and 178.1), while one segment's work done at
-//! once costs 87,120 (figures and commands: `docs/firmware-performance.md`). There is no separate
+//! and the mean 195.9 per sample (N = 256: 3,720 and 178.3), while one segment's work done at
+//! once costs 87,160 (figures and commands: `docs/firmware-performance.md`). There is no separate
 //! background call to make; an ISR simply calls [`Welch::push`].
 //!
 //! Consequences of the pipeline, all explicit in the API:
@@ -295,28 +295,39 @@ impl<const N: usize> Welch<N> {
             *slot = [0.0, 0.0];
             self.reject((N - w % N) as u32);
         }
-        self.w = w + 1;
         if (w + 1) & self.grant_mask == 0 {
             self.grant_point(w + 1);
+        } else {
+            self.w = w + 1;
         }
     }
 
     /// A grant point (every `grant_mask + 1` pushes, see [`schedule::grant_plan`]): runs the
     /// segment in work's share (the grant, 0 when there is none, plus the unspent credit), then
     /// ends the segment if the fill bank is full (`next`: the fill index after this push).
+    ///
+    /// The work runs before `w` advances to `next`: at a segment end `next` is already in the
+    /// other bank, and the kernels tell the work bank from the fill bank by `w`.
     #[inline(never)]
     fn grant_point(&mut self, next: usize) {
+        let end = next.is_multiple_of(N);
         if self.grant > 0 {
             let credit = self.job.credit.saturating_add(self.grant);
-            self.job.credit = self.work(credit);
+            self.job.credit = if end {
+                self.flush();
+                0
+            } else {
+                self.work(credit)
+            };
         }
-        if next.is_multiple_of(N) {
+        self.w = next;
+        if end {
             self.segment_end();
         }
     }
 
     /// Completes the segment in work, if any, so that the estimates include every segment that
-    /// has ended. Costs up to one segment's work (N = 1024: about 87,100 instructions on a
+    /// has ended. Costs up to one segment's work (N = 1024: about 87,200 instructions on a
     /// Cortex-M4F): call it outside time-critical code, e.g. after the last `push` and before
     /// reading the estimates.
     pub fn flush(&mut self) {
