@@ -168,7 +168,14 @@ fn every_segment_length_matches_reference() {
 #[test]
 fn streaming_push_equals_batch_and_reference_in_every_bin() {
     fn run<const N: usize>(overlap: usize, window: Window, detrend: bool) -> f64 {
-        let (u, y) = signals(23, 9 * N + 101, &[0.05, 0.0, -0.05], &[1.0, -1.6, 0.9], 0.05, 2.0);
+        let (u, y) = signals(
+            23,
+            9 * N + 101,
+            &[0.05, 0.0, -0.05],
+            &[1.0, -1.6, 0.9],
+            0.05,
+            2.0,
+        );
         let cfg = WelchConfig {
             fs_hz: 500.0,
             overlap,
@@ -210,7 +217,10 @@ fn streaming_push_equals_batch_and_reference_in_every_bin() {
                 ((sr - br).hypot(si - bi)) as f64 / muy,
             ];
             for (name, e) in ["Suu", "Syy", "Suy"].iter().zip(path) {
-                assert!(e <= 1e-6, "N={N} overlap={overlap} k={k} {name}: paths differ by {e:e}");
+                assert!(
+                    e <= 1e-6,
+                    "N={N} overlap={overlap} k={k} {name}: paths differ by {e:e}"
+                );
                 worst_path = worst_path.max(e);
             }
             let (cr, ci) = stream.suy(k);
@@ -221,7 +231,10 @@ fn streaming_push_equals_batch_and_reference_in_every_bin() {
                 (suy - r.suy[k]).norm() / muy,
             ];
             for (name, e) in ["Suu", "Syy", "Suy"].iter().zip(errs) {
-                assert!(e <= 1e-5, "N={N} overlap={overlap} k={k} {name}: {e:e} of the peak");
+                assert!(
+                    e <= 1e-5,
+                    "N={N} overlap={overlap} k={k} {name}: {e:e} of the peak"
+                );
                 worst = worst.max(e);
             }
         }

@@ -225,9 +225,17 @@ pub(super) const fn grant_plan<const N: usize>(
         s /= 2;
     }
     loop {
-        let g = if hop > s { (hop - 1) / s } else { 1 };
+        // Checked divisions (`s >= 1`, `pushes >= 1`, but the compiler cannot see it): no
+        // panic path in `new`/`configure`.
+        let g = match (hop - 1).checked_div(s) {
+            Some(g) if g >= 1 => g,
+            _ => 1,
+        };
         let pushes = (g * s) as i64;
-        let b = (t + pushes - 1) / pushes;
+        let b = match (t + pushes - 1).checked_div(pushes) {
+            Some(b) => b,
+            None => t,
+        };
         let grant = b * s as i64;
         if grant <= SLICE_TICKS as i64 || s == 1 {
             let grant = if grant > i32::MAX as i64 / 4 {
@@ -263,10 +271,16 @@ mod tests {
                 let s = mask + 1;
                 assert!(s.is_power_of_two() && s <= N, "N={N} hop={hop}: S={s}");
                 assert!(s == 1 || s < hop, "N={N} hop={hop}: S={s}");
-                assert!(grant > 0 && (grant <= SLICE_TICKS || s == 1), "N={N} hop={hop}");
+                assert!(
+                    grant > 0 && (grant <= SLICE_TICKS || s == 1),
+                    "N={N} hop={hop}"
+                );
                 let g = if hop > s { (hop - 1) / s } else { 1 };
                 let ticks = segment_ticks::<N>(N - hop, hop, hann);
-                assert!(g as i64 * grant as i64 >= ticks, "N={N} hop={hop}: grants too small");
+                assert!(
+                    g as i64 * grant as i64 >= ticks,
+                    "N={N} hop={hop}: grants too small"
+                );
             }
         }
     }
