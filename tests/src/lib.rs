@@ -692,3 +692,70 @@ pub fn scrub_cargo_env(cmd: &mut std::process::Command) {
         cmd.env_remove(var);
     }
 }
+
+/// The firmware performance document (relative to the repository root) whose figures the bench
+/// report and `tests/tests/qemu_images.rs` check against the measurement.
+pub const PERFORMANCE_DOC: &str = "docs/firmware-performance.md";
+
+/// One figure of the performance document: a table row
+/// `` | `name` | value unit | ± noise | command | ``.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DocumentedFigure {
+    /// Name as the bench prints it (`BENCH <name> ...`), or `sizeprobe_ram_bytes` /
+    /// `sizeprobe_flash_bytes`.
+    pub name: String,
+    /// The documented value.
+    pub value: f64,
+    /// Largest accepted difference from the measured value.
+    pub noise: f64,
+}
+
+/// Parses the figure rows of the performance document: table rows whose first cell is a name
+/// in backticks, second cell a number (thousands separators `,` allowed) and third cell
+/// `± number`. Other lines are ignored.
+pub fn documented_figures(doc: &str) -> Vec<DocumentedFigure> {
+    fn number(cell: &str) -> Option<f64> {
+        let t: String = cell
+            .trim()
+            .trim_start_matches('±')
+            .trim()
+            .split_whitespace()
+            .next()?
+            .chars()
+            .filter(|c| *c != ',')
+            .collect();
+        t.parse().ok()
+    }
+    doc.lines()
+        .filter_map(|line| {
+            let cells: Vec<&str> = line.trim().strip_prefix('|')?.split('|').collect();
+            if cells.len() < 4 || !cells[2].trim().starts_with('±') {
+                return None;
+            }
+            let name = cells[0].trim().strip_prefix('`')?.strip_suffix('`')?;
+            Some(DocumentedFigure {
+                name: name.to_string(),
+                value: number(cells[1])?,
+                noise: number(cells[2])?,
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod doc_tests {
+    use super::*;
+
+    #[test]
+    fn documented_figures_are_parsed_from_table_rows() {
+        let doc = "| Figure | Value | Noise | Command |\n|---|---|---|---|\n\
+                   | `welch_push_n1024` | 195.9 instr/sample | ± 0.1 | `scripts/bench-firmware.sh` |\n\
+                   | `welch_push_max_n1024` | 3,560 instr/push | ± 40 | x |\n\
+                   | not a figure | 1 | ± 1 | x |\n";
+        let f = documented_figures(doc);
+        assert_eq!(f.len(), 2);
+        assert_eq!(f[0].name, "welch_push_n1024");
+        assert_eq!((f[0].value, f[0].noise), (195.9, 0.1));
+        assert_eq!((f[1].value, f[1].noise), (3560.0, 40.0));
+    }
+}

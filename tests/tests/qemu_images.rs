@@ -11,7 +11,10 @@
 use std::sync::OnceLock;
 use std::time::Duration;
 
-use ferrosid_tests::{build_images, build_run_decode, panic_sites, LogLine, PanicSite, RunOptions};
+use ferrosid_tests::{
+    build_images, build_run_decode, documented_figures, panic_sites, repo_root, LogLine, PanicSite,
+    RunOptions, PERFORMANCE_DOC,
+};
 
 fn run(bin: &str, opts: &RunOptions) -> (i32, Vec<LogLine>, String) {
     match build_run_decode(bin, opts) {
@@ -141,6 +144,38 @@ fn bench_counts_instructions_under_icount() {
     // Welch<1024>, 64 Ki samples, hop 512: (65536 - 1024)/512 + 1 = 127 segments end; the
     // last one ends with the last push and is still in work (its work follows the next pushes).
     assert_eq!(bench_value(lines, "welch_n1024_averages"), Some(126.0));
+}
+
+/// Every bench figure written in docs/firmware-performance.md is what the bench measures now,
+/// within the noise stated beside it (instruction counts under `-icount` are deterministic: the
+/// noise is the resolution, one SysTick tick or the printed decimal). The sizes in the document
+/// are checked by `scripts/bench-firmware.sh` (they need the size-probe image's llvm-size).
+#[test]
+fn bench_figures_match_the_performance_document() {
+    let (code, lines, stderr) = bench_run();
+    assert_eq!(*code, 0, "bench exit code (stderr: {stderr})");
+    let path = repo_root().join(PERFORMANCE_DOC);
+    let doc = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let figures = documented_figures(&doc);
+    assert!(
+        figures.iter().any(|f| f.name == "welch_push_n1024"),
+        "{PERFORMANCE_DOC} documents no welch_push_n1024"
+    );
+    let mut stale = Vec::new();
+    for f in figures.iter().filter(|f| !f.name.starts_with("sizeprobe_")) {
+        match bench_value(lines, &f.name) {
+            Some(v) if (v - f.value).abs() <= f.noise => {}
+            v => stale.push(format!(
+                "{}: documented {} ± {}, measured {v:?}",
+                f.name, f.value, f.noise
+            )),
+        }
+    }
+    assert!(
+        stale.is_empty(),
+        "{PERFORMANCE_DOC} is stale (regenerate with scripts/bench-firmware.sh):\n{}",
+        stale.join("\n")
+    );
 }
 
 /// Without `-icount` the SysTick follows wall-clock time, so the bench must refuse to report

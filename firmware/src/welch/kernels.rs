@@ -270,11 +270,17 @@ pub(super) fn radix4_stage8(z: &mut [Quad], tw: &[[f32; 6]], start: usize, count
     let (Some(groups), Some(w)) = (groups.get_mut(start..start + count), tw.get(1)) else {
         return;
     };
-    for g in groups {
-        let [a0, a1, b0, b1, c0, c1, d0, d1] = *g;
-        let [y0, y1, y2, y3] = radix4_unit([a0, b0, c0, d0]);
-        let [v0, v1, v2, v3] = radix4([a1, b1, c1, d1], w);
-        *g = [y0, v0, y1, v1, y2, v2, y3, v3];
+    // Two passes over the groups, the unit-twiddle butterflies (even quads) then the twiddled
+    // ones (odd quads): each pass keeps one butterfly (16 values) and the twiddles in registers.
+    // Both butterflies of a group in one loop body need 32 values plus the twiddles, more than
+    // the 32 FPU registers, and spilled about 40 values per group.
+    for g in groups.iter_mut() {
+        let [a0, _, b0, _, c0, _, d0, _] = g;
+        [*a0, *b0, *c0, *d0] = radix4_unit([*a0, *b0, *c0, *d0]);
+    }
+    for g in groups.iter_mut() {
+        let [_, a1, _, b1, _, c1, _, d1] = g;
+        [*a1, *b1, *c1, *d1] = radix4([*a1, *b1, *c1, *d1], w);
     }
 }
 

@@ -41,13 +41,15 @@
 //! Samples go into one of two *banks* of `N` sample pairs. When a bank is full (a segment has
 //! ended), `push` switches to the other bank, and the completed segment's work (copy of the
 //! overlap into the new bank, mean, window, FFT, recombination, accumulation) is done **in
-//! slices by the following `hop` pushes**: each push adds a fixed budget of work credit
-//! (the segment's cost divided by the hop, with margin) and, once the credit reaches a slice
-//! (about 3,800 instructions), runs work items up to it. The work is complete before the next
-//! segment ends, so no push ever does a whole segment. Measured under QEMU `-icount` on the
-//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 4,280 instructions
-//! and the mean 199.7 per sample (N = 256: 4,360 and 184.8), while one segment's work done at
-//! once costs 88,760 (the push completing a segment used to cost 124,600). There is no separate
+//! slices by the following `hop` pushes**: every `S` pushes (a power of two, 16 at N = 1024
+//! with 50 % overlap; see `schedule::grant_plan`) a *grant point* adds a fixed budget of work
+//! credit (the segment's cost spread over the grant points of one hop, with margin, at most
+//! about 3,800 instructions) and runs work items up to it; the other pushes only store the
+//! sample. The work is complete before the next segment ends (the segment end completes any
+//! remainder), so no push ever does a whole segment. Measured under QEMU `-icount` on the
+//! Cortex-M4F (N = 1024, Hann, 50 % overlap): the largest single push costs 3,560 instructions
+//! and the mean 195.9 per sample (N = 256: 3,720 and 178.3), while one segment's work done at
+//! once costs 87,160 (figures and commands: `docs/firmware-performance.md`). There is no separate
 //! background call to make; an ISR simply calls [`Welch::push`].
 //!
 //! Consequences of the pipeline, all explicit in the API:
@@ -125,8 +127,11 @@ pub struct Welch<const N: usize> {
     // Field order (`repr(C)`): the state every `push` touches comes first, within the
     // immediate-offset range of a Cortex-M load/store from `self` (the banks and sums, 24·N
     // bytes, come last); this saves address arithmetic in `push` and in every work slice.
-    /// Ticks each push adds to the credit: `budget` while a segment is in work, else 0.
+    /// Ticks each grant point adds to the credit: `budget` while a segment is in work, else 0.
     grant: i32,
+    /// Grant points are the pushes after which `(w + 1) & grant_mask == 0` (see
+    /// [`schedule::grant_plan`]); segment ends are among them.
+    grant_mask: usize,
     /// Next write index into the two banks seen as one array of `2N` pairs: bank
     /// `w / N` is being filled (the other one holds the segment in work), at index `w % N`.
     /// One index instead of a bank number and a position saves address arithmetic in `push`.
@@ -134,7 +139,7 @@ pub struct Welch<const N: usize> {
     /// The segment in work.
     job: Job,
     hop: u32,
-    /// Work ticks granted per push while a segment is in work.
+    /// Work ticks granted per grant point while a segment is in work.
     budget: i32,
     /// First index of the fill bank written by `push` (0 after a reset, then `overlap`).
     fill_start: usize,
@@ -193,6 +198,7 @@ impl<const N: usize> Welch<N> {
             hop: 0,
             budget: 0,
             grant: 0,
+            grant_mask: 0,
             w: 0,
             fill_start: 0,
             drop_ends: 0,
@@ -232,14 +238,14 @@ impl<const N: usize> Welch<N> {
         w.cfg = cfg;
         w.density = density;
         w.hop = (N - cfg.overlap) as u32;
-        w.budget = Self::budget_for(&cfg);
+        (w.grant_mask, w.budget) = Self::grant_plan(&cfg);
         Ok(w)
     }
 
-    /// Work ticks per push for `cfg` (valid overlap).
-    const fn budget_for(cfg: &WelchConfig) -> i32 {
+    /// `(grant mask, ticks per grant point)` for `cfg` (valid overlap).
+    const fn grant_plan(cfg: &WelchConfig) -> (usize, i32) {
         let hann = matches!(cfg.window, Window::Hann);
-        schedule::budget_per_push::<N>(cfg.overlap, N - cfg.overlap, hann)
+        schedule::grant_plan::<N>(cfg.overlap, N - cfg.overlap, hann)
     }
 
     /// Changes the configuration in place and [`reset`](Self::reset)s; on error nothing changes.
@@ -250,7 +256,7 @@ impl<const N: usize> Welch<N> {
         self.density = density_scale::<N>(&cfg)?;
         self.cfg = cfg;
         self.hop = (N - cfg.overlap) as u32;
-        self.budget = Self::budget_for(&cfg);
+        (self.grant_mask, self.budget) = Self::grant_plan(&cfg);
         self.reset();
         Ok(())
     }
@@ -281,7 +287,6 @@ impl<const N: usize> Welch<N> {
     /// rejected sample pair (see [`accepts`]) is dropped instead.
     #[inline]
     pub fn push(&mut self, u: f32, y: f32) {
-        self.step();
         let w = self.w & (2 * N - 1);
         let slot = &mut self.banks.as_flattened_mut()[w];
         if accepts(u, y) {
@@ -290,26 +295,39 @@ impl<const N: usize> Welch<N> {
             *slot = [0.0, 0.0];
             self.reject((N - w % N) as u32);
         }
-        self.w = w + 1;
-        if (w + 1) % N == 0 {
+        if (w + 1) & self.grant_mask == 0 {
+            self.grant_point(w + 1);
+        } else {
+            self.w = w + 1;
+        }
+    }
+
+    /// A grant point (every `grant_mask + 1` pushes, see [`schedule::grant_plan`]): runs the
+    /// segment in work's share (the grant, 0 when there is none, plus the unspent credit), then
+    /// ends the segment if the fill bank is full (`next`: the fill index after this push).
+    ///
+    /// The work runs before `w` advances to `next`: at a segment end `next` is already in the
+    /// other bank, and the kernels tell the work bank from the fill bank by `w`.
+    #[inline(never)]
+    fn grant_point(&mut self, next: usize) {
+        let end = next.is_multiple_of(N);
+        if self.grant > 0 {
+            let credit = self.job.credit.saturating_add(self.grant);
+            self.job.credit = if end {
+                self.flush();
+                0
+            } else {
+                self.work(credit)
+            };
+        }
+        self.w = next;
+        if end {
             self.segment_end();
         }
     }
 
-    /// One push's share of the segment in work: adds the grant (0 when there is none) to the
-    /// credit and runs a slice once the credit reaches [`schedule::SLICE_TICKS`].
-    #[inline(always)]
-    fn step(&mut self) {
-        let credit = self.job.credit.saturating_add(self.grant);
-        self.job.credit = if credit >= schedule::SLICE_TICKS {
-            self.work(credit)
-        } else {
-            credit
-        };
-    }
-
     /// Completes the segment in work, if any, so that the estimates include every segment that
-    /// has ended. Costs up to one segment's work (N = 1024: about 88,800 instructions on a
+    /// has ended. Costs up to one segment's work (N = 1024: about 87,200 instructions on a
     /// Cortex-M4F): call it outside time-critical code, e.g. after the last `push` and before
     /// reading the estimates.
     pub fn flush(&mut self) {

@@ -199,25 +199,98 @@ pub(super) const fn copy_sums(
     detrend_mean && !(accept && hop >= seg_start)
 }
 
-/// Ticks granted per `push` while a segment is in work. Pushes run work only once the credit
-/// reaches [`SLICE_TICKS`], so after `p` pushes at least `p·budget - SLICE_TICKS` ticks are
-/// done; `budget = ⌈(ticks + SLICE_TICKS)/(hop - 1)⌉` therefore completes the segment by the
-/// push before the one that ends the next segment, which then has no remainder to finish.
-pub(super) const fn budget_per_push<const N: usize>(overlap: usize, hop: usize, hann: bool) -> i32 {
+/// Work is granted at *grant points*: the pushes after which the fill index `w + 1` is a
+/// multiple of `S` pushes (`S` a power of two, at most `N`, so every segment end is one). A
+/// grant point adds `S · budget` ticks to the credit and runs work items up to it; other pushes
+/// do no scheduling at all (one mask test on the index they already hold).
+///
+/// Returns `(S - 1, S · budget)`: the largest `S <= 64` whose grant stays within
+/// [`SLICE_TICKS`] (which bounds the largest push), with `budget` such that the
+/// `G = ⌊(hop - 1)/S⌋` grant points strictly between two segment ends cover the segment's ticks
+/// plus [`GRANT_MARGIN`] (unspent credit is less than one item). The segment end itself
+/// completes any remainder ([`super::Welch::flush`]), so the cost model only paces the work; it
+/// never decides whether the work is done.
+pub(super) const fn grant_plan<const N: usize>(
+    overlap: usize,
+    hop: usize,
+    hann: bool,
+) -> (usize, i32) {
     if hop == 0 {
-        return 0;
+        return (0, 0);
     }
-    let t = segment_ticks::<N>(overlap, hop, hann) + SLICE_TICKS as i64;
-    let pushes = if hop > 1 { hop as i64 - 1 } else { 1 };
-    let b = (t + pushes - 1) / pushes;
-    if b > i32::MAX as i64 / 4 {
-        i32::MAX / 4
-    } else {
-        b as i32
+    let t = segment_ticks::<N>(overlap, hop, hann) + GRANT_MARGIN as i64;
+    // At least one grant point between two segment ends: `S <= hop - 1` (or 1).
+    let mut s = 64;
+    while s > 1 && (s > N || s + 1 > hop) {
+        s /= 2;
+    }
+    loop {
+        // Checked divisions (`s >= 1`, `pushes >= 1`, but the compiler cannot see it): no
+        // panic path in `new`/`configure`.
+        let g = match (hop - 1).checked_div(s) {
+            Some(g) if g >= 1 => g,
+            _ => 1,
+        };
+        let pushes = (g * s) as i64;
+        let b = match (t + pushes - 1).checked_div(pushes) {
+            Some(b) => b,
+            None => t,
+        };
+        let grant = b * s as i64;
+        if grant <= SLICE_TICKS as i64 || s == 1 {
+            let grant = if grant > i32::MAX as i64 / 4 {
+                i32::MAX / 4
+            } else {
+                grant as i32
+            };
+            return (s - 1, grant);
+        }
+        s /= 2;
     }
 }
 
-/// Credit (ticks) below which a push does not start a slice: slices then run every few pushes
-/// and their fixed set-up cost is shared; it bounds the largest push at about this many ticks
-/// plus one push's budget.
+/// Ticks a single grant may add at most (when the segment's work allows): it bounds the
+/// largest push at about this many ticks plus one work item plus the push itself.
 pub(super) const SLICE_TICKS: i32 = 3840;
+
+/// Margin added to a segment's ticks when sizing the grants: the credit left unspent at the
+/// end of a grant is less than one work item (at most `EDGES + PHASE`, 300 ticks).
+pub(super) const GRANT_MARGIN: i32 = 512;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The grant points: a power of two `S <= N`, at least one strictly between two segment
+    /// ends (`S <= hop - 1`, or `S = 1`), each within the slice bound unless `S = 1`; at
+    /// N = 1024 with 50 % overlap, every 16 pushes.
+    fn check<const N: usize>() {
+        for hop in 1..=N {
+            for hann in [true, false] {
+                let (mask, grant) = grant_plan::<N>(N - hop, hop, hann);
+                let s = mask + 1;
+                assert!(s.is_power_of_two() && s <= N, "N={N} hop={hop}: S={s}");
+                assert!(s == 1 || s < hop, "N={N} hop={hop}: S={s}");
+                assert!(
+                    grant > 0 && (grant <= SLICE_TICKS || s == 1),
+                    "N={N} hop={hop}"
+                );
+                let g = if hop > s { (hop - 1) / s } else { 1 };
+                let ticks = segment_ticks::<N>(N - hop, hop, hann);
+                assert!(
+                    g as i64 * grant as i64 >= ticks,
+                    "N={N} hop={hop}: grants too small"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn grant_points_cover_a_segment_within_the_slice_bound() {
+        check::<64>();
+        check::<256>();
+        check::<1024>();
+        check::<4096>();
+        assert_eq!(grant_plan::<1024>(512, 512, true).0, 15);
+    }
+}
