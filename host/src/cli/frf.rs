@@ -73,8 +73,38 @@ impl LogArgs {
         spec
     }
 
+    /// Checks the numeric flags ([`crate::io::MIN_TIME_SCALE`]..., docs/safety.md).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] naming the flag.
+    pub fn check(&self) -> Result<()> {
+        use crate::io::{MAX_FS_HZ, MAX_TIME_SCALE, MIN_FS_HZ, MIN_TIME_SCALE};
+        if let Some(v) = self.time_scale {
+            super::check_flag(
+                "--time-scale",
+                v,
+                MIN_TIME_SCALE,
+                false,
+                MAX_TIME_SCALE,
+                " seconds per unit of the time column",
+            )?;
+        }
+        if let Some(v) = self.fs {
+            super::check_flag("--fs", v, MIN_FS_HZ, false, MAX_FS_HZ, " Hz")?;
+        }
+        if !(0.0..=crate::io::MAX_TIME_JITTER_REL).contains(&self.time_jitter) {
+            return Err(Error::InvalidArgument(format!(
+                "--time-jitter must be a relative tolerance in [0, {}], got {}",
+                crate::io::MAX_TIME_JITTER_REL,
+                super::num(self.time_jitter)
+            )));
+        }
+        Ok(())
+    }
+
     /// Reads every log in `paths` (in order), printing each log's warnings on stderr.
     pub fn read_all(&self, paths: &[PathBuf]) -> Result<Vec<Log>> {
+        self.check()?;
         let spec = self.spec();
         let pb = output::progress(paths.len() as u64, "reading logs");
         let mut logs = Vec::with_capacity(paths.len());

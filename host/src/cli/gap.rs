@@ -9,6 +9,7 @@ use super::frf::LogArgs;
 use super::output;
 use super::ExitCode;
 use crate::error::{Error, Result};
+use crate::io::file_safety::{check_output_file, mark_svg, write_atomic, Own, SVG_MARKER};
 use crate::gap::simfile::{discretise_for_logs, load_sim_with_operating_point};
 use crate::gap::{diagnose_at_operating_point, EffectKind, GapOptions};
 use std::path::PathBuf;
@@ -69,6 +70,9 @@ pub struct Args {
     /// Write SVG figures into this directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub figures: Option<PathBuf>,
+    /// Replace existing figure files in --figures DIR even when ferrosid did not write them.
+    #[arg(long)]
+    pub force: bool,
     /// Relative validation-NRMSE improvement over the linear re-fit an effect needs to be the
     /// verdict.
     #[arg(long, value_name = "REL", default_value_t = crate::gap::diagnose::DEFAULT_MARGIN)]
@@ -166,15 +170,63 @@ impl Args {
     }
 }
 
+/// Sample-time range of the logs `gap` diagnoses, s (1 ns to 1000 s): the sim is
+/// discretised and every effect is simulated at the logs' sample time, and outside this range
+/// the fits' scalings leave the floating-point range (`--time-scale=1e-308` panicked).
+pub const GAP_SAMPLE_TIME_RANGE_S: (f64, f64) = (1e-9, 1e3);
+
+fn check_gap_sample_time(ts: f64, path: &std::path::Path) -> Result<()> {
+    let (lo, hi) = GAP_SAMPLE_TIME_RANGE_S;
+    if ts.is_finite() && (lo..=hi).contains(&ts) {
+        return Ok(());
+    }
+    Err(Error::InvalidArgument(format!(
+        "{}: sample time {} s is outside gap's range [{}, {}] s; check --time-scale (seconds \
+         per unit of the time column) or --fs",
+        path.display(),
+        super::num(ts),
+        super::num(lo),
+        super::num(hi)
+    )))
+}
+
+/// The files `--figures DIR` receives.
+pub const FIGURE_FILES: [&str; 2] = ["gap_frequency.svg", "gap_overlay.svg"];
+
+/// Before any work: `dir` is a directory (or can be created) and none of [`FIGURE_FILES`] in it
+/// is a file ferrosid did not write (unless `force`).
+fn check_figures_dir(dir: &std::path::Path, force: bool) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::Io {
+            file: dir.to_path_buf(),
+            source: std::io::Error::other("--figures names a file, expected a directory"),
+        });
+    }
+    crate::io::file_safety::check_dir_writable(dir)?;
+    for name in FIGURE_FILES {
+        check_output_file(&dir.join(name), "--figures", Own::Marker(SVG_MARKER), force)?;
+    }
+    Ok(())
+}
+
 /// Runs `ferrosid gap`.
 pub fn run(args: &Args) -> Result<ExitCode> {
     let opts = args.options()?;
+    // The sim file by the rule of every JSON reader (regular file, size cap, UTF-8, no
+    // repeated key) before the gap module parses it.
+    crate::io::input::read_json_text(&args.sim)?;
+    if let Some(dir) = &args.figures {
+        check_figures_dir(dir, args.force)?;
+    }
     let (sim, op) = load_sim_with_operating_point(&args.sim)?;
     let train = args.select.read_all(&args.real)?;
     let validate = args
         .select
         .read_all(std::slice::from_ref(&args.validate))?
         .remove(0);
+    for (log, path) in train.iter().zip(&args.real).chain([(&validate, &args.validate)]) {
+        check_gap_sample_time(log.ts, path)?;
+    }
     // A model written by `identify`/`run` maps deviations from the operating point it was
     // identified at: the logs are compared as deviations from it (u − u0, y − y0) and as read,
     // at the model's rate, and the reading with the smaller validated gap is reported
@@ -211,8 +263,12 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             file: dir.clone(),
             source,
         })?;
-        for (name, svg) in crate::gap::figures::figures(&d)? {
-            output::write_file(&dir.join(name), &svg)?;
+        let figures = crate::gap::figures::figures(&d)?;
+        for (name, _) in &figures {
+            check_output_file(&dir.join(name), "--figures", Own::Marker(SVG_MARKER), args.force)?;
+        }
+        for (name, svg) in figures {
+            write_atomic(&dir.join(name), mark_svg(&svg).as_bytes())?;
         }
     }
     if args.json {

@@ -296,10 +296,7 @@ impl MatFile {
     /// Errors: [`Error::Io`]; [`Error::Data`] for a file that is not MATLAB v5 (v4, v7.3/HDF5,
     /// other), a corrupt header or a truncated/corrupt element (with its byte offset).
     pub fn open(path: &Path) -> Result<MatFile> {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let bytes = crate::io::input::read_bytes(path, crate::io::input::MAX_LOG_BYTES)?;
         let data_err = |msg: String| Error::Data {
             file: path.to_path_buf(),
             msg,
