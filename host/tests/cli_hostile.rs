@@ -503,6 +503,14 @@ fn outputs_refuse_files_ferrosid_did_not_write() {
     let a = [cg.clone(), vec!["--prefix".into(), "fresh".into()]].concat();
     let a: Vec<&str> = a.iter().map(String::as_str).collect();
     expect(&ferrosid(&a), 0, &[], "codegen into a fresh name");
+    // gap replaces its own figures (marked inside the <svg> element) run after run.
+    let own_figs = k.dir.join("own_figs");
+    let g = [k.base("gap"), vec!["--figures".into(), s(&own_figs).into()]].concat();
+    let g: Vec<&str> = g.iter().map(String::as_str).collect();
+    expect(&ferrosid(&g), 0, &[], "gap --figures into a fresh directory");
+    expect(&ferrosid(&g), 0, &[], "gap --figures over its own figures");
+    let svg = std::fs::read_to_string(own_figs.join("gap_overlay.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("<!-- written by ferrosid -->"));
     std::fs::write(gen.join("fresh.h"), "/* edited */\n").unwrap();
     expect(&ferrosid(&a), 3, &["fresh.h", "not written by ferrosid"], "codegen over an edit");
 }

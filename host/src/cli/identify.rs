@@ -649,7 +649,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .map(PathBuf::as_path)
         .collect();
     for (flag, out, own) in [
-        ("--out", &args.out, Own::ModelJson),
+        ("--out", &args.out, Own::Content(super::own_model_file)),
         ("--params-out", &args.params_out, Own::JsonKeys(PARAMS_KEYS)),
     ] {
         if let Some(out) = out {

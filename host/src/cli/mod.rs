@@ -101,6 +101,16 @@ pub fn tidy_numbers(msg: &str) -> String {
     out
 }
 
+/// True when `bytes` is a model file exactly as ferrosid prints one (`identify --out`,
+/// `reidentify --out`): parsed and printed again, it gives the same bytes. A hand-written or
+/// edited model, or any other file, is not.
+pub fn own_model_file(bytes: &[u8]) -> bool {
+    match serde_json::from_slice::<crate::lti::StateSpaceData>(bytes) {
+        Ok(m) => output::json_string(&m).is_ok_and(|t| t.as_bytes() == bytes),
+        Err(_) => false,
+    }
+}
+
 /// Maps an error to the documented process exit code.
 pub fn exit_code_for(err: &Error) -> i32 {
     match err {

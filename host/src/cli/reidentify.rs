@@ -176,7 +176,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     }
     if let Some(out) = &args.out {
         refuse_input_overwrite(out, "--out", &[args.frame.as_path()])?;
-        check_output_file(out, "--out", Own::ModelJson, args.force)?;
+        check_output_file(out, "--out", Own::Content(super::own_model_file), args.force)?;
     }
     if args.max_delay < args.min_delay {
         return Err(Error::InvalidArgument(format!(
