@@ -700,3 +700,36 @@ fn foreign_encodings_and_repeated_keys_get_one_clear_rule() {
         expect(&ferrosid(&a), 3, needles, what);
     });
 }
+
+#[test]
+fn gap_bounds_its_cost_by_order_and_sample_time() {
+    let k = kit("gapcost");
+    let n = 22;
+    let mut a = vec![vec![0.0; n]; n];
+    for (i, row) in a.iter_mut().enumerate() {
+        row[i] = -1.0 - i as f64;
+    }
+    let sim = serde_json::json!({
+        "ts": 0.0, "a": a, "b": vec![vec![1.0]; n], "c": [vec![1.0; n]], "d": [[0.0]]
+    });
+    let p = k.dir.join("big_sim.json");
+    std::fs::write(&p, sim.to_string()).unwrap();
+    let with = |flag: &str, new: &str| {
+        let mut b = k.base("gap");
+        let i = b.iter().position(|a| a == flag).unwrap();
+        b[i + 1] = new.into();
+        b
+    };
+    let mut slow = k.base("gap");
+    slow.push("--time-scale=1e4".into());
+    let cases: Vec<(Vec<String>, i32, Vec<&str>, &str)> = vec![
+        (with("--sim", s(&p)), 3, vec!["22 states", "at most 20"], "gap 22-state sim"),
+        (slow, 2, vec!["--time-scale", "outside gap's range"], "gap 10 s per sample"),
+    ];
+    par(&cases, |(args, code, needles, what)| {
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let t0 = std::time::Instant::now();
+        expect(&ferrosid(&a), *code, needles, what);
+        assert!(t0.elapsed().as_secs() < 20, "{what}: {:?}", t0.elapsed());
+    });
+}

@@ -170,10 +170,11 @@ impl Args {
     }
 }
 
-/// Sample-time range of the logs `gap` diagnoses, s (1 ns to 1000 s): the sim is
-/// discretised and every effect is simulated at the logs' sample time, and outside this range
-/// the fits' scalings leave the floating-point range (`--time-scale=1e-308` panicked).
-pub const GAP_SAMPLE_TIME_RANGE_S: (f64, f64) = (1e-9, 1e3);
+/// Sample-time range of the logs `gap` diagnoses, s (1 ns to 1 s): the sim is discretised and
+/// every effect is simulated at the logs' sample time; below this range the fits' scalings
+/// leave the floating-point range (`--time-scale=1e-308` panicked), above it the two-mass
+/// example ran for minutes (10 s per sample: over 60 s without an answer; 1 s: 0.5 s).
+pub const GAP_SAMPLE_TIME_RANGE_S: (f64, f64) = (1e-9, 1.0);
 
 fn check_gap_sample_time(ts: f64, path: &std::path::Path) -> Result<()> {
     let (lo, hi) = GAP_SAMPLE_TIME_RANGE_S;
@@ -189,6 +190,10 @@ fn check_gap_sample_time(ts: f64, path: &std::path::Path) -> Result<()> {
         super::num(hi)
     )))
 }
+
+/// Largest sim order (states) `gap` diagnoses: 20 (about 9 s on the two-mass logs in the test
+/// build, 30 states 21 s; a 60-state sim took 213 s).
+pub const MAX_SIM_ORDER: usize = 20;
 
 /// The files `--figures DIR` receives.
 pub const FIGURE_FILES: [&str; 2] = ["gap_frequency.svg", "gap_overlay.svg"];
@@ -219,6 +224,17 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         check_figures_dir(dir, args.force)?;
     }
     let (sim, op) = load_sim_with_operating_point(&args.sim)?;
+    if sim.n_states() > MAX_SIM_ORDER {
+        return Err(Error::Data {
+            file: args.sim.clone(),
+            msg: format!(
+                "the sim has {} states; gap diagnoses sims of at most {MAX_SIM_ORDER} states (its \
+                 cost grows steeply with the order: 20 states take about 9 s, 60 took minutes); \
+                 reduce the model (e.g. balanced truncation) first",
+                sim.n_states()
+            ),
+        });
+    }
     let train = args.select.read_all(&args.real)?;
     let validate = args
         .select
