@@ -733,3 +733,115 @@ fn gap_bounds_its_cost_by_order_and_sample_time() {
         assert!(t0.elapsed().as_secs() < 20, "{what}: {:?}", t0.elapsed());
     });
 }
+
+// ---- 5. A full disk leaves the previous outputs intact -------------------------------------
+
+/// A small tmpfs mounted for the test (unmounted on drop); None where mounting is not allowed.
+struct Tmpfs(PathBuf);
+
+impl Tmpfs {
+    fn mount(dir: &Path, size: &str) -> Option<Tmpfs> {
+        std::fs::create_dir_all(dir).ok()?;
+        let ok = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs", s(dir)])
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|st| st.success());
+        if ok {
+            Some(Tmpfs(dir.to_path_buf()))
+        } else {
+            eprintln!("notice: cannot mount a tmpfs here; the full-disk cases are skipped");
+            None
+        }
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(s(&self.0)).status();
+    }
+}
+
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.insert(p.clone(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// Fills the file system of `dir` and then frees `keep` bytes.
+fn fill(dir: &Path, keep: u64) {
+    use std::io::Write as _;
+    let p = dir.join("filler");
+    let mut f = std::fs::File::create(&p).unwrap();
+    let chunk = vec![0x55u8; 64 << 10];
+    while f.write_all(&chunk).is_ok() {}
+    let _ = f.flush();
+    let len = f.metadata().unwrap().len();
+    f.set_len(len.saturating_sub(keep)).unwrap();
+}
+
+#[test]
+fn a_full_disk_leaves_the_previous_run_intact() {
+    let d = scratch("fulldisk");
+    let Some(mnt) = Tmpfs::mount(&d.join("mnt"), "6m") else {
+        return;
+    };
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data");
+    let pipeline = |ms_max: &str| {
+        let text = format!(
+            "[signals]\ninput = \"u\"\noutput = \"y\"\ntime = \"t\"\n\
+             [[runs]]\nname = \"low\"\nfile = \"{}\"\namplitude = 0.05\n\
+             [[runs]]\nname = \"high\"\nfile = \"{}\"\namplitude = 0.15\n\
+             [validation]\nfile = \"{}\"\n[etfe]\nnperseg = 500\n\
+             [control]\ncrossover_hz = 8.0\nrolloff_ratio = 4.0\nms_max = {ms_max}\n\
+             actuator_limit = 0.3\nreference_amplitude = 5.0\n",
+            s(&data.join("two_mass_low.csv")),
+            s(&data.join("two_mass_high.csv")),
+            s(&data.join("two_mass_validate.csv")),
+        );
+        let p = d.join(format!("pipeline-{ms_max}.toml"));
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let out = mnt.0.join("out");
+    let r = ferrosid(&["run", s(&pipeline("1.6")), "--out", s(&out)]);
+    assert!(r.code == 0 || r.code == 1, "first run: {}", r.stderr);
+    let before = snapshot(&out);
+    let model = mnt.0.join("model.json");
+    let k = kit("fulldisk_kit");
+    let id = [k.base("identify"), vec!["--out".into(), s(&model).into()]].concat();
+    let id: Vec<&str> = id.iter().map(String::as_str).collect();
+    expect(&ferrosid(&id), 0, &[], "identify --out on the tmpfs");
+    let model_before = std::fs::read(&model).unwrap();
+    // Room for the small JSON files, not for the report.
+    fill(&mnt.0, 24 << 10);
+    let r = ferrosid(&["run", s(&pipeline("1.7")), "--out", s(&out)]);
+    expect(&r, 3, &["No space left"], "run on a full disk");
+    let after = snapshot(&out);
+    let changed: Vec<_> = before
+        .iter()
+        .filter(|(p, b)| after.get(*p) != Some(*b))
+        .map(|(p, _)| p.display().to_string())
+        .chain(
+            after
+                .keys()
+                .filter(|p| !before.contains_key(*p))
+                .map(|p| format!("new {}", p.display())),
+        )
+        .collect();
+    assert!(changed.is_empty(), "a full disk changed the previous run: {changed:?}");
+    std::fs::remove_file(mnt.0.join("filler")).unwrap();
+    fill(&mnt.0, 0);
+    expect(&ferrosid(&id), 3, &["No space left"], "identify --out on a full disk");
+    assert_eq!(std::fs::read(&model).unwrap(), model_before);
+}
