@@ -82,6 +82,8 @@ struct Kit {
     wm: String,
     frame: String,
     out: String,
+    /// An empty fleet directory.
+    fleet: String,
 }
 
 fn kit(name: &str) -> Kit {
@@ -117,6 +119,9 @@ fn kit(name: &str) -> Kit {
     let wm = w("wm.json", r#"{"order": 1, "num": [0.5, 20.0], "den": [1.0, 400.0]}"#);
     let frame = w("frame.log", &frame_text());
     let out = s(&dir.join("out")).to_string();
+    let fleet = dir.join("fleet");
+    std::fs::create_dir_all(&fleet).unwrap();
+    let fleet = s(&fleet).to_string();
     Kit {
         dir,
         log: l1,
@@ -128,6 +133,7 @@ fn kit(name: &str) -> Kit {
         wm,
         frame,
         out,
+        fleet,
     }
 }
 
@@ -165,6 +171,7 @@ impl Kit {
                 "--out-dir", &self.out,
             ],
             "reidentify" => vec!["reidentify", &self.frame, "--na", "1", "--nb", "0"],
+            "fleet" => vec!["fleet", &self.fleet],
             other => panic!("no base for {other}"),
         };
         v.into_iter().map(String::from).collect()
@@ -232,6 +239,7 @@ const SWEEP: [&str; 7] = ["0", "-0", "-1", "1e-308", "1e308", "nan", "inf"];
 
 /// (command, flag, extra arguments the flag needs).
 const NUMERIC_FLAGS: &[(&str, &str, &[&str])] = &[
+    ("identify", "--order", &[]),
     ("identify", "--time-scale", &[]),
     ("identify", "--fs", &[]),
     ("identify", "--time-jitter", &[]),
@@ -280,6 +288,7 @@ const NUMERIC_FLAGS: &[(&str, &str, &[&str])] = &[
     ("reidentify", "--max-delay", &[]),
     ("reidentify", "--gate", &[]),
     ("reidentify", "--min-rel-suu", &[]),
+    ("fleet", "--jobs", &[]),
 ];
 
 /// Values no flag accepts: they must be usage errors naming the flag.
@@ -300,6 +309,10 @@ fn every_numeric_flag_survives_the_sweep_and_names_itself() {
     par(&cases, |(cmd, flag, extra, v)| {
         let mut args = k.base(cmd);
         args.extend(extra.iter().map(|e| e.to_string()));
+        // A flag of the base command line (identify --order) is replaced.
+        if let Some(i) = args.iter().position(|a| a == flag) {
+            args.drain(i..i + 2);
+        }
         args.push(format!("{flag}={v}"));
         if *cmd == "codegen" {
             // One output directory per case (two threads).
