@@ -858,3 +858,121 @@ fn a_full_disk_leaves_the_previous_run_intact() {
     expect(&ferrosid(&id), 3, &["No space left"], "identify --out on a full disk");
     assert_eq!(std::fs::read(&model).unwrap(), model_before);
 }
+
+// ---- 6. The output table: every output flag × hostile targets ------------------------------
+
+#[derive(Clone, Copy, Debug)]
+enum Target {
+    UserFile,
+    SymlinkToUserFile,
+    OwnInput,
+    Directory,
+}
+
+#[test]
+fn every_output_flag_against_hostile_targets() {
+    let k = kit("outtable");
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data");
+    let toml = k.dir.join("pipeline.toml");
+    std::fs::write(
+        &toml,
+        format!(
+            "[signals]\ninput = \"u\"\noutput = \"y\"\ntime = \"t\"\n\
+             [[runs]]\nname = \"low\"\nfile = \"{}\"\namplitude = 0.05\n\
+             [validation]\nfile = \"{}\"\n",
+            s(&data.join("two_mass_low.csv")),
+            s(&data.join("two_mass_validate.csv")),
+        ),
+    )
+    .unwrap();
+    // File outputs: (what, command line without the output, the flag, the command's input).
+    let file_outputs: Vec<(&str, Vec<String>, &str, String)> = vec![
+        ("identify --out", k.base("identify"), "--out", k.log.clone()),
+        (
+            "identify --params-out",
+            [
+                k.base("identify"),
+                ["--structure", "stage", "--known", "Kf=4"].map(String::from).to_vec(),
+            ]
+            .concat(),
+            "--params-out",
+            k.log.clone(),
+        ),
+        ("reidentify --out", k.base("reidentify"), "--out", k.frame.clone()),
+    ];
+    let mut cases = Vec::new();
+    for (i, (what, base, flag, input)) in file_outputs.iter().enumerate() {
+        for t in [
+            Target::UserFile,
+            Target::SymlinkToUserFile,
+            Target::OwnInput,
+            Target::Directory,
+        ] {
+            cases.push((i, *what, base.clone(), *flag, input.clone(), t));
+        }
+    }
+    par(&cases, |(i, what, base, flag, input, t)| {
+        let d = k.dir.join(format!("case-{i}-{t:?}"));
+        std::fs::create_dir_all(&d).unwrap();
+        let user = d.join("mine.json");
+        std::fs::write(&user, "my own words\n").unwrap();
+        let target = match t {
+            Target::UserFile => user.clone(),
+            Target::SymlinkToUserFile => {
+                let l = d.join("link.json");
+                std::os::unix::fs::symlink(&user, &l).unwrap();
+                l
+            }
+            Target::OwnInput => PathBuf::from(input),
+            Target::Directory => d.clone(),
+        };
+        let input_before = std::fs::read(input).unwrap();
+        let mut a = base.clone();
+        a.extend([flag.to_string(), s(&target).to_string()]);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let r = ferrosid(&a);
+        let what = format!("{what} → {t:?}");
+        match t {
+            Target::UserFile | Target::SymlinkToUserFile => {
+                expect(&r, 3, &["not written by ferrosid"], &what)
+            }
+            Target::OwnInput => expect(&r, 2, &["input"], &what),
+            Target::Directory => expect(&r, 3, &["directory"], &what),
+        }
+        assert_eq!(std::fs::read_to_string(&user).unwrap(), "my own words\n", "{what}");
+        assert_eq!(std::fs::read(input).unwrap(), input_before, "{what}: input changed");
+    });
+    // Directory outputs over a regular user file, and over a directory holding user files of
+    // the names they write.
+    let dir_outputs: Vec<(&str, Vec<String>, &str, &str)> = vec![
+        ("gap --figures", k.base("gap"), "--figures", "gap_overlay.svg"),
+        ("codegen --out-dir", k.base("codegen"), "--out-dir", "ferrosid.h"),
+        (
+            "run --out",
+            vec!["run".into(), s(&toml).into()],
+            "--out",
+            "report.html",
+        ),
+    ];
+    par(&dir_outputs, |(what, base, flag, name)| {
+        let d = k.dir.join(format!("dir-{}", flag.trim_start_matches('-')));
+        std::fs::create_dir_all(&d).unwrap();
+        let holder = d.join("holder");
+        std::fs::create_dir_all(&holder).unwrap();
+        std::fs::write(holder.join(name), "my own words\n").unwrap();
+        let plain = d.join("plain.txt");
+        std::fs::write(&plain, "my own words\n").unwrap();
+        for (target, label) in [(&holder, "a directory holding user files"), (&plain, "a file")] {
+            let mut a: Vec<String> = base.clone();
+            match a.iter().position(|x| x == flag) {
+                Some(i) => a[i + 1] = s(target).into(),
+                None => a.extend([flag.to_string(), s(target).to_string()]),
+            }
+            let a: Vec<&str> = a.iter().map(String::as_str).collect();
+            let r = ferrosid(&a);
+            expect(&r, 3, &[], &format!("{what} → {label}"));
+        }
+        assert_eq!(std::fs::read_to_string(holder.join(name)).unwrap(), "my own words\n");
+        assert_eq!(std::fs::read_to_string(&plain).unwrap(), "my own words\n");
+    });
+}
