@@ -976,3 +976,26 @@ fn every_output_flag_against_hostile_targets() {
         assert_eq!(std::fs::read_to_string(&plain).unwrap(), "my own words\n");
     });
 }
+
+#[test]
+fn fs_takes_precedence_over_rounded_repeated_stamps() {
+    let d = scratch("rounded");
+    let mut rng = Rng::new(31);
+    let n = 4000;
+    let u = rng.noise(n, 1.0);
+    let mut text = String::from("t,u,y\n");
+    let mut y = 0.0;
+    for (k, uk) in u.iter().enumerate() {
+        // 2 kHz printed with 3 decimals: every other stamp repeats its neighbour.
+        text.push_str(&format!("{:.3},{uk:e},{y:e}\n", (k as f64 * 5e-4 * 1e3).floor() / 1e3));
+        y = 0.9 * y + 0.1 * uk;
+    }
+    let p = d.join("rounded.csv");
+    std::fs::write(&p, text).unwrap();
+    let r = ferrosid(&["frf", s(&p)]);
+    expect(&r, 3, &["not strictly increasing", "--fs"], "rounded stamps without --fs");
+    let r = ferrosid(&["frf", s(&p), "--fs", "2000"]);
+    expect(&r, 0, &["repeats", "fs = 2000 Hz"], "rounded stamps with --fs");
+    let r = ferrosid(&["frf", s(&p), "--fs", "1000"]);
+    expect(&r, 3, &["fs = 1000 Hz was given"], "rounded stamps with a wrong --fs");
+}

@@ -332,17 +332,51 @@ fn sample_time_unchecked(
                     ))),
                 };
             }
+            let mut repeated = 0usize;
             for k in 0..n - 1 {
+                // Repeated stamps (rounding at a rate above the printed resolution) are read
+                // when a sample rate is given, which then takes precedence (checked below).
+                if t[k + 1] == t[k] && fs.is_some() {
+                    repeated += 1;
+                    continue;
+                }
                 if t[k + 1] <= t[k] {
                     return Err(err(
                         k + 1,
                         format!(
-                            "{what} is not strictly increasing: {} follows {}",
+                            "{what} is not strictly increasing: {} follows {}{}",
                             t[k + 1],
-                            t[k]
+                            t[k],
+                            if t[k + 1] == t[k] {
+                                " (stamps rounded to fewer digits than the rate needs? give \
+                                 the sample rate with --fs, pipeline `fs`, which then takes \
+                                 precedence over the time column)"
+                            } else {
+                                ""
+                            }
                         ),
                     ));
                 }
+            }
+            if let (Some(fs), true) = (fs, repeated > 0) {
+                check_fs(fs)?;
+                let mean = (t[n - 1] - t[0]) / (n - 1) as f64;
+                let rel = (mean * fs - 1.0).abs();
+                let tol = checks.time_jitter_rel.max(FS_AGREEMENT_REL);
+                if !(rel <= tol) {
+                    return Err(whole(format!(
+                        "{what} implies fs = {} Hz but fs = {fs} Hz was given (they differ by \
+                         {rel:.2e} relative, more than {tol:e}); drop one of the two",
+                        1.0 / mean
+                    )));
+                }
+                return Ok((
+                    1.0 / fs,
+                    Some(format!(
+                        "{what} repeats {repeated} time stamps (rounded to fewer digits than \
+                         the rate needs); using the given fs = {fs} Hz instead of the time stamps"
+                    )),
+                ));
             }
             // Robust interval: the median (a dropped sample or a glitch does not move it).
             // The element at n/2 in total order, as a sort would put it (selection, O(n)).
