@@ -284,7 +284,15 @@ fn inflate(bytes: &[u8], limit: Option<usize>) -> std::io::Result<Vec<u8>> {
             dec.take(n as u64).read_to_end(&mut out)?;
         }
         None => {
-            dec.read_to_end(&mut out)?;
+            // A zlib stream can inflate a thousandfold: capped like a log file.
+            let cap = crate::io::input::MAX_LOG_BYTES;
+            dec.take(cap + 1).read_to_end(&mut out)?;
+            if out.len() as u64 > cap {
+                return Err(std::io::Error::other(format!(
+                    "it decompresses to more than {} GiB, the limit of a log (docs/safety.md)",
+                    cap >> 30
+                )));
+            }
         }
     }
     Ok(out)
