@@ -63,6 +63,7 @@ pub fn sanitize_prefix(raw: &str) -> Result<String> {
 
 /// The C standard library headers (C89 to C23) and the POSIX headers an embedded build commonly
 /// includes, by file stem: a generated `<stem>.h` next to the user's sources would shadow it.
+#[rustfmt::skip]
 pub const RESERVED_C_HEADERS: &[&str] = &[
     "assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits",
     "locale", "math", "setjmp", "signal", "stdalign", "stdarg", "stdatomic", "stdbit",
@@ -74,6 +75,7 @@ pub const RESERVED_C_HEADERS: &[&str] = &[
 /// Rust keywords (strict, reserved and weak), the crate roots and the file names with a
 /// meaning to cargo/rustc: a generated `<stem>.rs` with such a stem cannot be a module, or
 /// changes what the crate's `mod.rs`/`lib.rs`/`main.rs` is.
+#[rustfmt::skip]
 pub const RESERVED_RUST_STEMS: &[&str] = &[
     "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum",
     "extern", "false", "fn", "for", "gen", "if", "impl", "in", "let", "loop", "match", "mod",
@@ -85,6 +87,7 @@ pub const RESERVED_RUST_STEMS: &[&str] = &[
 
 /// Module names of Rust's standard library (`std::<name>`, and the primitive-type modules): a
 /// generated module of that name shadows or confuses `use` paths.
+#[rustfmt::skip]
 pub const RESERVED_RUST_STD_MODULES: &[&str] = &[
     "any", "arch", "array", "ascii", "backtrace", "borrow", "boxed", "cell", "char", "clone",
     "cmp", "collections", "convert", "default", "env", "error", "f32", "f64", "ffi", "fmt",

@@ -78,7 +78,10 @@ pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<Pa
     // `[control] methods`: the other methods' receipts, each as its own run would write it.
     let per_method = crate::pipeline::control_methods::method_documents(run)?;
     for name in crate::pipeline::control_methods::METHOD_RECEIPT_FILES {
-        let json = per_method.iter().find(|(f, _)| f == name).map(|(_, j)| j.clone());
+        let json = per_method
+            .iter()
+            .find(|(f, _)| f == name)
+            .map(|(_, j)| j.clone());
         put(name, json);
     }
     put("model.json", Some(json_pretty(&run.model_file())?));
@@ -94,7 +97,13 @@ pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<Pa
     let figures = crate::report::figures(run)?;
     for name in crate::report::FIGURE_NAMES {
         let rel = format!("figures/{name}.svg");
-        put(&rel, figures.iter().find(|f| f.name == name).map(|f| f.svg.clone()));
+        put(
+            &rel,
+            figures
+                .iter()
+                .find(|f| f.name == name)
+                .map(|f| f.svg.clone()),
+        );
     }
     // Figures beyond the fixed names (none today) are written too.
     for f in figures

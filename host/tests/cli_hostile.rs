@@ -101,7 +101,11 @@ fn kit(name: &str) -> Kit {
         write_csv(&p, 1e-3, &u, &y);
         s(&p).to_string()
     };
-    let (l1, l2, v) = (log("a.csv", 1200, 1.0), log("b.csv", 1200, 2.0), log("v.csv", 1200, 1.5));
+    let (l1, l2, v) = (
+        log("a.csv", 1200, 1.0),
+        log("b.csv", 1200, 2.0),
+        log("v.csv", 1200, 1.5),
+    );
     let w = |name: &str, text: &str| {
         let p = dir.join(name);
         std::fs::write(&p, text).unwrap();
@@ -116,7 +120,10 @@ fn kit(name: &str) -> Kit {
         "pid.json",
         r#"{"kp": 0.8, "ki": 4.0, "kd": 0.01, "tau_f": 0.002, "rolloff": null}"#,
     );
-    let wm = w("wm.json", r#"{"order": 1, "num": [0.5, 20.0], "den": [1.0, 400.0]}"#);
+    let wm = w(
+        "wm.json",
+        r#"{"order": 1, "num": [0.5, 20.0], "den": [1.0, 400.0]}"#,
+    );
     let frame = w("frame.log", &frame_text());
     let out = s(&dir.join("out")).to_string();
     let fleet = dir.join("fleet");
@@ -163,12 +170,26 @@ impl Kit {
             "identify" => vec!["identify", &self.log, "--order", "1"],
             "frf" => vec!["frf", &self.log],
             "gap" => vec![
-                "gap", "--sim", &self.sim, "--real", &self.log, "--real", &self.log2,
-                "--validate", &self.val,
+                "gap",
+                "--sim",
+                &self.sim,
+                "--real",
+                &self.log,
+                "--real",
+                &self.log2,
+                "--validate",
+                &self.val,
             ],
             "codegen" => vec![
-                "codegen", "--model", &self.model, "--pid", &self.pid, "--wm", &self.wm,
-                "--out-dir", &self.out,
+                "codegen",
+                "--model",
+                &self.model,
+                "--pid",
+                &self.pid,
+                "--wm",
+                &self.wm,
+                "--out-dir",
+                &self.out,
             ],
             "reidentify" => vec!["reidentify", &self.frame, "--na", "1", "--nb", "0"],
             "fleet" => vec!["fleet", &self.fleet],
@@ -184,19 +205,28 @@ fn stdout_cases(k: &Kit) -> Vec<(&'static str, Vec<String>)> {
     let tpl = s(&k.dir.join("tpl")).to_string();
     let mut c = vec![
         ("codegen", k.base("codegen")),
-        ("codegen --json", [k.base("codegen"), vec!["--json".into()]].concat()),
+        (
+            "codegen --json",
+            [k.base("codegen"), vec!["--json".into()]].concat(),
+        ),
         (
             "codegen --write-templates",
             vec!["codegen".into(), "--write-templates".into(), tpl],
         ),
         ("reidentify", k.base("reidentify")),
-        ("reidentify --json", [k.base("reidentify"), vec!["--json".into()]].concat()),
+        (
+            "reidentify --json",
+            [k.base("reidentify"), vec!["--json".into()]].concat(),
+        ),
         ("frf", k.base("frf")),
         ("--help", vec!["--help".into()]),
         ("identify --help", vec!["identify".into(), "--help".into()]),
         ("--version", vec!["--version".into()]),
     ];
-    c.push(("identify --json", [k.base("identify"), vec!["--json".into()]].concat()));
+    c.push((
+        "identify --json",
+        [k.base("identify"), vec!["--json".into()]].concat(),
+    ));
     c
 }
 
@@ -211,7 +241,12 @@ fn a_full_stdout_is_exit_3_and_a_closed_pipe_is_quiet() {
         let a: Vec<&str> = args.iter().map(String::as_str).collect();
         if let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") {
             let r = run_with(&a, Stdio::from(full));
-            expect(&r, 3, &["<stdout>", "No space left"], &format!("{what} > /dev/full"));
+            expect(
+                &r,
+                3,
+                &["<stdout>", "No space left"],
+                &format!("{what} > /dev/full"),
+            );
         }
         // A closed pipe: the reading end is gone before the command writes.
         let mut child = bin()
@@ -229,7 +264,11 @@ fn a_full_stdout_is_exit_3_and_a_closed_pipe_is_quiet() {
             stdout_bytes: Vec::new(),
         };
         expect(&r, 0, &[], &format!("{what} | (closed)"));
-        assert!(r.stderr.is_empty(), "{what} | (closed): quiet, got {}", r.stderr);
+        assert!(
+            r.stderr.is_empty(),
+            "{what} | (closed): quiet, got {}",
+            r.stderr
+        );
     });
 }
 
@@ -291,6 +330,22 @@ const NUMERIC_FLAGS: &[(&str, &str, &[&str])] = &[
     ("fleet", "--jobs", &[]),
 ];
 
+/// True when `text` holds a run of more than 24 decimal digits (a huge f64 printed in full).
+fn has_long_number(text: &str) -> bool {
+    let mut run = 0;
+    for b in text.bytes() {
+        if b.is_ascii_digit() {
+            run += 1;
+            if run > 24 {
+                return true;
+            }
+        } else if b != b'.' {
+            run = 0;
+        }
+    }
+    false
+}
+
 /// Values no flag accepts: they must be usage errors naming the flag.
 fn never_valid(v: &str) -> bool {
     matches!(v, "nan" | "inf")
@@ -331,6 +386,8 @@ fn every_numeric_flag_survives_the_sweep_and_names_itself() {
             Some(format!("accepted (exit {})", r.code))
         } else if r.stderr.contains(" - Hz") || r.stderr.contains("inf rad/s") {
             Some("an unprintable number in the message".to_string())
+        } else if has_long_number(&r.stderr) || has_long_number(&r.stdout) {
+            Some("a number of more than 24 digits in the output".to_string())
         } else {
             None
         };
@@ -342,7 +399,12 @@ fn every_numeric_flag_survives_the_sweep_and_names_itself() {
         }
     });
     let fails = fails.into_inner().unwrap();
-    assert!(fails.is_empty(), "{} cases:\n{}", fails.len(), fails.join("\n"));
+    assert!(
+        fails.is_empty(),
+        "{} cases:\n{}",
+        fails.len(),
+        fails.join("\n")
+    );
 }
 
 #[test]
@@ -384,6 +446,12 @@ fn flags_that_do_not_apply_or_overflow_are_usage_errors() {
             "identify --crossover-hz 1e308",
         ),
         (
+            mk(k.base("identify"), &["--crossover-hz=5e299"]),
+            0,
+            vec![],
+            "identify --crossover-hz 5e299 (in range)",
+        ),
+        (
             mk(k.base("gap"), &["--time-scale=1e-308"]),
             2,
             vec!["--time-scale", "1e-308"],
@@ -401,6 +469,12 @@ fn flags_that_do_not_apply_or_overflow_are_usage_errors() {
         let r = ferrosid(&a);
         expect(&r, *code, needles, what);
         assert!(!r.stderr.contains(" - Hz"), "{what}: {}", r.stderr);
+        assert!(
+            !has_long_number(&r.stdout) && !has_long_number(&r.stderr),
+            "{what}: a 300-digit number: {}{}",
+            r.stdout,
+            r.stderr
+        );
     });
 }
 
@@ -490,7 +564,11 @@ fn outputs_refuse_files_ferrosid_did_not_write() {
     ));
     for (_, _, file) in &cases {
         if !file.exists() || file.is_symlink() {
-            let target = if file.is_symlink() { user.clone() } else { file.clone() };
+            let target = if file.is_symlink() {
+                user.clone()
+            } else {
+                file.clone()
+            };
             std::fs::write(&target, "my own words\n").unwrap();
         }
     }
@@ -512,7 +590,12 @@ fn outputs_refuse_files_ferrosid_did_not_write() {
     expect(&ferrosid(&a), 0, &[], "reidentify --out --force");
     let a = output_cases(&k, s(&user)).remove(1).1;
     let a: Vec<&str> = a.iter().map(String::as_str).collect();
-    expect(&ferrosid(&a), 0, &[], "reidentify --out over its own output");
+    expect(
+        &ferrosid(&a),
+        0,
+        &[],
+        "reidentify --out over its own output",
+    );
     let a = [cg.clone(), vec!["--prefix".into(), "fresh".into()]].concat();
     let a: Vec<&str> = a.iter().map(String::as_str).collect();
     expect(&ferrosid(&a), 0, &[], "codegen into a fresh name");
@@ -520,24 +603,41 @@ fn outputs_refuse_files_ferrosid_did_not_write() {
     let own_figs = k.dir.join("own_figs");
     let g = [k.base("gap"), vec!["--figures".into(), s(&own_figs).into()]].concat();
     let g: Vec<&str> = g.iter().map(String::as_str).collect();
-    expect(&ferrosid(&g), 0, &[], "gap --figures into a fresh directory");
+    expect(
+        &ferrosid(&g),
+        0,
+        &[],
+        "gap --figures into a fresh directory",
+    );
     expect(&ferrosid(&g), 0, &[], "gap --figures over its own figures");
     let svg = std::fs::read_to_string(own_figs.join("gap_overlay.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("<!-- written by ferrosid -->"));
     std::fs::write(gen.join("fresh.h"), "/* edited */\n").unwrap();
-    expect(&ferrosid(&a), 3, &["fresh.h", "not written by ferrosid"], "codegen over an edit");
+    expect(
+        &ferrosid(&a),
+        3,
+        &["fresh.h", "not written by ferrosid"],
+        "codegen over an edit",
+    );
 }
 
 #[test]
 fn prefixes_that_shadow_headers_or_modules_are_refused() {
     let k = kit("prefix");
-    let cases = ["stdint", "math", "mod", "lib", "std", "core", "fn", "string", "time"];
+    let cases = [
+        "stdint", "math", "mod", "lib", "std", "core", "fn", "string", "time",
+    ];
     par(&cases, |p| {
         let mut a = k.base("codegen");
         a.extend(["--prefix".to_string(), p.to_string()]);
         let a: Vec<&str> = a.iter().map(String::as_str).collect();
         let r = ferrosid(&a);
-        expect(&r, 2, &["prefix", &format!("{p}.h")], &format!("--prefix {p}"));
+        expect(
+            &r,
+            2,
+            &["prefix", &format!("{p}.h")],
+            &format!("--prefix {p}"),
+        );
         assert!(!k.dir.join("out").join(format!("{p}.h")).exists());
     });
 }
@@ -551,7 +651,12 @@ fn device_nodes_and_fifos_are_never_replaced() {
     let full = device(&k.dir, "full", 7).unwrap();
     let pipe = fifo(&k.dir, "pipe").unwrap();
     let cases: Vec<(String, Vec<String>, i32, Vec<&str>)> = vec![
-        ("identify --out nulldev".into(), output_cases(&k, s(&null))[0].1.clone(), 0, vec![]),
+        (
+            "identify --out nulldev".into(),
+            output_cases(&k, s(&null))[0].1.clone(),
+            0,
+            vec![],
+        ),
         (
             "reidentify --out fulldev".into(),
             output_cases(&k, s(&full))[1].1.clone(),
@@ -569,7 +674,10 @@ fn device_nodes_and_fifos_are_never_replaced() {
         let a: Vec<&str> = args.iter().map(String::as_str).collect();
         expect(&ferrosid(&a), *code, needles, what);
     });
-    assert!(is_char_device(&null) && is_char_device(&full), "a device node was replaced");
+    assert!(
+        is_char_device(&null) && is_char_device(&full),
+        "a device node was replaced"
+    );
     assert!(std::fs::symlink_metadata(&pipe)
         .is_ok_and(|m| std::os::unix::fs::FileTypeExt::is_fifo(&m.file_type())));
 }
@@ -581,7 +689,12 @@ fn fleet_merge_does_not_overwrite_its_own_input() {
     std::fs::create_dir_all(&sh).unwrap();
     std::fs::write(sh.join("fleet.json"), "{\"schema\": \"x\"}\n").unwrap();
     let r = ferrosid(&["fleet", "merge", s(&sh), s(&sh), "--out", s(&sh)]);
-    expect(&r, 2, &["--out", "input"], "fleet merge --out naming its input");
+    expect(
+        &r,
+        2,
+        &["--out", "input"],
+        "fleet merge --out naming its input",
+    );
     assert_eq!(
         std::fs::read_to_string(sh.join("fleet.json")).unwrap(),
         "{\"schema\": \"x\"}\n"
@@ -599,10 +712,16 @@ fn the_manifest_deletes_only_unchanged_files_of_its_own() {
     }
     // The user replaces pid.json by their own; a copied manifest names a file outside.
     std::fs::write(d.join("pid.json"), "the user's\n").unwrap();
-    let outside = d.parent().unwrap().join(format!("outside-{}", std::process::id()));
+    let outside = d
+        .parent()
+        .unwrap()
+        .join(format!("outside-{}", std::process::id()));
     std::fs::write(&outside, "keep\n").unwrap();
     let mut m = std::fs::read_to_string(d.join(MANIFEST_FILE)).unwrap();
-    m.push_str(&format!("../{}\n", outside.file_name().unwrap().to_str().unwrap()));
+    m.push_str(&format!(
+        "../{}\n",
+        outside.file_name().unwrap().to_str().unwrap()
+    ));
     m.push_str(&format!("{}\n", outside.display()));
     std::fs::write(d.join(MANIFEST_FILE), m).unwrap();
     {
@@ -614,8 +733,14 @@ fn the_manifest_deletes_only_unchanged_files_of_its_own() {
             .unwrap();
         o.remove_stale(&outside).unwrap();
     }
-    assert_eq!(std::fs::read_to_string(d.join("pid.json")).unwrap(), "the user's\n");
-    assert!(!d.join("wm.json").exists(), "its own unchanged file is removed");
+    assert_eq!(
+        std::fs::read_to_string(d.join("pid.json")).unwrap(),
+        "the user's\n"
+    );
+    assert!(
+        !d.join("wm.json").exists(),
+        "its own unchanged file is removed"
+    );
     assert_eq!(std::fs::read_to_string(&outside).unwrap(), "keep\n");
     let m = std::fs::read_to_string(d.join(MANIFEST_FILE)).unwrap();
     assert!(!m.contains("outside") && !m.contains("pid.json"), "{m}");
@@ -649,13 +774,41 @@ fn non_regular_and_oversized_inputs_are_refused_quickly() {
         b
     };
     let cases: Vec<(String, Vec<String>, Vec<&str>)> = vec![
-        ("identify FIFO".into(), v(&["identify", s(&pipe)]), vec!["FIFO"]),
-        ("frf /dev/zero link".into(), v(&["frf", s(&zero_csv)]), vec!["character device"]),
-        ("identify too big".into(), v(&["identify", s(&big_csv)]), vec!["2 GiB"]),
-        ("gap --sim /dev/zero".into(), with("gap", "--sim", "/dev/zero"), vec!["character device"]),
-        ("gap --sim FIFO".into(), with("gap", "--sim", s(&pipe)), vec!["FIFO"]),
-        ("codegen --model /dev/zero".into(), with("codegen", "--model", "/dev/zero"), vec!["/dev/zero"]),
-        ("codegen --model big".into(), with("codegen", "--model", s(&big_json)), vec!["64 MiB"]),
+        (
+            "identify FIFO".into(),
+            v(&["identify", s(&pipe)]),
+            vec!["FIFO"],
+        ),
+        (
+            "frf /dev/zero link".into(),
+            v(&["frf", s(&zero_csv)]),
+            vec!["character device"],
+        ),
+        (
+            "identify too big".into(),
+            v(&["identify", s(&big_csv)]),
+            vec!["2 GiB"],
+        ),
+        (
+            "gap --sim /dev/zero".into(),
+            with("gap", "--sim", "/dev/zero"),
+            vec!["character device"],
+        ),
+        (
+            "gap --sim FIFO".into(),
+            with("gap", "--sim", s(&pipe)),
+            vec!["FIFO"],
+        ),
+        (
+            "codegen --model /dev/zero".into(),
+            with("codegen", "--model", "/dev/zero"),
+            vec!["/dev/zero"],
+        ),
+        (
+            "codegen --model big".into(),
+            with("codegen", "--model", s(&big_json)),
+            vec!["64 MiB"],
+        ),
         (
             "codegen --receipts /dev/zero".into(),
             [k.base("codegen"), v(&["--receipts", "/dev/zero"])].concat(),
@@ -666,15 +819,27 @@ fn non_regular_and_oversized_inputs_are_refused_quickly() {
             [k.base("codegen"), v(&["--source", "/dev/zero"])].concat(),
             vec!["character device"],
         ),
-        ("reidentify /dev/zero".into(), v(&["reidentify", "/dev/zero"]), vec!["character device"]),
-        ("run /dev/zero".into(), v(&["run", "/dev/zero"]), vec!["character device"]),
+        (
+            "reidentify /dev/zero".into(),
+            v(&["reidentify", "/dev/zero"]),
+            vec!["character device"],
+        ),
+        (
+            "run /dev/zero".into(),
+            v(&["run", "/dev/zero"]),
+            vec!["character device"],
+        ),
     ];
     par(&cases, |(what, args, needles)| {
         let a: Vec<&str> = args.iter().map(String::as_str).collect();
         let t0 = std::time::Instant::now();
         let r = ferrosid(&a);
         expect(&r, 3, needles, what);
-        assert!(t0.elapsed().as_secs() < 20, "{what}: took {:?}", t0.elapsed());
+        assert!(
+            t0.elapsed().as_secs() < 20,
+            "{what}: took {:?}",
+            t0.elapsed()
+        );
     });
 }
 
@@ -703,10 +868,26 @@ fn foreign_encodings_and_repeated_keys_get_one_clear_rule() {
         b
     };
     let cases: Vec<(String, Vec<String>, Vec<&str>)> = vec![
-        ("frf UTF-16".into(), vec!["frf".into(), s(&bom).into()], vec!["UTF-16", "UTF-8"]),
-        ("frf UTF-16 without BOM".into(), vec!["frf".into(), s(&nobom).into()], vec!["UTF-16"]),
-        ("gap --sim dup".into(), with("gap", "--sim", s(&dup)), vec!["dup.json:2", "duplicate key `a`"]),
-        ("codegen --model dup".into(), with("codegen", "--model", s(&dup)), vec!["duplicate key `a`"]),
+        (
+            "frf UTF-16".into(),
+            vec!["frf".into(), s(&bom).into()],
+            vec!["UTF-16", "UTF-8"],
+        ),
+        (
+            "frf UTF-16 without BOM".into(),
+            vec!["frf".into(), s(&nobom).into()],
+            vec!["UTF-16"],
+        ),
+        (
+            "gap --sim dup".into(),
+            with("gap", "--sim", s(&dup)),
+            vec!["dup.json:2", "duplicate key `a`"],
+        ),
+        (
+            "codegen --model dup".into(),
+            with("codegen", "--model", s(&dup)),
+            vec!["duplicate key `a`"],
+        ),
     ];
     par(&cases, |(what, args, needles)| {
         let a: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -736,8 +917,18 @@ fn gap_bounds_its_cost_by_order_and_sample_time() {
     let mut slow = k.base("gap");
     slow.push("--time-scale=1e4".into());
     let cases: Vec<(Vec<String>, i32, Vec<&str>, &str)> = vec![
-        (with("--sim", s(&p)), 3, vec!["22 states", "at most 20"], "gap 22-state sim"),
-        (slow, 2, vec!["--time-scale", "outside gap's range"], "gap 10 s per sample"),
+        (
+            with("--sim", s(&p)),
+            3,
+            vec!["22 states", "at most 20"],
+            "gap 22-state sim",
+        ),
+        (
+            slow,
+            2,
+            vec!["--time-scale", "outside gap's range"],
+            "gap 10 s per sample",
+        ),
     ];
     par(&cases, |(args, code, needles, what)| {
         let a: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -756,7 +947,14 @@ impl Tmpfs {
     fn mount(dir: &Path, size: &str) -> Option<Tmpfs> {
         std::fs::create_dir_all(dir).ok()?;
         let ok = Command::new("mount")
-            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs", s(dir)])
+            .args([
+                "-t",
+                "tmpfs",
+                "-o",
+                &format!("size={size}"),
+                "tmpfs",
+                s(dir),
+            ])
             .stderr(Stdio::null())
             .status()
             .is_ok_and(|st| st.success());
@@ -852,10 +1050,18 @@ fn a_full_disk_leaves_the_previous_run_intact() {
                 .map(|p| format!("new {}", p.display())),
         )
         .collect();
-    assert!(changed.is_empty(), "a full disk changed the previous run: {changed:?}");
+    assert!(
+        changed.is_empty(),
+        "a full disk changed the previous run: {changed:?}"
+    );
     std::fs::remove_file(mnt.0.join("filler")).unwrap();
     fill(&mnt.0, 0);
-    expect(&ferrosid(&id), 3, &["No space left"], "identify --out on a full disk");
+    expect(
+        &ferrosid(&id),
+        3,
+        &["No space left"],
+        "identify --out on a full disk",
+    );
     assert_eq!(std::fs::read(&model).unwrap(), model_before);
 }
 
@@ -892,13 +1098,20 @@ fn every_output_flag_against_hostile_targets() {
             "identify --params-out",
             [
                 k.base("identify"),
-                ["--structure", "stage", "--known", "Kf=4"].map(String::from).to_vec(),
+                ["--structure", "stage", "--known", "Kf=4"]
+                    .map(String::from)
+                    .to_vec(),
             ]
             .concat(),
             "--params-out",
             k.log.clone(),
         ),
-        ("reidentify --out", k.base("reidentify"), "--out", k.frame.clone()),
+        (
+            "reidentify --out",
+            k.base("reidentify"),
+            "--out",
+            k.frame.clone(),
+        ),
     ];
     let mut cases = Vec::new();
     for (i, (what, base, flag, input)) in file_outputs.iter().enumerate() {
@@ -939,14 +1152,32 @@ fn every_output_flag_against_hostile_targets() {
             Target::OwnInput => expect(&r, 2, &["input"], &what),
             Target::Directory => expect(&r, 3, &["directory"], &what),
         }
-        assert_eq!(std::fs::read_to_string(&user).unwrap(), "my own words\n", "{what}");
-        assert_eq!(std::fs::read(input).unwrap(), input_before, "{what}: input changed");
+        assert_eq!(
+            std::fs::read_to_string(&user).unwrap(),
+            "my own words\n",
+            "{what}"
+        );
+        assert_eq!(
+            std::fs::read(input).unwrap(),
+            input_before,
+            "{what}: input changed"
+        );
     });
     // Directory outputs over a regular user file, and over a directory holding user files of
     // the names they write.
     let dir_outputs: Vec<(&str, Vec<String>, &str, &str)> = vec![
-        ("gap --figures", k.base("gap"), "--figures", "gap_overlay.svg"),
-        ("codegen --out-dir", k.base("codegen"), "--out-dir", "ferrosid.h"),
+        (
+            "gap --figures",
+            k.base("gap"),
+            "--figures",
+            "gap_overlay.svg",
+        ),
+        (
+            "codegen --out-dir",
+            k.base("codegen"),
+            "--out-dir",
+            "ferrosid.h",
+        ),
         (
             "run --out",
             vec!["run".into(), s(&toml).into()],
@@ -962,7 +1193,10 @@ fn every_output_flag_against_hostile_targets() {
         std::fs::write(holder.join(name), "my own words\n").unwrap();
         let plain = d.join("plain.txt");
         std::fs::write(&plain, "my own words\n").unwrap();
-        for (target, label) in [(&holder, "a directory holding user files"), (&plain, "a file")] {
+        for (target, label) in [
+            (&holder, "a directory holding user files"),
+            (&plain, "a file"),
+        ] {
             let mut a: Vec<String> = base.clone();
             match a.iter().position(|x| x == flag) {
                 Some(i) => a[i + 1] = s(target).into(),
@@ -972,7 +1206,10 @@ fn every_output_flag_against_hostile_targets() {
             let r = ferrosid(&a);
             expect(&r, 3, &[], &format!("{what} → {label}"));
         }
-        assert_eq!(std::fs::read_to_string(holder.join(name)).unwrap(), "my own words\n");
+        assert_eq!(
+            std::fs::read_to_string(holder.join(name)).unwrap(),
+            "my own words\n"
+        );
         assert_eq!(std::fs::read_to_string(&plain).unwrap(), "my own words\n");
     });
 }
@@ -987,15 +1224,33 @@ fn fs_takes_precedence_over_rounded_repeated_stamps() {
     let mut y = 0.0;
     for (k, uk) in u.iter().enumerate() {
         // 2 kHz printed with 3 decimals: every other stamp repeats its neighbour.
-        text.push_str(&format!("{:.3},{uk:e},{y:e}\n", (k as f64 * 5e-4 * 1e3).floor() / 1e3));
+        text.push_str(&format!(
+            "{:.3},{uk:e},{y:e}\n",
+            (k as f64 * 5e-4 * 1e3).floor() / 1e3
+        ));
         y = 0.9 * y + 0.1 * uk;
     }
     let p = d.join("rounded.csv");
     std::fs::write(&p, text).unwrap();
     let r = ferrosid(&["frf", s(&p)]);
-    expect(&r, 3, &["not strictly increasing", "--fs"], "rounded stamps without --fs");
+    expect(
+        &r,
+        3,
+        &["not strictly increasing", "--fs"],
+        "rounded stamps without --fs",
+    );
     let r = ferrosid(&["frf", s(&p), "--fs", "2000"]);
-    expect(&r, 0, &["repeats", "fs = 2000 Hz"], "rounded stamps with --fs");
+    expect(
+        &r,
+        0,
+        &["repeats", "fs = 2000 Hz"],
+        "rounded stamps with --fs",
+    );
     let r = ferrosid(&["frf", s(&p), "--fs", "1000"]);
-    expect(&r, 3, &["fs = 1000 Hz was given"], "rounded stamps with a wrong --fs");
+    expect(
+        &r,
+        3,
+        &["fs = 1000 Hz was given"],
+        "rounded stamps with a wrong --fs",
+    );
 }

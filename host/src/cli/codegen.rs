@@ -221,9 +221,9 @@ fn check_prewarp(
 ) -> Result<()> {
     let why_not = match controller {
         None => Some("no --pid is given".to_string()),
-        Some(ControllerSource::Discrete(_)) => Some(
-            "the --pid file is a discrete PID (no continuous part to discretise)".to_string(),
-        ),
+        Some(ControllerSource::Discrete(_)) => {
+            Some("the --pid file is a discrete PID (no continuous part to discretise)".to_string())
+        }
         Some(ControllerSource::Tuned {
             discrete: Some(_), ..
         }) => Some("the --pid tuning result carries its discrete controller".to_string()),
@@ -862,7 +862,12 @@ pub fn generate_to_dir(
     }
     for (path, text) in [(&h, &g.c_header), (&r, &g.rust_module)] {
         if std::fs::read(path).ok().as_deref() != Some(text.as_bytes()) {
-            check_output_file(path, "--out-dir", Own::Marker(GENERATED_MARKER), files.force)?;
+            check_output_file(
+                path,
+                "--out-dir",
+                Own::Marker(GENERATED_MARKER),
+                files.force,
+            )?;
         }
     }
     for (path, text) in [(&h, &g.c_header), (&r, &g.rust_module)] {

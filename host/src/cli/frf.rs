@@ -262,7 +262,7 @@ pub fn render_text(r: &FrfReport) -> String {
             );
         }
     }
-    let _ = writeln!(s, "coherence gate: >= {}", r.gate);
+    let _ = writeln!(s, "coherence gate: >= {}", super::num(r.gate));
     let _ = writeln!(s, "{}", r.normalisation);
     for e in &r.estimates {
         let _ = writeln!(s);

@@ -9,9 +9,9 @@ use super::frf::LogArgs;
 use super::output;
 use super::ExitCode;
 use crate::error::{Error, Result};
-use crate::io::file_safety::{check_output_file, mark_svg, write_atomic, Own, SVG_MARKER};
 use crate::gap::simfile::{discretise_for_logs, load_sim_with_operating_point};
 use crate::gap::{diagnose_at_operating_point, EffectKind, GapOptions};
+use crate::io::file_safety::{check_output_file, mark_svg, write_atomic, Own, SVG_MARKER};
 use std::path::PathBuf;
 
 /// Arguments of `ferrosid gap`.
@@ -240,7 +240,11 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .select
         .read_all(std::slice::from_ref(&args.validate))?
         .remove(0);
-    for (log, path) in train.iter().zip(&args.real).chain([(&validate, &args.validate)]) {
+    for (log, path) in train
+        .iter()
+        .zip(&args.real)
+        .chain([(&validate, &args.validate)])
+    {
         check_gap_sample_time(log.ts, path)?;
     }
     // A model written by `identify`/`run` maps deviations from the operating point it was
@@ -281,7 +285,12 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         })?;
         let figures = crate::gap::figures::figures(&d)?;
         for (name, _) in &figures {
-            check_output_file(&dir.join(name), "--figures", Own::Marker(SVG_MARKER), args.force)?;
+            check_output_file(
+                &dir.join(name),
+                "--figures",
+                Own::Marker(SVG_MARKER),
+                args.force,
+            )?;
         }
         for (name, svg) in figures {
             write_atomic(&dir.join(name), mark_svg(&svg).as_bytes())?;

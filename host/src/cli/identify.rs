@@ -340,7 +340,7 @@ fn text_header(s: &mut String, r: &IdentifyReport) {
         },
         r.n4sid.factorization_used,
         match r.options.stability_margin {
-            Some(m) => format!(", stability margin {m}"),
+            Some(m) => format!(", stability margin {}", super::num(m)),
             None => String::new(),
         }
     );
@@ -442,7 +442,12 @@ fn text_validation(s: &mut String, r: &IdentifyReport) {
         }
         _ => {}
     }
-    let _ = writeln!(s, "  ETFE: {}, coherence gate >= {}", v.etfe, v.gate);
+    let _ = writeln!(
+        s,
+        "  ETFE: {}, coherence gate >= {}",
+        v.etfe,
+        super::num(v.gate)
+    );
     for p in &v.phase {
         let c = &p.comparison;
         let _ = writeln!(
@@ -452,7 +457,7 @@ fn text_validation(s: &mut String, r: &IdentifyReport) {
             p.input,
             p.output,
             c.bins.len(),
-            fixed(c.f_max_hz, 3),
+            output::general(c.f_max_hz, 3),
             c.gated_out,
             fixed(c.max_abs_phase_err_deg, 2),
             fixed(c.max_abs_mag_err_db, 2),

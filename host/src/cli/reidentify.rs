@@ -176,7 +176,12 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     }
     if let Some(out) = &args.out {
         refuse_input_overwrite(out, "--out", &[args.frame.as_path()])?;
-        check_output_file(out, "--out", Own::Content(super::own_model_file), args.force)?;
+        check_output_file(
+            out,
+            "--out",
+            Own::Content(super::own_model_file),
+            args.force,
+        )?;
     }
     if args.max_delay < args.min_delay {
         return Err(Error::InvalidArgument(format!(
@@ -206,7 +211,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     }
     let mut t = String::new();
     let _ = writeln!(
-            t,
+        t,
         "frame {}: fs {} Hz, N {}, {} averages, target verdict {}",
         args.frame.display(),
         frame.fs_hz,
@@ -215,18 +220,18 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         frame.verdict.as_deref().unwrap_or("(none)")
     );
     let _ = writeln!(
-            t,
+        t,
         "fit on {} bins ({:.3}..{:.3} Hz) with coherence >= {}: na {}, nb {}, delay {} samples",
         r.points.h.len(),
         r.points.freq_hz.first().copied().unwrap_or(0.0),
         r.points.freq_hz.last().copied().unwrap_or(0.0),
-        r.gate,
+        super::num(r.gate),
         r.fit.options.na,
         r.fit.options.nb,
         r.fit.options.nk
     );
     let _ = writeln!(
-            t,
+        t,
         "relative error |H_fit - H1|/|H1|: rms {:.3e}, max {:.3e} ({} SK iterations{})",
         r.fit.rms_rel_error,
         r.fit.max_rel_error,
@@ -251,8 +256,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         );
     }
     if let Some(out) = &args.out {
-        let _ = writeln!(
-            t,"model written to {}", out.display());
+        let _ = writeln!(t, "model written to {}", out.display());
     }
     super::output::emit(&t)?;
     Ok(ExitCode::Ok)

@@ -553,11 +553,8 @@ impl OutputDir {
     }
 
     fn save_manifest(&self) -> Result<()> {
-        let mut all: BTreeMap<&String, Option<&String>> = self
-            .previous
-            .iter()
-            .map(|(k, d)| (k, d.as_ref()))
-            .collect();
+        let mut all: BTreeMap<&String, Option<&String>> =
+            self.previous.iter().map(|(k, d)| (k, d.as_ref())).collect();
         for (k, d) in &self.written {
             all.insert(k, Some(d));
         }

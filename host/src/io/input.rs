@@ -179,7 +179,10 @@ pub fn decode_text(path: &Path, bytes: Vec<u8>) -> Result<String> {
     }
     String::from_utf8(bytes).map_err(|e| {
         let valid = e.utf8_error().valid_up_to();
-        let line = 1 + e.as_bytes()[..valid].iter().filter(|&&b| b == b'\n').count();
+        let line = 1 + e.as_bytes()[..valid]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
         Error::Parse {
             file: path.to_path_buf(),
             line,

@@ -270,7 +270,11 @@ pub(crate) fn check_fs(fs: f64) -> Result<()> {
         return Err(Error::InvalidArgument(format!(
             "sample rate (--fs) must be a finite number in [{MIN_FS_HZ:e}, {MAX_FS_HZ:e}] Hz, \
              got {}",
-            if fs.is_finite() && fs != 0.0 { format!("{fs:e}") } else { format!("{fs}") }
+            if fs.is_finite() && fs != 0.0 {
+                format!("{fs:e}")
+            } else {
+                format!("{fs}")
+            }
         )));
     }
     Ok(())

@@ -53,7 +53,14 @@ pub fn num(v: f64) -> String {
 ///
 /// # Errors
 /// [`crate::error::Error::InvalidArgument`] (exit 2).
-pub fn check_flag(flag: &str, v: f64, lo: f64, open_lo: bool, hi: f64, unit: &str) -> crate::error::Result<()> {
+pub fn check_flag(
+    flag: &str,
+    v: f64,
+    lo: f64,
+    open_lo: bool,
+    hi: f64,
+    unit: &str,
+) -> crate::error::Result<()> {
     let above_lo = if open_lo { v > lo } else { v >= lo };
     if v.is_finite() && above_lo && v <= hi {
         return Ok(());
@@ -68,4 +75,3 @@ pub fn check_flag(flag: &str, v: f64, lo: f64, open_lo: bool, hi: f64, unit: &st
         num(v)
     )))
 }
-
