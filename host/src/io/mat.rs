@@ -277,7 +277,7 @@ fn parse_head(payload: &[u8], big: bool) -> Result<Head, Bad> {
 }
 
 fn inflate(bytes: &[u8], limit: Option<usize>) -> std::io::Result<Vec<u8>> {
-    let mut dec = flate2::read::ZlibDecoder::new(bytes);
+    let dec = flate2::read::ZlibDecoder::new(bytes);
     let mut out = Vec::new();
     match limit {
         Some(n) => {

@@ -367,7 +367,7 @@ fn sample_time_unchecked(
                 let mean = (t[n - 1] - t[0]) / (n - 1) as f64;
                 let rel = (mean * fs - 1.0).abs();
                 let tol = checks.time_jitter_rel.max(FS_AGREEMENT_REL);
-                if !(rel <= tol) {
+                if rel.is_nan() || rel > tol {
                     return Err(whole(format!(
                         "{what} implies fs = {} Hz but fs = {fs} Hz was given (they differ by \
                          {rel:.2e} relative, more than {tol:e}); drop one of the two",
