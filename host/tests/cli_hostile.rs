@@ -1254,3 +1254,51 @@ fn fs_takes_precedence_over_rounded_repeated_stamps() {
         "rounded stamps with a wrong --fs",
     );
 }
+
+/// Runs the binary, killing it after `secs` seconds (then the case fails instead of hanging).
+fn ferrosid_within(args: &[&str], secs: u64) -> Run {
+    let mut child = bin()
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    loop {
+        if let Some(_status) = child.try_wait().unwrap() {
+            let out = child.wait_with_output().unwrap();
+            return Run {
+                code: out.status.code().unwrap_or(-1),
+                stdout: String::new(),
+                stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+                stdout_bytes: Vec::new(),
+            };
+        }
+        if t0.elapsed().as_secs() >= secs {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{args:?} did not finish within {secs} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn outputs_linked_to_endless_devices_never_block() {
+    let k = kit("endless");
+    let gen = k.dir.join("gen");
+    std::fs::create_dir_all(&gen).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", gen.join("ferrosid.h")).unwrap();
+    let mut a = k.base("codegen");
+    let i = a.iter().position(|x| x == "--out-dir").unwrap();
+    a[i + 1] = s(&gen).into();
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    // The header goes to the device (as to /dev/null); the link stays a link.
+    expect(&ferrosid_within(&a, 20), 0, &[], "codegen --out-dir with a header linked to /dev/zero");
+    assert!(gen.join("ferrosid.h").is_symlink());
+    let tpl = k.dir.join("tpl");
+    std::fs::create_dir_all(&tpl).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", tpl.join("model.h")).unwrap();
+    let r = ferrosid_within(&["codegen", "--write-templates", s(&tpl)], 20);
+    expect(&r, 3, &["model.h", "--force"], "--write-templates over a link to /dev/zero");
+}

@@ -861,7 +861,7 @@ pub fn generate_to_dir(
         refuse_input_overwrite(path, "--out-dir", &inputs)?;
     }
     for (path, text) in [(&h, &g.c_header), (&r, &g.rust_module)] {
-        if std::fs::read(path).ok().as_deref() != Some(text.as_bytes()) {
+        if existing(path).as_deref() != Some(text.as_bytes()) {
             check_output_file(
                 path,
                 "--out-dir",
@@ -876,9 +876,16 @@ pub fn generate_to_dir(
     Ok((g, h, r))
 }
 
+/// The bytes of an existing output file, to compare with what would be written: read only
+/// from a regular file of at most [`crate::io::input::MAX_DOC_BYTES`] (a link to `/dev/zero`
+/// never blocks the comparison; None for anything else).
+fn existing(path: &Path) -> Option<Vec<u8>> {
+    crate::io::input::read_bytes(path, crate::io::input::MAX_DOC_BYTES).ok()
+}
+
 /// Writes `text` to `path` unless the file already holds exactly that.
 pub fn write_if_changed(path: &Path, text: &str) -> Result<()> {
-    if std::fs::read(path).ok().as_deref() == Some(text.as_bytes()) {
+    if existing(path).as_deref() == Some(text.as_bytes()) {
         return Ok(());
     }
     write_atomic(path, text.as_bytes())
@@ -906,7 +913,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             for name in names {
                 let p = dir.join(name);
                 let text = cg::builtin_template(name).unwrap_or_default();
-                if p.exists() && std::fs::read(&p).ok().as_deref() != Some(text.as_bytes()) {
+                if p.exists() && existing(&p).as_deref() != Some(text.as_bytes()) {
                     return Err(Error::Io {
                         file: p,
                         source: std::io::Error::new(
