@@ -855,6 +855,12 @@ fn foreign_encodings_and_repeated_keys_get_one_clear_rule() {
     std::fs::write(&bom, &utf16).unwrap();
     let nobom = k.dir.join("u16nobom.csv");
     std::fs::write(&nobom, &utf16[2..]).unwrap();
+    let toml16 = k.dir.join("p16.toml");
+    let mut t16 = vec![0xFF, 0xFE];
+    for u in "[signals]\ninput = \"u\"\n".encode_utf16() {
+        t16.extend_from_slice(&u.to_le_bytes());
+    }
+    std::fs::write(&toml16, &t16).unwrap();
     let dup = k.dir.join("dup.json");
     std::fs::write(
         &dup,
@@ -876,6 +882,11 @@ fn foreign_encodings_and_repeated_keys_get_one_clear_rule() {
         (
             "frf UTF-16 without BOM".into(),
             vec!["frf".into(), s(&nobom).into()],
+            vec!["UTF-16"],
+        ),
+        (
+            "run UTF-16 pipeline".into(),
+            vec!["run".into(), s(&toml16).into()],
             vec!["UTF-16"],
         ),
         (
@@ -1294,11 +1305,31 @@ fn outputs_linked_to_endless_devices_never_block() {
     a[i + 1] = s(&gen).into();
     let a: Vec<&str> = a.iter().map(String::as_str).collect();
     // The header goes to the device (as to /dev/null); the link stays a link.
-    expect(&ferrosid_within(&a, 20), 0, &[], "codegen --out-dir with a header linked to /dev/zero");
+    expect(
+        &ferrosid_within(&a, 20),
+        0,
+        &[],
+        "codegen --out-dir with a header linked to /dev/zero",
+    );
     assert!(gen.join("ferrosid.h").is_symlink());
     let tpl = k.dir.join("tpl");
     std::fs::create_dir_all(&tpl).unwrap();
     std::os::unix::fs::symlink("/dev/zero", tpl.join("model.h")).unwrap();
     let r = ferrosid_within(&["codegen", "--write-templates", s(&tpl)], 20);
-    expect(&r, 3, &["model.h", "--force"], "--write-templates over a link to /dev/zero");
+    expect(
+        &r,
+        3,
+        &["model.h", "--force"],
+        "--write-templates over a link to /dev/zero",
+    );
+    // A FIFO planted as the output directory's lock file.
+    let out = k.dir.join("run_out");
+    std::fs::create_dir_all(&out).unwrap();
+    if let Some(_lock) = fifo(&out, ".ferrosid.lock") {
+        let toml = k.dir.join("p.toml");
+        std::fs::write(&toml, "[signals]\ninput = \"u\"\n").unwrap();
+        let r = ferrosid_within(&["run", s(&toml), "--out", s(&out)], 20);
+        no_panic(&r, "run with a FIFO as the lock");
+        assert_eq!(r.code, 3, "{}", r.stderr);
+    }
 }

@@ -343,7 +343,7 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .clone()
         .unwrap_or_else(|| dir.join("pipeline.toml"));
     if template_path.exists() {
-        crate::io::input::check_input_file(&template_path, crate::io::input::MAX_DOC_BYTES)?;
+        crate::io::input::read_text(&template_path)?;
     }
     if !template_path.is_file() {
         return Err(Error::Data {

@@ -252,15 +252,15 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     // at the model's rate, and the reading with the smaller validated gap is reported
     // (`gap::reading`).
     if let Some(op) = &op {
-        eprintln!(
-            "note: {} carries an operating point (u0 = {:?}, y0 = {:?}, {}); the logs are compared \
+        output::note(&format!(
+            "{} carries an operating point (u0 = {:?}, y0 = {:?}, {}); the logs are compared \
              as deviations from it and, unless its offsets are negligible, as read, and the \
              reading that explains more is reported",
             args.sim.display(),
             op.u0,
             op.y0,
             op.detrend
-        );
+        ));
     }
     let factor = args
         .decimate
@@ -268,9 +268,9 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .unwrap_or(1)
         .max(1);
     if args.decimate.is_none() && factor > 1 {
-        eprintln!(
-            "note: decimating the logs by {factor} as the model file's preprocessing records"
-        );
+        output::note(&format!(
+            "decimating the logs by {factor} as the model file's preprocessing records"
+        ));
     }
     let sim_d = discretise_for_logs(&sim, validate.ts * factor as f64, &args.sim)?;
     let spinner = output::spinner("diagnosing the sim-to-real gap");

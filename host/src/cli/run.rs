@@ -64,7 +64,8 @@ fn spinner() -> ProgressBar {
 
 /// Runs `ferrosid run`.
 pub fn run(args: &Args) -> Result<ExitCode> {
-    crate::io::input::check_input_file(&args.pipeline, crate::io::input::MAX_DOC_BYTES)?;
+    // Regular file, size cap, UTF-8 (a UTF-16 file is named as such) before the TOML parser.
+    crate::io::input::read_text(&args.pipeline)?;
     let cfg = LoadedConfig::load(&args.pipeline)?;
     let out_dir = match (&args.out, &cfg.config.output_dir) {
         (Some(o), _) => o.clone(),

@@ -354,7 +354,8 @@ impl OutputDir {
                     break;
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt == 0 => {
-                    let holder = std::fs::read_to_string(&lock)
+                    // Bounded and regular files only: a FIFO planted as the lock never blocks.
+                    let holder = crate::io::input::read_text(&lock)
                         .ok()
                         .and_then(|s| s.trim().parse::<u32>().ok());
                     let stale = matches!(holder.map(process_alive), Some(Some(false)));
