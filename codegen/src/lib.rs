@@ -244,7 +244,20 @@ pub fn generate_with_templates(input: &CodegenInput, dir: &Path) -> Result<Gener
         if !path.exists() {
             continue;
         }
-        let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+        let meta = std::fs::metadata(&path).map_err(|source| Error::TemplateIo {
+            file: path.clone(),
+            source,
+        })?;
+        // Checked before opening: a FIFO would block the read, a device never end it.
+        if !meta.is_file() {
+            return Err(Error::TemplateIo {
+                file: path.clone(),
+                source: std::io::Error::other(
+                    "not a regular file (a FIFO, device or directory); a template must be a file",
+                ),
+            });
+        }
+        let size = meta.len();
         if size > MAX_TEMPLATE_BYTES {
             return Err(Error::TemplateIo {
                 file: path.clone(),

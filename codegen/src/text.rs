@@ -8,7 +8,9 @@ use crate::error::{Error, Result};
 /// 1. every ASCII letter is upper-cased, every ASCII digit kept, every other character
 ///    (including non-ASCII) becomes `_`;
 /// 2. runs of `_` collapse to one, leading and trailing `_` are dropped;
-/// 3. an empty result is an error;
+/// 3. an empty result is an error, and so is one whose file names (`<prefix>.h`, `.rs` in
+///    lower case) would shadow a C standard header, a Rust keyword/crate file or a `std`
+///    module ([`reserved_file_stem`]);
 /// 4. `P_` is prepended when the result starts with a digit (not an identifier) or with a
 ///    pattern the C standard library reserves for its macros (`E` + digit/upper-case letter:
 ///    errno; `SIG` + upper-case letter or `_`; `LC_`; `PRI`/`SCN` + `X`; `INT`/`UINT` + digit),
@@ -45,7 +47,67 @@ pub fn sanitize_prefix(raw: &str) -> Result<String> {
     if starts_reserved(&out) {
         out.insert_str(0, "P_");
     }
+    let stem = out.to_ascii_lowercase();
+    if let Some(what) = reserved_file_stem(&stem) {
+        return Err(Error::input(
+            "prefix",
+            format!(
+                "{raw:?} would name the files {stem}.h and {stem}.rs, and `{stem}` is {what}: \
+                 the file would shadow it in the user's build; choose another prefix (e.g. \
+                 `{stem}_ctl`)"
+            ),
+        ));
+    }
     Ok(out)
+}
+
+/// The C standard library headers (C89 to C23) and the POSIX headers an embedded build commonly
+/// includes, by file stem: a generated `<stem>.h` next to the user's sources would shadow it.
+#[rustfmt::skip]
+pub const RESERVED_C_HEADERS: &[&str] = &[
+    "assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits",
+    "locale", "math", "setjmp", "signal", "stdalign", "stdarg", "stdatomic", "stdbit",
+    "stdbool", "stdckdint", "stddef", "stdint", "stdio", "stdlib", "stdnoreturn", "string",
+    "tgmath", "threads", "time", "uchar", "wchar", "wctype", "unistd", "fcntl", "strings",
+    "pthread", "sched", "semaphore",
+];
+
+/// Rust keywords (strict, reserved and weak), the crate roots and the file names with a
+/// meaning to cargo/rustc: a generated `<stem>.rs` with such a stem cannot be a module, or
+/// changes what the crate's `mod.rs`/`lib.rs`/`main.rs` is.
+#[rustfmt::skip]
+pub const RESERVED_RUST_STEMS: &[&str] = &[
+    "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum",
+    "extern", "false", "fn", "for", "gen", "if", "impl", "in", "let", "loop", "match", "mod",
+    "move", "mut", "pub", "ref", "return", "self", "static", "struct", "super", "trait",
+    "true", "try", "type", "union", "unsafe", "use", "where", "while", "abstract", "become",
+    "box", "do", "final", "macro", "override", "priv", "typeof", "unsized", "virtual",
+    "yield", "std", "core", "alloc", "lib", "main", "build",
+];
+
+/// Module names of Rust's standard library (`std::<name>`, and the primitive-type modules): a
+/// generated module of that name shadows or confuses `use` paths.
+#[rustfmt::skip]
+pub const RESERVED_RUST_STD_MODULES: &[&str] = &[
+    "any", "arch", "array", "ascii", "backtrace", "borrow", "boxed", "cell", "char", "clone",
+    "cmp", "collections", "convert", "default", "env", "error", "f32", "f64", "ffi", "fmt",
+    "fs", "future", "hash", "hint", "i8", "i16", "i32", "i64", "i128", "io", "isize", "iter",
+    "marker", "mem", "net", "num", "ops", "option", "os", "panic", "path", "pin", "prelude",
+    "primitive", "process", "ptr", "rc", "result", "slice", "str", "sync", "task", "thread",
+    "u8", "u16", "u32", "u64", "u128", "usize", "vec",
+];
+
+/// What `stem` (a lower-case file stem) collides with, if anything.
+pub fn reserved_file_stem(stem: &str) -> Option<&'static str> {
+    if RESERVED_C_HEADERS.contains(&stem) {
+        Some("a C standard or POSIX header")
+    } else if RESERVED_RUST_STEMS.contains(&stem) {
+        Some("a Rust keyword or a file name with a meaning to cargo/rustc")
+    } else if RESERVED_RUST_STD_MODULES.contains(&stem) {
+        Some("a module of Rust's standard library")
+    } else {
+        None
+    }
 }
 
 fn starts_reserved(s: &str) -> bool {

@@ -1,25 +1,52 @@
 //! `ferrosid` command-line entry point; all logic lives in the library (`ferrosid::cli`).
 use clap::Parser;
+use std::io::{IsTerminal as _, Write as _};
 
 fn main() {
     raise_malloc_thresholds();
-    let cli = ferrosid::cli::Cli::parse();
+    let cli = match ferrosid::cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => exit_after_clap(&e),
+    };
     match ferrosid::cli::run(&cli) {
         Ok(code) => std::process::exit(code as i32),
-        Err(e) => {
-            // Bounded and printable whatever the input was (no 50 MB field on the terminal).
-            let msg = e.to_string();
-            let lines: Vec<String> = msg
-                .lines()
-                .take(60)
-                .map(|l| ferrosid::error::excerpt_n(l, 2000))
-                .collect();
-            eprintln!("error: {}", lines.join("\n"));
-            std::process::exit(ferrosid::cli::exit_code_for(&e));
-        }
+        Err(e) => fail(&e),
     }
 }
 
+/// Prints an error (bounded and printable whatever the input was: no 50 MB field on the
+/// terminal) and exits with its documented code. A closed stderr is not a reason to panic.
+fn fail(e: &ferrosid::Error) -> ! {
+    let msg = ferrosid::cli::tidy_numbers(&e.to_string());
+    let lines: Vec<String> = msg
+        .lines()
+        .take(60)
+        .map(|l| ferrosid::error::excerpt_n(l, 2000))
+        .collect();
+    let _ = writeln!(std::io::stderr().lock(), "error: {}", lines.join("\n"));
+    std::process::exit(ferrosid::cli::exit_code_for(e));
+}
+
+/// `--help`, `--version` and usage errors from clap. Help and version go to stdout through
+/// the one stdout writer of every command ([`ferrosid::cli::output::emit`]): a closed pipe
+/// ends quietly, any other write error (a full disk) exits 3 with a message instead of 0.
+fn exit_after_clap(e: &clap::Error) -> ! {
+    let code = e.exit_code();
+    if e.use_stderr() {
+        let _ = e.print();
+        std::process::exit(code);
+    }
+    if std::io::stdout().is_terminal() {
+        // Coloured as clap draws it on a terminal.
+        let _ = e.print();
+        let _ = std::io::stdout().flush();
+        std::process::exit(code);
+    }
+    match ferrosid::cli::output::emit(&e.render().to_string()) {
+        Ok(()) => std::process::exit(code),
+        Err(err) => fail(&err),
+    }
+}
 /// Lets freed memory be reused instead of returned to the system and faulted in again.
 ///
 /// glibc's malloc serves blocks above its mmap threshold (128 KiB at start) with a fresh

@@ -59,52 +59,62 @@ pub fn write_outputs(run: &PipelineRun, dir: &Path) -> Result<Vec<PathBuf>> {
     write_outputs_to(run, &mut out)
 }
 
-/// Writes the outputs of `run` into a held output directory. Every file is written atomically
-/// and listed in the directory's manifest; `pid.json`/`wm.json` and figures that this run does
-/// not produce are removed only when an earlier ferrosid run wrote them (the manifest says so),
-/// so the directory describes this run and no user file is ever deleted.
+/// Writes the outputs of `run` into a held output directory. Everything is rendered in
+/// memory first, then written as one step ([`OutputDir::write_all`]): a full disk or a crash
+/// while rendering leaves the previous run's files as they were. Every file is listed in the
+/// directory's manifest with its digest; `pid.json`/`wm.json` and figures that this run does
+/// not produce are removed only when an earlier ferrosid run wrote them and they are unchanged
+/// (the manifest says so), so the directory describes this run and no user file is ever
+/// deleted.
 pub fn write_outputs_to(run: &PipelineRun, out: &mut OutputDir) -> Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
+    let mut files: Vec<(PathBuf, String)> = Vec::new();
+    let mut stale: Vec<PathBuf> = Vec::new();
+    let mut put = |rel: &str, text: Option<String>| match text {
+        Some(t) => files.push((PathBuf::from(rel), t)),
+        None => stale.push(PathBuf::from(rel)),
+    };
     let doc = ReceiptsDocument::from_run(run);
-    written.push(out.write(Path::new("receipts.json"), &doc.to_json()?)?);
+    put("receipts.json", Some(doc.to_json()?));
     // `[control] methods`: the other methods' receipts, each as its own run would write it.
     let per_method = crate::pipeline::control_methods::method_documents(run)?;
     for name in crate::pipeline::control_methods::METHOD_RECEIPT_FILES {
-        match per_method.iter().find(|(f, _)| f == name) {
-            Some((f, json)) => written.push(out.write(Path::new(f), json)?),
-            None => out.remove_stale(Path::new(name))?,
-        }
+        let json = per_method
+            .iter()
+            .find(|(f, _)| f == name)
+            .map(|(_, j)| j.clone());
+        put(name, json);
     }
-    written.push(out.write(Path::new("model.json"), &json_pretty(&run.model_file())?)?);
-    match run.tuned() {
-        Some(t) => written.push(out.write(Path::new("pid.json"), &json_pretty(t)?)?),
-        None => out.remove_stale(Path::new("pid.json"))?,
-    }
-    match run.weight() {
-        Some(w) => written.push(out.write(Path::new("wm.json"), &json_pretty(w)?)?),
-        None => out.remove_stale(Path::new("wm.json"))?,
-    }
-    match run.compensation.decision() {
-        Some(d) => {
-            written.push(out.write(Path::new("compensation.json"), &json_pretty(&d.file())?)?)
-        }
-        None => out.remove_stale(Path::new("compensation.json"))?,
-    }
+    put("model.json", Some(json_pretty(&run.model_file())?));
+    put("pid.json", run.tuned().map(json_pretty).transpose()?);
+    put("wm.json", run.weight().map(json_pretty).transpose()?);
+    put(
+        "compensation.json",
+        run.compensation
+            .decision()
+            .map(|d| json_pretty(&d.file()))
+            .transpose()?,
+    );
     let figures = crate::report::figures(run)?;
-    for f in &figures {
-        written.push(out.write(
-            &Path::new("figures").join(format!("{}.svg", f.name)),
-            &f.svg,
-        )?);
-    }
     for name in crate::report::FIGURE_NAMES {
-        if !figures.iter().any(|f| f.name == name) {
-            out.remove_stale(&Path::new("figures").join(format!("{name}.svg")))?;
-        }
+        let rel = format!("figures/{name}.svg");
+        put(
+            &rel,
+            figures
+                .iter()
+                .find(|f| f.name == name)
+                .map(|f| f.svg.clone()),
+        );
     }
-    written.push(out.write(
-        Path::new("report.html"),
-        &crate::report::render_html(run, &figures)?,
-    )?);
-    Ok(written)
+    // Figures beyond the fixed names (none today) are written too.
+    for f in figures
+        .iter()
+        .filter(|f| !crate::report::FIGURE_NAMES.contains(&f.name))
+    {
+        put(&format!("figures/{}.svg", f.name), Some(f.svg.clone()));
+    }
+    put(
+        "report.html",
+        Some(crate::report::render_html(run, &figures)?),
+    );
+    out.write_all(&files, &stale)
 }

@@ -451,7 +451,10 @@ fn run_never_replaces_or_deletes_files_it_did_not_write_and_locks() {
     let r = ferrosid(&["run", s(&p), "--out", s(&out)]);
     assert!(r.code == 0 || r.code == 1, "{}", r.stderr);
     let manifest = std::fs::read_to_string(out.join(".ferrosid-manifest")).unwrap();
-    assert!(manifest.lines().any(|l| l == "model.json"), "{manifest}");
+    assert!(
+        manifest.lines().any(|l| l.ends_with("  model.json")),
+        "{manifest}"
+    );
     assert!(!manifest.contains("notes.txt"));
     assert_eq!(
         std::fs::read_to_string(out.join("notes.txt")).unwrap(),

@@ -17,6 +17,8 @@ mod cli_errors;
 mod cli_frf;
 #[path = "cli_hardening.rs"]
 mod cli_hardening;
+#[path = "cli_hostile.rs"]
+mod cli_hostile;
 #[path = "cli_identify.rs"]
 mod cli_identify;
 #[path = "cli_real_data.rs"]

@@ -342,6 +342,9 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .pipeline
         .clone()
         .unwrap_or_else(|| dir.join("pipeline.toml"));
+    if template_path.exists() {
+        crate::io::input::read_text(&template_path)?;
+    }
     if !template_path.is_file() {
         return Err(Error::Data {
             file: template_path,
@@ -419,6 +422,23 @@ fn report(what: &str, summary: &FleetSummary, json: bool) -> Result<ExitCode> {
 
 /// `ferrosid fleet merge`.
 fn merge(m: &MergeArgs) -> Result<ExitCode> {
+    if let Some(o) = &m.out {
+        // The merged summary must not replace one of the shard summaries it is merged from.
+        let target = o.join(crate::fleet::FLEET_SUMMARY_FILE);
+        let inputs: Vec<PathBuf> = m
+            .shards
+            .iter()
+            .map(|p| {
+                if p.is_dir() {
+                    p.join(crate::fleet::FLEET_SUMMARY_FILE)
+                } else {
+                    p.clone()
+                }
+            })
+            .collect();
+        let refs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+        crate::io::file_safety::refuse_input_overwrite(&target, "--out", &refs)?;
+    }
     let shards = m
         .shards
         .iter()

@@ -11,6 +11,7 @@ use super::ExitCode;
 use crate::error::{Error, Result};
 use crate::gap::simfile::{discretise_for_logs, load_sim_with_operating_point};
 use crate::gap::{diagnose_at_operating_point, EffectKind, GapOptions};
+use crate::io::file_safety::{check_output_file, mark_svg, write_atomic, Own, SVG_MARKER};
 use std::path::PathBuf;
 
 /// Arguments of `ferrosid gap`.
@@ -69,6 +70,9 @@ pub struct Args {
     /// Write SVG figures into this directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub figures: Option<PathBuf>,
+    /// Replace existing figure files in --figures DIR even when ferrosid did not write them.
+    #[arg(long)]
+    pub force: bool,
     /// Relative validation-NRMSE improvement over the linear re-fit an effect needs to be the
     /// verdict.
     #[arg(long, value_name = "REL", default_value_t = crate::gap::diagnose::DEFAULT_MARGIN)]
@@ -166,29 +170,97 @@ impl Args {
     }
 }
 
+/// Sample-time range of the logs `gap` diagnoses, s (1 ns to 1 s): the sim is discretised and
+/// every effect is simulated at the logs' sample time; below this range the fits' scalings
+/// leave the floating-point range (`--time-scale=1e-308` panicked), above it the two-mass
+/// example ran for minutes (10 s per sample: over 60 s without an answer; 1 s: 0.5 s).
+pub const GAP_SAMPLE_TIME_RANGE_S: (f64, f64) = (1e-9, 1.0);
+
+fn check_gap_sample_time(ts: f64, path: &std::path::Path) -> Result<()> {
+    let (lo, hi) = GAP_SAMPLE_TIME_RANGE_S;
+    if ts.is_finite() && (lo..=hi).contains(&ts) {
+        return Ok(());
+    }
+    Err(Error::InvalidArgument(format!(
+        "{}: sample time {} s is outside gap's range [{}, {}] s; check --time-scale (seconds \
+         per unit of the time column) or --fs",
+        path.display(),
+        super::num(ts),
+        super::num(lo),
+        super::num(hi)
+    )))
+}
+
+/// Largest sim order (states) `gap` diagnoses: 20 (about 9 s on the two-mass logs in the test
+/// build, 30 states 21 s; a 60-state sim took 213 s).
+pub const MAX_SIM_ORDER: usize = 20;
+
+/// The files `--figures DIR` receives.
+pub const FIGURE_FILES: [&str; 2] = ["gap_frequency.svg", "gap_overlay.svg"];
+
+/// Before any work: `dir` is a directory (or can be created) and none of [`FIGURE_FILES`] in it
+/// is a file ferrosid did not write (unless `force`).
+fn check_figures_dir(dir: &std::path::Path, force: bool) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::Io {
+            file: dir.to_path_buf(),
+            source: std::io::Error::other("--figures names a file, expected a directory"),
+        });
+    }
+    crate::io::file_safety::check_dir_writable(dir)?;
+    for name in FIGURE_FILES {
+        check_output_file(&dir.join(name), "--figures", Own::Marker(SVG_MARKER), force)?;
+    }
+    Ok(())
+}
+
 /// Runs `ferrosid gap`.
 pub fn run(args: &Args) -> Result<ExitCode> {
     let opts = args.options()?;
+    // The sim file by the rule of every JSON reader (regular file, size cap, UTF-8, no
+    // repeated key) before the gap module parses it.
+    crate::io::input::read_json_text(&args.sim)?;
+    if let Some(dir) = &args.figures {
+        check_figures_dir(dir, args.force)?;
+    }
     let (sim, op) = load_sim_with_operating_point(&args.sim)?;
+    if sim.n_states() > MAX_SIM_ORDER {
+        return Err(Error::Data {
+            file: args.sim.clone(),
+            msg: format!(
+                "the sim has {} states; gap diagnoses sims of at most {MAX_SIM_ORDER} states (its \
+                 cost grows steeply with the order: 20 states take about 9 s, 60 took minutes); \
+                 reduce the model (e.g. balanced truncation) first",
+                sim.n_states()
+            ),
+        });
+    }
     let train = args.select.read_all(&args.real)?;
     let validate = args
         .select
         .read_all(std::slice::from_ref(&args.validate))?
         .remove(0);
+    for (log, path) in train
+        .iter()
+        .zip(&args.real)
+        .chain([(&validate, &args.validate)])
+    {
+        check_gap_sample_time(log.ts, path)?;
+    }
     // A model written by `identify`/`run` maps deviations from the operating point it was
     // identified at: the logs are compared as deviations from it (u − u0, y − y0) and as read,
     // at the model's rate, and the reading with the smaller validated gap is reported
     // (`gap::reading`).
     if let Some(op) = &op {
-        eprintln!(
-            "note: {} carries an operating point (u0 = {:?}, y0 = {:?}, {}); the logs are compared \
+        output::note(&format!(
+            "{} carries an operating point (u0 = {:?}, y0 = {:?}, {}); the logs are compared \
              as deviations from it and, unless its offsets are negligible, as read, and the \
              reading that explains more is reported",
             args.sim.display(),
             op.u0,
             op.y0,
             op.detrend
-        );
+        ));
     }
     let factor = args
         .decimate
@@ -196,9 +268,9 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .unwrap_or(1)
         .max(1);
     if args.decimate.is_none() && factor > 1 {
-        eprintln!(
-            "note: decimating the logs by {factor} as the model file's preprocessing records"
-        );
+        output::note(&format!(
+            "decimating the logs by {factor} as the model file's preprocessing records"
+        ));
     }
     let sim_d = discretise_for_logs(&sim, validate.ts * factor as f64, &args.sim)?;
     let spinner = output::spinner("diagnosing the sim-to-real gap");
@@ -211,8 +283,17 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             file: dir.clone(),
             source,
         })?;
-        for (name, svg) in crate::gap::figures::figures(&d)? {
-            output::write_file(&dir.join(name), &svg)?;
+        let figures = crate::gap::figures::figures(&d)?;
+        for (name, _) in &figures {
+            check_output_file(
+                &dir.join(name),
+                "--figures",
+                Own::Marker(SVG_MARKER),
+                args.force,
+            )?;
+        }
+        for (name, svg) in figures {
+            write_atomic(&dir.join(name), mark_svg(&svg).as_bytes())?;
         }
     }
     if args.json {

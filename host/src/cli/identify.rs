@@ -29,7 +29,10 @@ use crate::closed_loop::ClosedLoopMethod;
 use crate::data::Log;
 use crate::error::{Error, Result};
 use crate::greybox::{GreyBoxFit, GreyBoxOptions, ParameterStatus, Structure};
-use crate::io::file_safety::{check_writable, refuse_input_overwrite, write_atomic};
+use crate::io::file_safety::{check_output_file, refuse_input_overwrite, write_atomic, Own};
+
+/// Top-level keys every `--params-out` file ferrosid writes has (a grey-box fit).
+const PARAMS_KEYS: &[&str] = &["structure", "parameters", "confidence", "interval_method"];
 use crate::n4sid::{N4sidOptions, OrderSelection, Weighting};
 use crate::ops::identify::ClosedLoopSettings;
 pub use crate::ops::identify::{
@@ -131,6 +134,9 @@ pub struct Args {
     /// Write the discrete model to this JSON file.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Replace an existing --out/--params-out file even when ferrosid did not write it.
+    #[arg(long)]
+    pub force: bool,
     /// Closed-loop log: the reference channel (same conventions as --input; one per input).
     /// Selects an unbiased closed-loop method (--closed-loop-method) instead of direct N4SID.
     #[arg(long, value_name = "NAME")]
@@ -334,7 +340,7 @@ fn text_header(s: &mut String, r: &IdentifyReport) {
         },
         r.n4sid.factorization_used,
         match r.options.stability_margin {
-            Some(m) => format!(", stability margin {m}"),
+            Some(m) => format!(", stability margin {}", super::num(m)),
             None => String::new(),
         }
     );
@@ -436,7 +442,12 @@ fn text_validation(s: &mut String, r: &IdentifyReport) {
         }
         _ => {}
     }
-    let _ = writeln!(s, "  ETFE: {}, coherence gate >= {}", v.etfe, v.gate);
+    let _ = writeln!(
+        s,
+        "  ETFE: {}, coherence gate >= {}",
+        v.etfe,
+        super::num(v.gate)
+    );
     for p in &v.phase {
         let c = &p.comparison;
         let _ = writeln!(
@@ -446,7 +457,7 @@ fn text_validation(s: &mut String, r: &IdentifyReport) {
             p.input,
             p.output,
             c.bins.len(),
-            fixed(c.f_max_hz, 3),
+            output::general(c.f_max_hz, 3),
             c.gated_out,
             fixed(c.max_abs_phase_err_deg, 2),
             fixed(c.max_abs_mag_err_db, 2),
@@ -642,10 +653,13 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         .chain(&args.validate)
         .map(PathBuf::as_path)
         .collect();
-    for (flag, out) in [("--out", &args.out), ("--params-out", &args.params_out)] {
+    for (flag, out, own) in [
+        ("--out", &args.out, Own::Content(super::own_model_file)),
+        ("--params-out", &args.params_out, Own::JsonKeys(PARAMS_KEYS)),
+    ] {
         if let Some(out) = out {
             refuse_input_overwrite(out, flag, &inputs)?;
-            check_writable(out)?;
+            check_output_file(out, flag, own, args.force)?;
         }
     }
     let mut select = args.select.clone();

@@ -65,6 +65,52 @@ pub enum Command {
     Fleet(fleet::Args),
 }
 
+pub use crate::ops::{check_flag, num};
+
+/// `msg` with every decimal number of more than 24 digits (a huge or tiny f64 printed with
+/// `{}`: "1000…000" or "0.000…001") rewritten in scientific notation, so no message carries a
+/// 300-digit number whatever the value a user passed.
+pub fn tidy_numbers(msg: &str) -> String {
+    let b = msg.as_bytes();
+    let mut out = String::with_capacity(msg.len());
+    let mut i = 0;
+    while i < b.len() {
+        let start_ok = i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_');
+        if start_ok && b[i].is_ascii_digit() {
+            let mut j = i;
+            while j < b.len() && (b[j].is_ascii_digit() || b[j] == b'.') {
+                j += 1;
+            }
+            let tok = &msg[i..j];
+            let digits = tok.bytes().filter(u8::is_ascii_digit).count();
+            if digits > 24 {
+                if let Ok(v) = tok.trim_end_matches('.').parse::<f64>() {
+                    out.push_str(&format!("{v:e}"));
+                    i = j;
+                    continue;
+                }
+            }
+            out.push_str(tok);
+            i = j;
+            continue;
+        }
+        let ch = msg[i..].chars().next().unwrap_or(' ');
+        out.push(ch);
+        i += ch.len_utf8();
+    }
+    out
+}
+
+/// True when `bytes` is a model file exactly as ferrosid prints one (`identify --out`,
+/// `reidentify --out`): parsed and printed again, it gives the same bytes. A hand-written or
+/// edited model, or any other file, is not.
+pub fn own_model_file(bytes: &[u8]) -> bool {
+    match serde_json::from_slice::<crate::lti::StateSpaceData>(bytes) {
+        Ok(m) => output::json_string(&m).is_ok_and(|t| t.as_bytes() == bytes),
+        Err(_) => false,
+    }
+}
+
 /// Maps an error to the documented process exit code.
 pub fn exit_code_for(err: &Error) -> i32 {
     match err {

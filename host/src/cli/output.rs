@@ -174,6 +174,11 @@ pub fn write_file(path: &std::path::Path, text: &str) -> Result<()> {
     })
 }
 
+/// Prints a note line on stderr (a closed or full stderr is ignored, never a panic).
+pub fn note(msg: &str) {
+    let _ = writeln!(std::io::stderr().lock(), "note: {msg}");
+}
+
 /// Prints a warning line on stderr.
 pub fn warn(msg: &str) {
     let _ = writeln!(std::io::stderr().lock(), "warning: {msg}");

@@ -16,10 +16,11 @@
 //! ```
 use super::ExitCode;
 use crate::error::{Error, Result};
-use crate::io::file_safety::{check_writable, refuse_input_overwrite, write_atomic};
+use crate::io::file_safety::{check_output_file, refuse_input_overwrite, write_atomic, Own};
 use crate::lti::StateSpaceData;
 use crate::rational_fit::{fit_discrete_rational_delay_search, RationalFit, RationalFitOptions};
 use crate::target_frame::{FrfPoints, TargetFrame};
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
 /// Flags of `ferrosid reidentify`.
@@ -54,6 +55,9 @@ pub struct Args {
     /// Write the model JSON here.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Replace an existing --out file even when ferrosid did not write it.
+    #[arg(long)]
+    pub force: bool,
     /// Print a JSON report on stdout instead of text.
     #[arg(long)]
     pub json: bool,
@@ -172,7 +176,12 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     }
     if let Some(out) = &args.out {
         refuse_input_overwrite(out, "--out", &[args.frame.as_path()])?;
-        check_writable(out)?;
+        check_output_file(
+            out,
+            "--out",
+            Own::Content(super::own_model_file),
+            args.force,
+        )?;
     }
     if args.max_delay < args.min_delay {
         return Err(Error::InvalidArgument(format!(
@@ -180,6 +189,8 @@ pub fn run(args: &Args) -> Result<ExitCode> {
             args.max_delay, args.min_delay
         )));
     }
+    // Regular file, size cap, UTF-8 (io::input) before the frame parser reads it.
+    crate::io::input::read_text(&args.frame)?;
     let frame = TargetFrame::read(&args.frame)?;
     let opts = RationalFitOptions::new(args.na, args.nb, args.min_delay);
     let r = reidentify(
@@ -195,12 +206,12 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         write_atomic(out, (text + "\n").as_bytes())?;
     }
     if args.json {
-        let text = serde_json::to_string_pretty(&r)
-            .map_err(|e| Error::InvalidArgument(format!("JSON report: {e}")))?;
-        println!("{text}");
+        super::output::emit(&super::output::json_string(&r)?)?;
         return Ok(ExitCode::Ok);
     }
-    println!(
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
         "frame {}: fs {} Hz, N {}, {} averages, target verdict {}",
         args.frame.display(),
         frame.fs_hz,
@@ -208,17 +219,19 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         frame.averages.map_or("?".into(), |a| a.to_string()),
         frame.verdict.as_deref().unwrap_or("(none)")
     );
-    println!(
+    let _ = writeln!(
+        t,
         "fit on {} bins ({:.3}..{:.3} Hz) with coherence >= {}: na {}, nb {}, delay {} samples",
         r.points.h.len(),
         r.points.freq_hz.first().copied().unwrap_or(0.0),
         r.points.freq_hz.last().copied().unwrap_or(0.0),
-        r.gate,
+        super::num(r.gate),
         r.fit.options.na,
         r.fit.options.nb,
         r.fit.options.nk
     );
-    println!(
+    let _ = writeln!(
+        t,
         "relative error |H_fit - H1|/|H1|: rms {:.3e}, max {:.3e} ({} SK iterations{})",
         r.fit.rms_rel_error,
         r.fit.max_rel_error,
@@ -232,7 +245,8 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     for p in &r.fit.poles {
         let z = num_complex::Complex64::new(p[0], p[1]);
         let s = z.ln() / frame.ts();
-        println!(
+        let _ = writeln!(
+            t,
             "pole z = {:.6}{:+.6}j  (|z| {:.6}; {:.3} Hz, damping {:.4})",
             p[0],
             p[1],
@@ -242,7 +256,8 @@ pub fn run(args: &Args) -> Result<ExitCode> {
         );
     }
     if let Some(out) = &args.out {
-        println!("model written to {}", out.display());
+        let _ = writeln!(t, "model written to {}", out.display());
     }
+    super::output::emit(&t)?;
     Ok(ExitCode::Ok)
 }

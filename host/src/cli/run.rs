@@ -64,6 +64,8 @@ fn spinner() -> ProgressBar {
 
 /// Runs `ferrosid run`.
 pub fn run(args: &Args) -> Result<ExitCode> {
+    // Regular file, size cap, UTF-8 (a UTF-16 file is named as such) before the TOML parser.
+    crate::io::input::read_text(&args.pipeline)?;
     let cfg = LoadedConfig::load(&args.pipeline)?;
     let out_dir = match (&args.out, &cfg.config.output_dir) {
         (Some(o), _) => o.clone(),
@@ -73,6 +75,17 @@ pub fn run(args: &Args) -> Result<ExitCode> {
     // File safety before any computation: the directory is writable, locked against a
     // concurrent run, and holds no file of ours' names that ferrosid did not write.
     let mut out = prepare_output_dir(&out_dir)?;
+    if out_dir
+        .join(crate::io::file_safety::INCOMPLETE_FILE)
+        .exists()
+    {
+        super::output::warn(&format!(
+            "{}: an earlier run was killed while it replaced its files (it holds {}); this run \
+             replaces them all",
+            out_dir.display(),
+            crate::io::file_safety::INCOMPLETE_FILE
+        ));
+    }
     let pb = spinner();
     let result = run_pipeline(&cfg, &|stage| pb.set_message(stage.to_string()));
     pb.finish_and_clear();

@@ -99,10 +99,7 @@ pub fn read_summary(path: &Path) -> Result<FleetSummary> {
     } else {
         path.to_path_buf()
     };
-    let text = std::fs::read_to_string(&file).map_err(|source| Error::Io {
-        file: file.clone(),
-        source,
-    })?;
+    let text = crate::io::input::read_json_text(&file)?;
     // serde_json's `float_roundtrip` (host/Cargo.toml) reads every number back to the f64
     // that was written: the merge equals the unsharded run bit for bit.
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::Parse {

@@ -85,10 +85,8 @@ impl Default for RowReader {
 /// [`read_csv`], with the rows read as `how` says (the same log or the same error every way).
 fn read_csv_impl(path: &Path, opts: &CsvOptions, how: RowReader) -> Result<Log> {
     check_options(opts)?;
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        file: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::io::input::read_bytes(path, crate::io::input::MAX_LOG_BYTES)?;
+    crate::io::input::check_utf8_family(path, &bytes)?;
     let delimiter = match opts.delimiter {
         Some(d) => d,
         None => detect_delimiter(&bytes),

@@ -277,14 +277,22 @@ fn parse_head(payload: &[u8], big: bool) -> Result<Head, Bad> {
 }
 
 fn inflate(bytes: &[u8], limit: Option<usize>) -> std::io::Result<Vec<u8>> {
-    let mut dec = flate2::read::ZlibDecoder::new(bytes);
+    let dec = flate2::read::ZlibDecoder::new(bytes);
     let mut out = Vec::new();
     match limit {
         Some(n) => {
             dec.take(n as u64).read_to_end(&mut out)?;
         }
         None => {
-            dec.read_to_end(&mut out)?;
+            // A zlib stream can inflate a thousandfold: capped like a log file.
+            let cap = crate::io::input::MAX_LOG_BYTES;
+            dec.take(cap + 1).read_to_end(&mut out)?;
+            if out.len() as u64 > cap {
+                return Err(std::io::Error::other(format!(
+                    "it decompresses to more than {} GiB, the limit of a log (docs/safety.md)",
+                    cap >> 30
+                )));
+            }
         }
     }
     Ok(out)
@@ -296,10 +304,7 @@ impl MatFile {
     /// Errors: [`Error::Io`]; [`Error::Data`] for a file that is not MATLAB v5 (v4, v7.3/HDF5,
     /// other), a corrupt header or a truncated/corrupt element (with its byte offset).
     pub fn open(path: &Path) -> Result<MatFile> {
-        let bytes = std::fs::read(path).map_err(|source| Error::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        let bytes = crate::io::input::read_bytes(path, crate::io::input::MAX_LOG_BYTES)?;
         let data_err = |msg: String| Error::Data {
             file: path.to_path_buf(),
             msg,

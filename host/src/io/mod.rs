@@ -40,6 +40,7 @@ use crate::error::{Error, Result};
 
 pub mod csv;
 pub mod file_safety;
+pub mod input;
 pub mod mat;
 mod printed;
 pub mod text;
@@ -65,6 +66,19 @@ pub const MAX_TIME_JITTER_REL: f64 = 0.5;
 pub const MAX_PRINTED_ROUNDING_REL: f64 = 0.25;
 /// Default run length (samples) of identical extreme output values flagged as clipping.
 pub const DEFAULT_CLIP_RUN: usize = 4;
+/// Smallest `--time-scale` (seconds per unit of a time column) accepted: 1e-300. Below it the
+/// stamps' products leave the normal floating-point range (1e-308 made `gap` panic).
+pub const MIN_TIME_SCALE: f64 = 1e-300;
+/// Largest `--time-scale` accepted: 1e300.
+pub const MAX_TIME_SCALE: f64 = 1e300;
+/// Smallest sample rate (`--fs`, `fs` of a pipeline or a .mat file) accepted, Hz.
+pub const MIN_FS_HZ: f64 = 1e-300;
+/// Largest sample rate accepted, Hz.
+pub const MAX_FS_HZ: f64 = 1e300;
+/// Range of the sample time a log may end up with (from its time column or its rate), s:
+/// normal floating-point numbers whose inverse is one too (round 1 made every analysis
+/// scale-invariant over it: a log at 1e-300 s per sample identifies like one at 1 ms).
+pub const SAMPLE_TIME_RANGE_S: (f64, f64) = (1e-300, 1e300);
 
 /// Plausibility checks applied by every reader (see the module documentation for the rules).
 #[derive(Debug, Clone, PartialEq)]
@@ -252,9 +266,15 @@ pub(crate) enum TimeSource<'a> {
 
 /// Validates an explicit sample rate.
 pub(crate) fn check_fs(fs: f64) -> Result<()> {
-    if !(fs.is_finite() && fs > 0.0) {
+    if !(fs.is_finite() && (MIN_FS_HZ..=MAX_FS_HZ).contains(&fs)) {
         return Err(Error::InvalidArgument(format!(
-            "sample rate must be finite and > 0 Hz, got {fs}"
+            "sample rate (--fs) must be a finite number in [{MIN_FS_HZ:e}, {MAX_FS_HZ:e}] Hz, \
+             got {}",
+            if fs.is_finite() && fs != 0.0 {
+                format!("{fs:e}")
+            } else {
+                format!("{fs}")
+            }
         )));
     }
     Ok(())
@@ -265,6 +285,29 @@ pub(crate) fn check_fs(fs: f64) -> Result<()> {
 /// `whole(msg)` one about the whole time axis. Returns the sample time and, when an explicit
 /// sample rate overrides an irregular time column, a warning saying so.
 pub(crate) fn sample_time(
+    src: TimeSource<'_>,
+    checks: &Checks,
+    err: &dyn Fn(usize, String) -> Error,
+    whole: &dyn Fn(String) -> Error,
+) -> Result<(f64, Option<String>)> {
+    let stamped = matches!(src, TimeSource::Stamps { .. });
+    let (ts, warning) = sample_time_unchecked(src, checks, err, whole)?;
+    let (lo, hi) = SAMPLE_TIME_RANGE_S;
+    if !(ts.is_finite() && (lo..=hi).contains(&ts)) {
+        return Err(whole(format!(
+            "the sample time is {ts:e} s, outside [{lo:e}, {hi:e}] s (sample rate {:e} Hz); {}",
+            1.0 / ts,
+            if stamped {
+                "check the time column's unit and --time-scale (seconds per unit)"
+            } else {
+                "check --fs"
+            }
+        )));
+    }
+    Ok((ts, warning))
+}
+
+fn sample_time_unchecked(
     src: TimeSource<'_>,
     checks: &Checks,
     err: &dyn Fn(usize, String) -> Error,
@@ -293,17 +336,51 @@ pub(crate) fn sample_time(
                     ))),
                 };
             }
+            let mut repeated = 0usize;
             for k in 0..n - 1 {
+                // Repeated stamps (rounding at a rate above the printed resolution) are read
+                // when a sample rate is given, which then takes precedence (checked below).
+                if t[k + 1] == t[k] && fs.is_some() {
+                    repeated += 1;
+                    continue;
+                }
                 if t[k + 1] <= t[k] {
                     return Err(err(
                         k + 1,
                         format!(
-                            "{what} is not strictly increasing: {} follows {}",
+                            "{what} is not strictly increasing: {} follows {}{}",
                             t[k + 1],
-                            t[k]
+                            t[k],
+                            if t[k + 1] == t[k] {
+                                " (stamps rounded to fewer digits than the rate needs? give \
+                                 the sample rate with --fs, pipeline `fs`, which then takes \
+                                 precedence over the time column)"
+                            } else {
+                                ""
+                            }
                         ),
                     ));
                 }
+            }
+            if let (Some(fs), true) = (fs, repeated > 0) {
+                check_fs(fs)?;
+                let mean = (t[n - 1] - t[0]) / (n - 1) as f64;
+                let rel = (mean * fs - 1.0).abs();
+                let tol = checks.time_jitter_rel.max(FS_AGREEMENT_REL);
+                if rel.is_nan() || rel > tol {
+                    return Err(whole(format!(
+                        "{what} implies fs = {} Hz but fs = {fs} Hz was given (they differ by \
+                         {rel:.2e} relative, more than {tol:e}); drop one of the two",
+                        1.0 / mean
+                    )));
+                }
+                return Ok((
+                    1.0 / fs,
+                    Some(format!(
+                        "{what} repeats {repeated} time stamps (rounded to fewer digits than \
+                         the rate needs); using the given fs = {fs} Hz instead of the time stamps"
+                    )),
+                ));
             }
             // Robust interval: the median (a dropped sample or a glitch does not move it).
             // The element at n/2 in total order, as a sort would put it (selection, O(n)).

@@ -65,10 +65,8 @@ pub fn read_columns(path: &Path, opts: &TextOptions) -> Result<Log> {
             "text columns are numbered from 1".into(),
         ));
     }
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        file: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::io::input::read_bytes(path, crate::io::input::MAX_LOG_BYTES)?;
+    crate::io::input::check_utf8_family(path, &bytes)?;
     let parse_err = |line: usize, msg: String| Error::Parse {
         file: path.to_path_buf(),
         line,

@@ -100,11 +100,14 @@ impl IdentifyOptions {
     pub fn validate(&self) -> Result<()> {
         self.etfe.validate()?;
         if let Some(f) = self.crossover_hz {
-            if !(f.is_finite() && f > 0.0) {
-                return Err(Error::InvalidArgument(format!(
-                    "--crossover-hz must be > 0, got {f}"
-                )));
-            }
+            super::check_flag(
+                "--crossover-hz",
+                f,
+                0.0,
+                true,
+                crate::io::MAX_FS_HZ / 2.0,
+                " Hz",
+            )?;
         }
         if !(self.phase_tol_deg.is_finite() && self.phase_tol_deg > 0.0) {
             return Err(Error::InvalidArgument(format!(

@@ -37,3 +37,41 @@ impl Progress for NoProgress {
     fn advance(&self, _n: u64) {}
     fn end(&self) {}
 }
+
+/// `v` for a message: plain for ordinary magnitudes, scientific otherwise (never 300 digits).
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() || (1e-4..1e9).contains(&a) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Checks a numeric flag at the command-line boundary: `v` finite and within `lo..=hi`
+/// (`lo` excluded when `open_lo`). The error names the flag, the range, its unit and the value.
+///
+/// # Errors
+/// [`crate::error::Error::InvalidArgument`] (exit 2).
+pub fn check_flag(
+    flag: &str,
+    v: f64,
+    lo: f64,
+    open_lo: bool,
+    hi: f64,
+    unit: &str,
+) -> crate::error::Result<()> {
+    let above_lo = if open_lo { v > lo } else { v >= lo };
+    if v.is_finite() && above_lo && v <= hi {
+        return Ok(());
+    }
+    let range = if open_lo && lo == 0.0 {
+        format!("> 0 and <= {}", num(hi))
+    } else {
+        format!("in [{}, {}]", num(lo), num(hi))
+    };
+    Err(crate::error::Error::InvalidArgument(format!(
+        "{flag} must be a finite number {range}{unit}, got {}",
+        num(v)
+    )))
+}

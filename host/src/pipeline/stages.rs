@@ -43,10 +43,7 @@ fn ingest(
 ) -> Result<(Log, InputFile)> {
     let s = &cfg.config.signals;
     let path = cfg.resolve(&entry.file);
-    let bytes = std::fs::read(&path).map_err(|source| Error::Io {
-        file: path.clone(),
-        source,
-    })?;
+    let bytes = crate::io::input::read_bytes(&path, crate::io::input::MAX_LOG_BYTES)?;
     let spec = LogSpec {
         inputs: vec![entry.input.clone().unwrap_or_else(|| s.input.clone())],
         outputs: vec![entry.output.clone().unwrap_or_else(|| s.output.clone())],
