@@ -33,7 +33,7 @@ const N: usize = 512;
 const CHECK_HZ: [f64; 5] = [8.0, 14.0, 20.0, 30.0, 45.0];
 /// Highest excited frequency, Hz (25 lines). A wider band (150 Hz) reverses the velocity far
 /// more often, and each reversal leaves a force error of the compensation: the compensated
-/// loop then fails more lines (README, "closed-loop check").
+/// loop then fails more lines (docs/compensation.md, "closed-loop check").
 const MAX_HZ: f64 = 50.0;
 /// Periods averaged (8 × 512 = 4096 samples: the whole record is logged) and settled.
 const AVERAGES: u32 = 8;
