@@ -43,8 +43,9 @@
 //! a Karnopp law too, so Karnopp with a stick band counts as same-family although it is
 //! integrated here in continuous time with exact stick events —, Stribeck friction on the
 //! driven body (the candidate `stiction` carries the same stick band and Stribeck curve
-//! coulomb + (stat − coulomb)·exp(−(|v|/v_s)²) since session 12; the law's small viscous term is
-//! linear), drive play, dead band and saturation on the held command, an actuator mode of the
+//! coulomb + (stat − coulomb)·exp(−(|v|/v_s)²) since it gained the Stribeck velocity; the law's
+//! small viscous term is linear),
+//! drive play, dead band and saturation on the held command, an actuator mode of the
 //! candidate's form, quantization. Every other effect is *cross-family*: LuGre and Dahl
 //! friction, load-side friction,
 //! shaft backlash, slew-rate limit, state limit, sensor clipping, fractional (non-integer-sample)
@@ -458,8 +459,8 @@ pub fn resolve(setup: &Setup, specs: &[Spec], y_sd: f64) -> (Effects, Vec<TruthE
                 fx.friction = Some((law, body));
                 let place = if body == Body::Motor { "motor" } else { "load" };
                 // Karnopp and Stribeck laws on the driven body are the stiction candidate's (a stick band
-                // and, since session 12, the same Stribeck curve); LuGre, Dahl and load-side
-                // friction are not.
+                // and, since the candidate gained the Stribeck velocity, the same Stribeck curve);
+                // LuGre, Dahl and load-side friction are not.
                 let cross = !matches!(kind, FrictionKind::Karnopp | FrictionKind::Stribeck)
                     || body == Body::Load;
                 let law_s = format!("{kind:?}");

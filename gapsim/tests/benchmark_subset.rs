@@ -108,22 +108,23 @@ fn benchmark_subset_holds_the_measured_aggregates() {
     );
 }
 
-// Measured on the diagnosis of h/gap9 (issue 9, session 6: drift of integrating models left
+// Measured on the diagnosis of 2026-11-26 (issue 9: drift of integrating models left
 // out of every error, the `state_limit` candidate, tentative forward steps and the play partner
 // of friction), 46 cases, each run through the release `gap_benchmark` example with the same
 // options and length: same 8/8, indep 31/38 (82 %), cross-family 10/15 (67 %), 0 `none`
 // verdicts above twice the noise floor, 0 linear re-fits worse than the nominal, place right
-// 34/34, median (worst) parameter error 0.1 % (114 %). (Session 5: indep 30/38, cross-family
-// 10/15; session 4, h/gapacc: indep 28/38, cross-family 9/15.) NOT MET (issue 9 targets):
+// 34/34, median (worst) parameter error 0.1 % (114 %). (Earlier diagnoses of 2026-11-25: indep
+// 30/38, cross-family 10/15; indep 28/38, cross-family 9/15.) NOT MET (issue 9 targets):
 // >= 95 % overall (here 39/46 = 85 %), >= 90 % cross-family (67 %), worst parameter error
-// <= 25 % (114 %). Session 10 (integrating models fitted drift-free, this test in debug on
+// <= 25 % (114 %). With integrating models fitted drift-free (this test in debug on
 // main): same 8/8, indep 31/38, cross-family 11/15, median (worst) parameter error 0.1 %
-// (86 %). Session 11 (continuous slew, pair backward step, nested pair variants, drivetrain
-// partner, lattice of the logged values; debug on main): unchanged, 8/8, 31/38, 11/15 — the
-// cases those fixes turned are not in this rule-chosen subset (full run: 191/203, 57/64).
-// Session 12 (likelihood ratio in the fit's metric; the selected friction on a Stribeck curve;
-// Stribeck friction on the driven body relabelled same-family, as the candidate now shares its
-// law; debug on main): same 8/8, indep 32/38, cross-family 9/12 (the three cases relabelled
+// (86 %). With the continuous slew, pair backward step, nested pair variants, drivetrain
+// partner and the lattice of the logged values (debug on main): unchanged, 8/8, 31/38,
+// 11/15 — the cases those fixes turned are not in this rule-chosen subset (full run: 191/203,
+// 57/64).
+// With the likelihood ratio in the fit's metric, the selected friction on a Stribeck curve and
+// Stribeck friction on the driven body relabelled same-family, as the candidate shares its
+// law (debug on main): same 8/8, indep 32/38, cross-family 9/12 (the three cases relabelled
 // were right; no verdict of the subset differs between the two diagnosis changes).
 const SAME_RIGHT: usize = 8;
 const INDEP_RIGHT: usize = 32;

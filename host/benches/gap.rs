@@ -9,7 +9,7 @@
 //!   (a single effect; the pair stage is skipped), kept for comparison with earlier figures.
 //! * `gap_scaling/<n>`: the pair case at 4,096, 8,192, 16,384 and 32,768 samples per log.
 //! * `gap_f16/acceleration3_cli`: `ferrosid gap` on the F-16 ground-vibration data as in
-//!   README (order-8 N4SID of Level 1 as the nominal, Levels 1 and 7 train, Level 4
+//!   docs/gap-benchmark.md (order-8 N4SID of Level 1 as the nominal, Levels 1 and 7 train, Level 4
 //!   validates, output Acceleration3), run as the CLI binary; skipped with a notice when
 //!   ../shared/data/f16-gvt is absent.
 //!
@@ -102,7 +102,7 @@ fn f16_dir() -> Option<PathBuf> {
         .find(|p| p.join("F16Data_FullMSine_Level1.csv").exists())
 }
 
-/// The F-16 Acceleration3 `gap` command line (README), after writing its nominal model with
+/// The F-16 Acceleration3 `gap` command line (docs/gap-benchmark.md), after writing its nominal model with
 /// `identify`; `None` (with a notice) when the data or the identification is missing.
 fn f16_command() -> Option<Command> {
     let Some(dir) = f16_dir() else {

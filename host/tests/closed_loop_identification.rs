@@ -402,7 +402,7 @@ fn joint_unstable(l: &Loop) -> (ferrosid::lti::StateSpace, Vec<Complex64>) {
 /// r → [u; y] at the closed loop's order 1, refined by output-error fits of both channels) keeps
 /// the unstable pole and is at least 5× better than direct N4SID on every seed (measured:
 /// 0.02 against 0.6). Before the output-error refinement it was 0.21–0.24, and the Monte Carlo
-/// study (host/examples/closed_loop_unstable_study.rs, README) showed that error was bias.
+/// study (host/examples/closed_loop_unstable_study.rs, docs/identification.md) showed that error was bias.
 #[test]
 fn joint_method_identifies_an_unstable_plant() {
     let (un, yn) = (names("u"), names("y"));

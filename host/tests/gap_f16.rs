@@ -1,5 +1,5 @@
 //! `ferrosid gap` on the F-16 ground-vibration benchmark (../shared/data/f16-gvt, see its
-//! README), as a new user would run it: the nominal is ferrosid's own order-8 N4SID model of
+//! docs/gap-benchmark.md), as a new user would run it: the nominal is ferrosid's own order-8 N4SID model of
 //! Level 1 (`identify --order 8 --out`), Levels 1 and 7 train, Level 4 validates; output the
 //! wing acceleration next to the interface (`Acceleration2`) and the payload acceleration
 //! (`Acceleration3`).

@@ -9,9 +9,9 @@
 //! resonance pair at 53/77 Hz stays well inside the band and the fit is 4× cheaper): the fit
 //! converges and explains the data as well as the black-box model of the same order (NRMSE
 //! within 15 % of it: 0.150 vs 0.153 on A, 0.093 vs 0.082 on B), the anti-resonance √(k/J_l) and the resonance √(k(J_m+J_l)/(J_m J_l))
-//! lie at the period-synchronous FRF's 53 ± 3 Hz and 77 ± 3 Hz (README), and the motor inertia's
+//! lie at the period-synchronous FRF's 53 ± 3 Hz and 77 ± 3 Hz (docs/benchmarks.md), and the motor inertia's
 //! 95 % intervals from the two logs overlap. The other parameters differ between the logs by
-//! more than their intervals (printed; see README: the intervals carry the noise, not the
+//! more than their intervals (printed; see docs/physical.md: the intervals carry the noise, not the
 //! bench's unmodelled nonlinear friction).
 //!
 //! The data are read in place from ../shared/data; when absent the test prints a notice and

@@ -1,4 +1,4 @@
-//! The host crate's import arrows point down the chain (issue 11, `architecture.md`):
+//! The host crate's import arrows point down the chain (issue 11, `docs/architecture.md`):
 //! log → signals → spectra → model → validation → bound → controller + receipts → gap
 //! diagnosis → commands → pipeline → report → output files → front ends.
 //!

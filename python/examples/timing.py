@@ -1,5 +1,5 @@
 """Per-log time through Python vs the CLI, and fleet throughput on Dask for 1 and 2 workers
-(the figures of README "Python"). Run from the repository root after
+(the figures of docs/benchmarks.md "Python"). Run from the repository root after
 scripts/python-setup.sh --no-test and `cargo build -p ferrosid`:
 
     target/python-venv/bin/python python/examples/timing.py            # everything

@@ -1,5 +1,5 @@
 //! Runs the labelled sim-to-real gap benchmark (the same-law family only; both families: the
-//! `gap_benchmark` example of ferrosid-gapsim) and prints the markdown summary for README.md.
+//! `gap_benchmark` example of ferrosid-gapsim) and prints the markdown summary for docs/gap-benchmark.md.
 //!
 //! `cargo run --release -p ferrosid-sim --example gap_benchmark_same [-- --n SAMPLES]
 //! [--filter TEXT] [--seed-offset K] [--verbose]`

@@ -1,7 +1,7 @@
 //! The design card's crates on the target (issue 16): the `cratecmp` image
 //! (`tests/qemu/src/bin/cratecmp.rs`) measures nalgebra, micromath and heapless against what
 //! they replace, under `qemu-system-arm -icount shift=0`, and this test prints its figures (the
-//! README's table "Design-card crates on the target") and checks the claims the firmware's
+//! docs/firmware.md's table "Design-card crates on the target") and checks the claims the firmware's
 //! choices rest on. Instruction counts under `-icount` are deterministic, so the two count
 //! comparisons below are count assertions, not timings.
 //!

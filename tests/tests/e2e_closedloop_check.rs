@@ -33,7 +33,7 @@ const N: usize = 512;
 const CHECK_HZ: [f64; 5] = [8.0, 14.0, 20.0, 30.0, 45.0];
 /// Highest excited frequency, Hz (25 lines). A wider band (150 Hz) reverses the velocity far
 /// more often, and each reversal leaves a force error of the compensation: the compensated
-/// loop then fails more lines (README, "closed-loop check").
+/// loop then fails more lines (docs/compensation.md, "closed-loop check").
 const MAX_HZ: f64 = 50.0;
 /// Periods averaged (8 × 512 = 4096 samples: the whole record is logged) and settled.
 const AVERAGES: u32 = 8;
@@ -344,7 +344,7 @@ fn linear_closed_loop_with_noise_recovers_g_where_naive_h1_is_biased() {
     // the noise seeds 1..=30: the closed-loop estimate's worst error is 0.009–0.224 (median
     // 0.087; seed 11: 0.131 at 3.9 Hz; every line of every seed inside 3√2σ), the naive one
     // 0.965–0.988, their ratio 4.4–110. (The bounds 0.08 and 10× fitted the one draw of the xorshift64*
-    // used before session 14: 0.058.)
+    // used before the workspace's one RNG: 0.058.)
     assert!(worst_iv < 0.25, "{worst_iv}");
     assert!(
         worst_naive > 0.5 && worst_naive > 3.0 * worst_iv,

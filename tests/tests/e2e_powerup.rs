@@ -686,9 +686,10 @@ fn reidentify_command_writes_a_model_the_generator_accepts() {
 /// errors of this run the compensated scenario passes 9/9 lines with 14 of them, 6/9 at worst,
 /// while the uncompensated one fails at least twice as many lines with every one. The
 /// committed seeds (11, 12, 13) give |W_m| 0.0220 at 3.9 Hz: that line fails (0.0235), 8/9
-/// pass; the xorshift64* draws used before session 14 gave 0.0262 and 9/9. So the test asserts
-/// what holds over the seeds (the error falls by at least a quarter at every line, no line
-/// fails that passed without the compensation, at most half as many lines fail), not the 9/9.
+/// pass; the xorshift64* draws used before the workspace's one RNG gave 0.0262 and 9/9. So the
+/// test asserts what holds over the seeds (the error falls by at least a quarter at every line,
+/// no line fails that passed without the compensation, at most half as many lines fail), not the
+/// 9/9.
 #[test]
 fn coulomb_friction_compensation_cuts_the_error_and_the_failing_lines() {
     use clap::Parser as _;

@@ -54,7 +54,7 @@ impl C32 {
     /// otherwise exact rational range reduction and an `f64` series ([`crate::trig::cos_frac`],
     /// error below 1e-15, rounded once to `f32`; about 5,400 instructions, software `f64`).
     /// micromath's `sin`/`cos` (1.1e-3 off on the unit circle) was measured too and rejected:
-    /// README "Design-card crates on the target".
+    /// docs/firmware.md "Design-card crates on the target".
     pub fn unit_circle(num: u32, den: u32) -> Self {
         if den.is_power_of_two() {
             // num·2^32/den mod 2^32; den = 1 gives shift 32: phase 0 (a whole number of turns).

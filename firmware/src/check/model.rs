@@ -10,7 +10,7 @@ use super::C32;
 /// `input`/`output` is out of range, or when the result is not finite.
 ///
 /// nalgebra's fixed-size complex LU was measured in its place (issue 16, the `cratecmp` QEMU
-/// image, README "Design-card crates on the target"): fewer instructions at 2 and 4 states,
+/// image, docs/firmware.md "Design-card crates on the target"): fewer instructions at 2 and 4 states,
 /// the same errors, but its row-permutation swaps keep bounds checks — 13 branches to panic
 /// entry points over 2, 4 and 6 states where this code has none — so it is not used.
 pub fn model_response<const N: usize, const M: usize, const P: usize>(

@@ -18,7 +18,7 @@
 //! physical plant; a plant with feedthrough driven by a coloured input can be flagged wrongly),
 //! and a linear plant: an unmodelled nonlinearity under a periodic input leaves a periodic
 //! function of the input in the ARX residual, which correlates with future inputs as feedback
-//! does (the motor bench's two logs are flagged; README).
+//! does (the motor bench's two logs are flagged; docs/identification.md).
 use crate::error::{Error, Result};
 use crate::n4sid::linalg::dots_shifted4;
 use faer::Mat;

@@ -177,11 +177,11 @@ pub struct TargetCost {
     pub mean: f64,
     /// Largest (None when only the mean was measured).
     pub max: Option<f64>,
-    /// Which test measured it (README "Controllers beyond PID").
+    /// Which test measured it (docs/controllers.md).
     pub source: &'static str,
 }
 
-/// The structures whose step was measured on the target, and the figures (README; the cost
+/// The structures whose step was measured on the target, and the figures (docs/controllers.md; the cost
 /// depends on the structure — sections, order, horizon, iterations — not on the coefficients).
 fn measured_cost(structure: &Structure) -> Option<TargetCost> {
     let t = |mean, max, source| Some(TargetCost { mean, max, source });

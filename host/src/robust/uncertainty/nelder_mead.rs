@@ -11,7 +11,7 @@
 //! starts. Order n + 1 is started from the order-n optimum extended by an exactly cancelling
 //! pole/zero pair.
 //!
-//! This was the only method up to session 4 (1.41 s for order 3 on 300 bins); it is kept as
+//! This was the only method before the rational fit (1.41 s for order 3 on 300 bins); it is kept as
 //! [`super::WeightFitMethod::NelderMead`] so the tests can compare the rational fit with it.
 use super::{build_weight, Band, UncertaintyWeight, WeightFitOptions};
 use crate::error::{Error, Result};
