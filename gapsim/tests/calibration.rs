@@ -50,8 +50,10 @@ fn a_one_sample_lead_is_found_as_alignment_and_the_verdict_is_none() {
     c.alignment = -1.0;
     let r = diagnose(c);
     assert_eq!(r["verdict"], "none");
+    // With the nominal off by up to 30 % the re-fit's free poles take up part of a shift: the
+    // estimate is within 0.2 sample here (0.1 on a known plant: host's gap::align tests).
     let a = r["linear"]["alignment_samples"].as_f64().unwrap();
-    assert!((a + 1.0).abs() <= 0.1, "alignment {a}");
+    assert!((a + 1.0).abs() <= 0.2, "alignment {a}");
 }
 
 /// 0.5 % sensor spikes of 0.5–2 output standard deviations: flagged, masked, and kept out of

@@ -656,15 +656,15 @@ fn mask_spikes(
     validate: &Log,
     logs: &mut Logs,
     resid: &Residuals,
-    warmup: usize,
 ) -> Option<outliers::Outliers> {
     let mut found: Vec<(String, Vec<usize>, &[f64])> = Vec::new();
     for (i, log) in train.iter().enumerate() {
-        let at = outliers::spikes(&resid.train_lin[i], warmup);
+        // The warm-up too: a spike is sharp against the smooth initial transient.
+        let at = outliers::spikes(&resid.train_lin[i], 0);
         outliers::mask(&mut logs.ty[i], &resid.y_lin_train[i], &at);
         found.push((log.path.display().to_string(), at, &resid.train_lin[i]));
     }
-    let at = outliers::spikes(&resid.val_lin, warmup);
+    let at = outliers::spikes(&resid.val_lin, 0);
     outliers::mask(&mut logs.vy, &resid.y_lin_val, &at);
     found.push((validate.path.display().to_string(), at, &resid.val_lin));
     let total = logs.ty.iter().map(Vec::len).sum::<usize>() + logs.vy.len();
@@ -766,7 +766,7 @@ fn diagnose_logs(
     let mut st = linear_stage(sim, &logs, &s, &mut notes)?;
     // OUTLIERS: spikes on the linear model's residual, masked in every log, then the linear
     // model again on the masked logs.
-    let outliers = mask_spikes(train, validate, &mut logs, &st.resid, s.warmup);
+    let outliers = mask_spikes(train, validate, &mut logs, &st.resid);
     if let Some(o) = &outliers {
         notes.push(format!(
             "{} output spike(s) ({:.2} % of the samples) masked before the noise floor and \
