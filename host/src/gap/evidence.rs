@@ -257,12 +257,16 @@ impl Evidence {
         {
             v.push(format!(
                 "{}: {:.2}% of the output power on non-excited lines (odd {:.2}%, even {:.2}%), \
-                 no linear model below NRMSE {:.4}",
+                 no linear model below NRMSE {}",
                 d.log,
                 100.0 * (d.odd_share + d.even_share),
                 100.0 * d.odd_share,
                 100.0 * d.even_share,
-                d.nrmse_bound
+                if d.nrmse_bound >= 1e-4 {
+                    format!("{:.4}", d.nrmse_bound)
+                } else {
+                    format!("{:.1e}", d.nrmse_bound)
+                }
             ));
         }
         if let Some(l) = &self.lattice {
@@ -413,6 +417,10 @@ pub fn amplitude_evidence(
         let (Some((fl, zl)), Some((fh, zh))) = (nearest(ml), nearest(mh)) else {
             continue;
         };
+        // A pair that became two real poles in either fit is no mode to follow.
+        if zl >= 1.0 - 1e-9 || zh >= 1.0 - 1e-9 {
+            continue;
+        }
         let shift = (fh - fl) / fl;
         let zm = 0.5 * (zl + zh);
         let in_band = excited_at(freq, &suu, 0.5 * (fl + fh));

@@ -267,13 +267,20 @@ impl GapReport {
             100.0 * self.settings.threshold,
             bands(&w.bands_hz)
         );
-        let _ = writeln!(
-            s,
-            "  worst: {:.3} Hz (error {:.0}%), band {}",
-            w.worst_hz,
-            100.0 * w.worst_error,
-            bands(&[w.worst_band_hz])
-        );
+        if w.worst_hz.is_finite() && w.worst_error.is_finite() {
+            let _ = writeln!(
+                s,
+                "  worst: {:.3} Hz (error {:.0}%), band {}",
+                w.worst_hz,
+                100.0 * w.worst_error,
+                bands(&[w.worst_band_hz])
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "  worst: none (no powered bin passes the coherence gate)"
+            );
+        }
         let _ = writeln!(
             s,
             "  coherence < {:.2}: {}",
