@@ -178,6 +178,7 @@ pub fn gap(
         effects,
         expect: None,
         decimate: None,
+        force: false,
     };
     let opts = args.options().map_err(|e| crate::to_py_err(py, &e))?;
     let train: Vec<OwnedLog> = train.iter().map(OwnedLog::of).collect();
