@@ -650,12 +650,14 @@ fn linear_stage(
 }
 
 /// Finds the output spikes of every log on the linear model's residuals
-/// ([`crate::gap::outliers`]) and masks them in `logs`; their report, `None` without spikes.
+/// ([`crate::gap::outliers`]) and masks them in `logs`; their report (and a note), `None`
+/// without spikes.
 fn mask_spikes(
     train: &[Log],
     validate: &Log,
     logs: &mut Logs,
     resid: &Residuals,
+    notes: &mut Vec<String>,
 ) -> Option<outliers::Outliers> {
     let mut found: Vec<(String, Vec<usize>, &[f64])> = Vec::new();
     for (i, log) in train.iter().enumerate() {
@@ -668,7 +670,19 @@ fn mask_spikes(
     outliers::mask(&mut logs.vy, &resid.y_lin_val, &at);
     found.push((validate.path.display().to_string(), at, &resid.val_lin));
     let total = logs.ty.iter().map(Vec::len).sum::<usize>() + logs.vy.len();
-    outliers::report(&found, logs.ts, total)
+    let o = outliers::report(&found, logs.ts, total)?;
+    notes.push(format!(
+        "{} output spike(s) ({:.2} % of the samples) masked before the noise floor and every \
+         fit (largest {:.4e} output units)",
+        o.count,
+        100.0 * o.share,
+        o.logs
+            .iter()
+            .map(|l| l.largest)
+            .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+            .unwrap_or(0.0)
+    ));
+    Some(o)
 }
 
 /// Runs the gap diagnosis of the discrete nominal model `sim` (SISO, sample time equal to the
@@ -766,19 +780,8 @@ fn diagnose_logs(
     let mut st = linear_stage(sim, &logs, &s, &mut notes)?;
     // OUTLIERS: spikes on the linear model's residual, masked in every log, then the linear
     // model again on the masked logs.
-    let outliers = mask_spikes(train, validate, &mut logs, &st.resid);
-    if let Some(o) = &outliers {
-        notes.push(format!(
-            "{} output spike(s) ({:.2} % of the samples) masked before the noise floor and \
-             every fit (largest {:.4e} output units)",
-            o.count,
-            100.0 * o.share,
-            o.logs
-                .iter()
-                .map(|l| l.largest)
-                .max_by(|a, b| a.abs().total_cmp(&b.abs()))
-                .unwrap_or(0.0)
-        ));
+    let outliers = mask_spikes(train, validate, &mut logs, &st.resid, &mut notes);
+    if outliers.is_some() {
         s = setup(sim, train, &logs, opts, &mut Vec::new())?;
         st = linear_stage(sim, &logs, &s, &mut Vec::new())?;
     }

@@ -286,11 +286,12 @@ pub fn select_effects(
     let linear = AugmentedModel::linear(lin.clone());
     let val: Val = (val_u, val_y, warmup, opts.drift_window);
     let gap_linear = validation_nrmse(val_y, &linear.simulate(val_u)?, warmup, opts.drift_window);
-    let lattice = if opts.raw_outputs.is_empty() {
-        lattice_evidence(&td.base.y)
+    let raw = if opts.raw_outputs.is_empty() {
+        &td.base.y
     } else {
-        lattice_evidence(&opts.raw_outputs)
+        &opts.raw_outputs
     };
+    let lattice = lattice_evidence(raw);
     let position_output = lin.real.iter().any(|&p| p >= 1.0 - 1e-9);
     let vel = if position_output {
         VelocitySource::OutputDerivative
@@ -310,11 +311,6 @@ pub fn select_effects(
         opts.candidates.clone()
     };
     // 1. Singles.
-    let raw = if opts.raw_outputs.is_empty() {
-        &td.base.y
-    } else {
-        &opts.raw_outputs
-    };
     let facts = DataFacts::of(
         raw,
         &td.u,
