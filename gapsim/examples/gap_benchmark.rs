@@ -1,14 +1,15 @@
 //! Runs the two-family gap benchmark and prints the markdown summary.
 //!
 //! `cargo run --release -p ferrosid-gapsim --example gap_benchmark -- [--family same|indep|all|null]
-//! [--filter TEXT] [--seed-offset K] [--n SAMPLES] [--verbose] [--jobs J]`
+//! [--filter TEXT] [--seed-offset K] [--n SAMPLES] [--lead K] [--verbose] [--jobs J]`
 //!
 //! `--family` (default `all`): the first family (`ferrosid_sim::benchmark`, same equations as
 //! the candidates), the independent one (this crate's simulator), both, or `null` (the
 //! effect-free set of `ferrosid_gapsim::null`, for the false-positive rate); `--filter` keeps cases
 //! whose id contains TEXT; `--seed-offset` adds K to every seed (fresh nominal mismatch,
 //! excitation and noise: a held-out draw); `--n` samples per log (default 16384); `--verbose`
-//! prints each report's JSON to stderr; `--jobs` runs cases on J threads (default 1).
+//! prints each report's JSON to stderr; `--lead K` advances every logged output by K samples
+//! (0–3: a logger that stores y[k] at the end of u[k]'s period); `--jobs` runs cases on J threads (default 1).
 use ferrosid::gap::GapOptions;
 use ferrosid_gapsim::bench::{all_cases, run_all};
 use ferrosid_gapsim::score::markdown;
@@ -16,7 +17,7 @@ use ferrosid_gapsim::score::markdown;
 fn usage(msg: &str) -> ! {
     eprintln!(
         "{msg}\nusage: gap_benchmark [--family same|indep|all|null] [--filter TEXT] [--seed-offset K] \
-         [--n SAMPLES] [--verbose] [--jobs J]"
+         [--n SAMPLES] [--lead K] [--verbose] [--jobs J]"
     );
     std::process::exit(2)
 }
@@ -29,6 +30,7 @@ fn main() {
     let mut n = 16384usize;
     let mut verbose = false;
     let mut jobs = 1usize;
+    let mut lead = 0usize;
     let mut i = 0;
     let value = |i: usize, what: &str| -> String {
         args.get(i + 1)
@@ -68,6 +70,14 @@ fn main() {
                     .unwrap_or_else(|| usage("--jobs needs a number of threads >= 1"));
                 i += 1;
             }
+            "--lead" => {
+                lead = value(i, "a number of samples")
+                    .parse()
+                    .ok()
+                    .filter(|&k: &usize| k <= 3)
+                    .unwrap_or_else(|| usage("--lead needs a number of samples from 0 to 3"));
+                i += 1;
+            }
             "--verbose" => verbose = true,
             other => usage(&format!("unknown argument {other}")),
         }
@@ -85,7 +95,7 @@ fn main() {
     let opts = GapOptions::default();
     let described: std::collections::HashMap<String, String> =
         cases.iter().map(|c| (c.id(), c.describe())).collect();
-    let outcomes = run_all(&cases, n, jobs, &opts, &|o, v| {
+    let outcomes = run_all(&cases, (n, lead), jobs, &opts, &|o, v| {
         if verbose {
             if let Some(v) = v {
                 eprintln!("{}", serde_json::to_string_pretty(v).unwrap_or_default());

@@ -95,6 +95,33 @@ fn plant_of(id: &str) -> String {
 /// Generates, diagnoses and scores one case with `n` samples per log. Returns the outcome and
 /// the report as JSON (None when generation or diagnosis failed).
 pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option<Value>) {
+    run_case_with_lead(case, n, opts, 0)
+}
+
+/// Every log of a case as a logger that stores y[k] at the end of the period in which u[k] was
+/// applied would write it: the output advanced by `lead` samples (the last `lead` samples of
+/// each log dropped).
+fn with_output_lead(log: ferrosid::data::Log, lead: usize) -> ferrosid::data::Log {
+    if lead == 0 {
+        return log;
+    }
+    let (u, y) = (log.u(), log.y());
+    let n = u.len().saturating_sub(lead);
+    ferrosid::data::Log::siso(
+        log.path.display().to_string(),
+        log.ts,
+        u[..n].to_vec(),
+        y[lead..lead + n].to_vec(),
+    )
+}
+
+/// [`run_case`] with every output advanced by `lead` samples ([`with_output_lead`]).
+pub fn run_case_with_lead(
+    case: &AnyCase,
+    n: usize,
+    opts: &GapOptions,
+    lead: usize,
+) -> (Outcome, Option<Value>) {
     let id = case.id();
     let fam = case.family();
     let plant = plant_of(&id);
@@ -138,7 +165,24 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
             .map_err(|e| e.to_string()),
     };
     let (sim, train, validate, truth, floor) = match generated {
-        Ok(g) => g,
+        Ok((sim, train, validate, mut truth, floor)) => {
+            // The logged output leads: a true delay lags the logs by `lead` samples less.
+            for t in truth.iter_mut().filter(|t| t.name == "time_delay") {
+                for p in t.params.iter_mut().filter(|p| p.0 == "seconds") {
+                    p.1 -= lead as f64 * TS;
+                }
+            }
+            (
+                sim,
+                train
+                    .into_iter()
+                    .map(|l| with_output_lead(l, lead))
+                    .collect::<Vec<_>>(),
+                with_output_lead(validate, lead),
+                truth,
+                floor,
+            )
+        }
         Err(e) => {
             return (
                 failed(fam, &id, &plant, &[], &format!("generation: {e}")),
@@ -163,11 +207,12 @@ pub fn run_case(case: &AnyCase, n: usize, opts: &GapOptions) -> (Outcome, Option
     }
 }
 
-/// Runs `cases` on `jobs` threads (at least 1); `on_done` is called as each case finishes (from
+/// Runs `cases` with `n` samples per log, every output advanced by `lead` samples, on `jobs`
+/// threads (at least 1); `on_done` is called as each case finishes (from
 /// the worker thread). The outcomes come back in the order of `cases`.
 pub fn run_all(
     cases: &[AnyCase],
-    n: usize,
+    (n, lead): (usize, usize),
     jobs: usize,
     opts: &GapOptions,
     on_done: &(dyn Fn(&Outcome, Option<&Value>) + Sync),
@@ -181,7 +226,7 @@ pub fn run_all(
                 if i >= cases.len() {
                     break;
                 }
-                let (o, v) = run_case(&cases[i], n, opts);
+                let (o, v) = run_case_with_lead(&cases[i], n, opts, lead);
                 on_done(&o, v.as_ref());
                 if let Ok(mut g) = slots.lock() {
                     g[i] = Some(o);

@@ -40,7 +40,7 @@ fn subset() -> Vec<AnyCase> {
 #[test]
 fn benchmark_subset_holds_the_measured_aggregates() {
     let cases = subset();
-    let outcomes = run_all(&cases, N, 1, &GapOptions::default(), &|o, _| {
+    let outcomes = run_all(&cases, (N, 0), 1, &GapOptions::default(), &|o, _| {
         eprintln!(
             "{:<44} {} expected {:<24} verdict {}",
             o.id,
