@@ -646,37 +646,39 @@ fn sim_err(id: &str, e: crate::ode::OdeError) -> ferrosid::error::Error {
     ferrosid::error::Error::Numerical(format!("{id}: simulation failed: {e}"))
 }
 
-/// Generates the logs of `case` with `n` samples each (see the module docs).
-pub fn generate(case: &Case, n: usize) -> ferrosid::error::Result<CaseData> {
-    let s = case.setup;
-    let mut rng = Xoshiro::new(case.seed);
-    let nominal = s.plant.perturbed(NOMINAL_MISMATCH, &mut rng).linear()?;
-    let (u_low, u_high, u_val) = if case.periodic {
+/// The three inputs of a case (module docs): low, high and validation, `n` samples each, drawn
+/// from `rng` in that order.
+pub fn excitations(
+    s: &Setup,
+    periodic: bool,
+    n: usize,
+    rng: &mut Xoshiro,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    if periodic {
         let periods = n.div_ceil(PERIOD);
         let f_lo = s.f_lo.max(0.4);
         let mut mk = |r: f64| {
-            let mut v = odd_multisine(
-                PERIOD,
-                periods,
-                TS,
-                f_lo,
-                s.f_hi,
-                DETECTION_GROUP,
-                r,
-                &mut rng,
-            )
-            .signal;
+            let mut v =
+                odd_multisine(PERIOD, periods, TS, f_lo, s.f_hi, DETECTION_GROUP, r, rng).signal;
             v.truncate(n);
             v
         };
         (mk(s.a), mk(3.0 * s.a), mk(2.0 * s.a))
     } else {
         (
-            band_noise(n, TS, s.f_lo, s.f_hi, s.a, &mut rng),
-            band_noise(n, TS, s.f_lo, s.f_hi, 3.0 * s.a, &mut rng),
-            log_multisine(n, TS, s.f_lo.max(0.2), s.f_hi, 300, 2.0 * s.a, &mut rng),
+            band_noise(n, TS, s.f_lo, s.f_hi, s.a, rng),
+            band_noise(n, TS, s.f_lo, s.f_hi, 3.0 * s.a, rng),
+            log_multisine(n, TS, s.f_lo.max(0.2), s.f_hi, 300, 2.0 * s.a, rng),
         )
-    };
+    }
+}
+
+/// Generates the logs of `case` with `n` samples each (see the module docs).
+pub fn generate(case: &Case, n: usize) -> ferrosid::error::Result<CaseData> {
+    let s = case.setup;
+    let mut rng = Xoshiro::new(case.seed);
+    let nominal = s.plant.perturbed(NOMINAL_MISMATCH, &mut rng).linear()?;
+    let (u_low, u_high, u_val) = excitations(&s, case.periodic, n, &mut rng);
     // Output scale from the low run: the output-relative parameters (sensor range and
     // resolution) act in `measure`, not in the simulation, so this run is already the real one.
     let (fx0, _) = resolve(&s, &case.specs, 1.0);

@@ -22,8 +22,8 @@
 //!
 //! The true noise floor is the noise's standard deviation over the validation output's (spikes
 //! and drift are not noise: a diagnosis must not let them set its floor).
-use crate::cases::{setups, Setup, DETECTION_GROUP, PERIOD, TS};
-use crate::excite::{band_noise, log_multisine, odd_multisine, std_dev};
+use crate::cases::{excitations, setups, Setup, TS};
+use crate::excite::std_dev;
 use crate::laws::Effects;
 use crate::rng::Xoshiro;
 use crate::simulate::simulate;
@@ -225,32 +225,7 @@ pub fn generate(case: &Case, n: usize) -> ferrosid::error::Result<NullData> {
     let lead = (-case.alignment).max(0.0).ceil() as usize;
     let out_delay = (case.alignment + lead as f64) * TS;
     let len = n + lead;
-    let (u_low, u_high, u_val) = if case.periodic {
-        let periods = len.div_ceil(PERIOD);
-        let f_lo = s.f_lo.max(0.4);
-        let mut mk = |r: f64| {
-            let mut v = odd_multisine(
-                PERIOD,
-                periods,
-                TS,
-                f_lo,
-                s.f_hi,
-                DETECTION_GROUP,
-                r,
-                &mut rng,
-            )
-            .signal;
-            v.truncate(len);
-            v
-        };
-        (mk(s.a), mk(3.0 * s.a), mk(2.0 * s.a))
-    } else {
-        (
-            band_noise(len, TS, s.f_lo, s.f_hi, s.a, &mut rng),
-            band_noise(len, TS, s.f_lo, s.f_hi, 3.0 * s.a, &mut rng),
-            log_multisine(len, TS, s.f_lo.max(0.2), s.f_hi, 300, 2.0 * s.a, &mut rng),
-        )
-    };
+    let (u_low, u_high, u_val) = excitations(&s, case.periodic, len, &mut rng);
     let fx = Effects {
         output_delay: out_delay,
         ..Effects::default()
