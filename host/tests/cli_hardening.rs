@@ -2,34 +2,13 @@
 //! hung, printed a silently wrong answer, destroyed a file or gave the wrong exit code before.
 //! Exit code and message are asserted for every case.
 mod cli_support;
-use cli_support::{ferrosid, s, scratch, write_csv, Rng, Run};
+use cli_support::{expect, ferrosid, no_panic, s, scratch, write_csv, Rng, Run};
 use std::path::{Path, PathBuf};
 
 fn example(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../examples")
         .join(name)
-}
-
-fn no_panic(r: &Run, what: &str) {
-    assert!(
-        !r.stderr.contains("panicked") && r.code != 101 && r.code != 134 && r.code >= 0,
-        "{what} panicked or aborted (exit {}): {}",
-        r.code,
-        r.stderr
-    );
-}
-
-fn expect(r: &Run, code: i32, needles: &[&str], what: &str) {
-    no_panic(r, what);
-    assert_eq!(r.code, code, "{what}: exit code; stderr: {}", r.stderr);
-    for n in needles {
-        assert!(
-            r.stderr.contains(n),
-            "{what}: stderr lacks `{n}`: {}",
-            r.stderr
-        );
-    }
 }
 
 /// A first-order plant y[k] = 0.9 y[k-1] + 0.1 u[k-1] + noise, driven by white noise.

@@ -6,52 +6,14 @@
 //!
 //! Run: `cargo test -p ferrosid --test integration cli_hostile::`.
 mod cli_support;
-use cli_support::{s, scratch, write_csv, Rng, Run};
+use cli_support::{
+    expect, ferrosid, ferrosid_to as run_with, no_panic, s, scratch, write_csv, Rng, Run,
+};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ferrosid"))
-}
-
-fn run_with(args: &[&str], stdout: Stdio) -> Run {
-    let out = bin()
-        .args(args)
-        .stdout(stdout)
-        .stderr(Stdio::piped())
-        .output()
-        .expect("the ferrosid binary runs");
-    Run {
-        code: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-        stdout_bytes: out.stdout,
-    }
-}
-
-fn ferrosid(args: &[&str]) -> Run {
-    run_with(args, Stdio::piped())
-}
-
-fn no_panic(r: &Run, what: &str) {
-    assert!(
-        !r.stderr.contains("panicked") && ![101, 134, -1].contains(&r.code),
-        "{what} panicked or was killed (exit {}): {}",
-        r.code,
-        r.stderr
-    );
-}
-
-fn expect(r: &Run, code: i32, needles: &[&str], what: &str) {
-    no_panic(r, what);
-    assert_eq!(r.code, code, "{what}: exit code; stderr: {}", r.stderr);
-    for n in needles {
-        assert!(
-            r.stderr.contains(n),
-            "{what}: stderr lacks `{n}`: {}",
-            r.stderr
-        );
-    }
 }
 
 /// Runs `f` on cases in two threads (the binary is the cost; two cores).

@@ -18,8 +18,15 @@ pub struct Run {
 
 /// Runs `ferrosid` with `args` (stderr is a pipe, so progress bars are hidden).
 pub fn ferrosid(args: &[&str]) -> Run {
+    ferrosid_to(args, std::process::Stdio::piped())
+}
+
+/// [`ferrosid`] with stdout sent to `stdout` (a full device, a closed pipe, ...).
+pub fn ferrosid_to(args: &[&str], stdout: std::process::Stdio) -> Run {
     let out = Command::new(env!("CARGO_BIN_EXE_ferrosid"))
         .args(args)
+        .stdout(stdout)
+        .stderr(std::process::Stdio::piped())
         .output()
         .expect("the ferrosid binary runs");
     Run {
@@ -27,6 +34,29 @@ pub fn ferrosid(args: &[&str]) -> Run {
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
         stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
         stdout_bytes: out.stdout,
+    }
+}
+
+/// Asserts that a run neither panicked nor was killed (exit 101, 134 or a signal).
+pub fn no_panic(r: &Run, what: &str) {
+    assert!(
+        !r.stderr.contains("panicked") && ![101, 134, -1].contains(&r.code),
+        "{what} panicked or was killed (exit {}): {}",
+        r.code,
+        r.stderr
+    );
+}
+
+/// Asserts no panic, the exit `code`, and every needle in stderr.
+pub fn expect(r: &Run, code: i32, needles: &[&str], what: &str) {
+    no_panic(r, what);
+    assert_eq!(r.code, code, "{what}: exit code; stderr: {}", r.stderr);
+    for n in needles {
+        assert!(
+            r.stderr.contains(n),
+            "{what}: stderr lacks `{n}`: {}",
+            r.stderr
+        );
     }
 }
 
